@@ -1,0 +1,790 @@
+//! Landing-pad detector: finds an elevated pad (a ~30 × 30 cm box, ~10 cm high) from the steps in the
+//! Flow deck's downward range while the drone sweeps at constant absolute height.
+//!
+//! Job: from a stream of `(range, x, y)` samples, (1) detect *edges*, the places where the range steps
+//! down (the drone flies onto the pad, [`EdgeKind::Enter`]) or up (it flies off, [`EdgeKind::Exit`]);
+//! (2) pair the entry and exit of each straight pass over the pad into a *crossing*; (3) estimate the pad
+//! centre from the crossings with a confidence, and say when the estimate is good enough to land on
+//! ([`PadDetector::locked`]).
+//!
+//! ## Pipeline
+//!
+//! 1. **Gate**: non-finite positions and ranges outside `[min_range_m, max_range_m]` are ignored.
+//! 2. **Median of 3** on the range. A single outlier sample (the VL53L1x occasionally returns one wild
+//!    value) disappears here instead of becoming a half-edge. The median is attributed to the *middle*
+//!    sample's position, so a clean step is still located at its first sample: no position lag.
+//! 3. **Smoothed z-score** (the seed's detector): a ring of the last `lag` *filtered* values gives a mean
+//!    and standard deviation; a sample is a signal if it deviates from the mean by more than
+//!    `threshold_sigma`·σ **and** by at least `min_step_m` (the absolute floor is what rejects a 1 cm box
+//!    and makes a noise-free floor, σ = 0, safe). Signalling samples enter the ring only with weight
+//!    `influence`, so a step keeps signalling for about `lag` samples instead of being absorbed at once.
+//! 4. **Runs → edges**: a run of `min_run` consecutive signals of the same sign is one edge, placed at the
+//!    run's *first* sample. One edge per step, not per sample; shorter runs (bursts of outliers that
+//!    survived the median) are dropped. A second run of the same sign within `min_edge_spacing_m` of
+//!    travel is the same step flickering and is merged.
+//! 5. **Edge list** (for plots and the seed's centroid): an edge closer than `min_edge_spacing_m` to an
+//!    edge already stored is not stored again (the first is kept).
+//! 6. **Crossings**: an `Enter` followed by an `Exit` is a crossing if the drone flew straight between them
+//!    (travel ≈ chord, both headings along the chord), the chord is a plausible pad width
+//!    (`pad_size_m`·(1 ± `chord_tolerance`)), and the two steps have the same height (same pad, same
+//!    floor). Unpaired edges (a line that ends on the pad, a spurious step) never enter the estimate.
+//! 7. **Centre**: a crossing fixes the centre only *along* its chord: for a square pad, the chord's
+//!    midpoint has the centre's coordinate along the chord direction `d`, whatever the line's offset.
+//!    Across the chord it only says "within half a pad of this line". So the centre `c` minimises
+//!    `Σ (d·(c − m))²` over crossings (midpoints `m`), a 2 × 2 least-squares problem, plus a tiny
+//!    (`1e-3`) pull towards the midpoints' centroid that only matters in a direction no crossing
+//!    measures. The plain centroid of edges (the seed's) is biased by where the lines happen to cross;
+//!    this is not. A crossing whose residual exceeds `outlier_m` is dropped and the fit redone.
+//! 8. **Confidence** ∈ [0, 1] is the product of
+//!    * *coverage*: `min(1, λmin / min_crossings_per_direction)`, where `λmin` is the smaller eigenvalue
+//!      of `Σ d dᵀ`, i.e. about the number of crossings in the worse-covered direction. Crossings in one
+//!      direction only (a single pass, or a pad seen half) give 0: the other coordinate is unknown;
+//!    * *fit*: `1 − rms(residual)/fit_tolerance_m`: crossings agree on the centre;
+//!    * *shape*: the seed's `1 − std/mean` of the distances from the centre to the supporting edges;
+//!    * *consensus*: the fraction of crossings kept as inliers.
+//!
+//!    [`PadDetector::locked`] needs confidence ≥ `lock_confidence`, `λmin ≥ 0.8·min_crossings_per_direction`
+//!    and at least `min_edges` supporting edges (edges of inlier crossings).
+//!
+//! ## Assumptions and non-goals
+//!
+//! The drone flies straight lines at constant absolute height (the range itself steps; slow height
+//! drift is tolerated by the z-score's adaptation); the pad's sides are roughly aligned with the sweep
+//! lines (a pad rotated by θ moves a chord's midpoint by `offset·tan θ`, which averages out only over
+//! symmetric lines); one pad. Not goals: flight control, choosing where to fly (see [`crate::sweep`]),
+//! pads lower than `min_step_m`.
+//!
+//! ## Units, frames, size
+//!
+//! Metres, arena frame (x right, y up). Memory: `24·EDGES` bytes of edges + `24·EDGES` of crossings +
+//! ~250 bytes of filter state (≈ 1.8 KiB for `EDGES = 32`). Complexity: O(`lag`) per sample (the window's
+//! mean and σ are recomputed exactly, which cannot drift like running sums); O(`EDGES`²) in the worst case
+//! when a new crossing arrives (refit with outlier removal), i.e. a few hundred flops.
+
+use heapless::Vec;
+
+/// Largest supported z-score window, samples.
+pub const MAX_LAG: usize = 32;
+
+/// The position is re-anchored (heading and odometer updated) every time the drone has moved this far.
+/// 2 cm averages out position noise in the heading, yet is < 10 samples at 0.3 m/s and 100 Hz.
+const HEADING_BASELINE_M: f32 = 0.02;
+
+/// A crossing's chord must be within 20° of the drone's heading at both edges: straight flight.
+const COS_MAX_HEADING_ERROR: f32 = 0.9397;
+
+/// Travel between the edges of a crossing may exceed the chord by 15 % + 3 cm (position noise) at most.
+const TRAVEL_SLACK_RATIO: f32 = 1.15;
+const TRAVEL_SLACK_M: f32 = 0.03;
+
+/// Weight of the pull towards the midpoints' centroid in the centre fit (see the module docs, step 7).
+const CENTROID_PULL: f32 = 1e-3;
+
+/// Whether the range stepped down (onto the pad) or up (off it).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum EdgeKind {
+    /// The range dropped: the drone flew onto something higher (the pad).
+    Enter,
+    /// The range rose: the drone flew off it.
+    Exit,
+}
+
+/// A detected step in the downward range.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Edge {
+    /// Arena x of the first sample past the step, metres.
+    pub x: f32,
+    /// Arena y of the first sample past the step, metres.
+    pub y: f32,
+    /// Step direction.
+    pub kind: EdgeKind,
+    /// Range change across the step, metres (negative for [`EdgeKind::Enter`]).
+    pub step_m: f32,
+}
+
+/// A straight pass over the pad: the entry and exit edges of one line.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Crossing {
+    /// Where the drone flew onto the pad (x, y), metres.
+    pub enter: (f32, f32),
+    /// Where it flew off (x, y), metres.
+    pub exit: (f32, f32),
+    /// Mean absolute step height of the two edges, metres.
+    pub step_m: f32,
+    /// Whether the last centre fit kept this crossing.
+    pub inlier: bool,
+}
+
+impl Crossing {
+    /// Midpoint of the chord, metres.
+    pub fn midpoint(&self) -> (f32, f32) {
+        (0.5 * (self.enter.0 + self.exit.0), 0.5 * (self.enter.1 + self.exit.1))
+    }
+
+    /// Chord length, metres.
+    pub fn length(&self) -> f32 {
+        libm::hypotf(self.exit.0 - self.enter.0, self.exit.1 - self.enter.1)
+    }
+
+    /// Unit chord direction (from enter to exit); (0, 0) for a zero-length chord.
+    pub fn direction(&self) -> (f32, f32) {
+        let l = self.length();
+        if l > 0.0 { ((self.exit.0 - self.enter.0) / l, (self.exit.1 - self.enter.1) / l) } else { (0.0, 0.0) }
+    }
+}
+
+/// The current pad-centre estimate.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct PadEstimate {
+    /// Centre x, metres.
+    pub x: f32,
+    /// Centre y, metres.
+    pub y: f32,
+    /// Confidence in [0, 1] (module docs, step 8).
+    pub confidence: f32,
+    /// Crossings kept by the fit.
+    pub inliers: usize,
+    /// Crossings rejected as outliers.
+    pub outliers: usize,
+    /// Smaller eigenvalue of `Σ d dᵀ` over inliers: ≈ crossings in the worse-covered direction.
+    pub min_direction_crossings: f32,
+    /// RMS distance (along the chords) between the centre and the inlier crossings' midpoints, metres.
+    pub rms_residual_m: f32,
+}
+
+impl PadEstimate {
+    /// Edges supporting the estimate: both edges of every inlier crossing.
+    pub fn supporting_edges(&self) -> usize {
+        2 * self.inliers
+    }
+}
+
+/// Tuning of [`PadDetector`]. [`Default`] gives the values below.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct PadConfig {
+    /// z-score window, samples, `2..=MAX_LAG`. Default 8 (seed 5–8): 2.4 cm of travel at 0.3 m/s and
+    /// 100 Hz, long enough for a stable σ, short enough to follow slow height drift.
+    pub lag: usize,
+    /// Signal threshold, standard deviations. Default 2.0 (seed 1.5–2.0): the upper end, since the
+    /// absolute `min_step_m` already makes a 10 cm step fire; this only guards against noisy windows.
+    pub threshold_sigma: f32,
+    /// Weight of a signalling sample in the window, [0, 1]. Default 0.2 (seed 0.2–0.6): low, so a step
+    /// signals for ~`lag` samples (enough for `min_run`) and outliers barely move the mean.
+    pub influence: f32,
+    /// Smallest step that counts, metres. Default 0.03 m: a third of the 10 cm pad height, 6σ of 5 mm
+    /// noise, and three times a 1 cm box or cable, which must not count.
+    pub min_step_m: f32,
+    /// Consecutive signals that make an edge. Default 3: 1 cm at 0.3 m/s; two-sample outlier bursts
+    /// (rare after the median) are rejected, every real step signals for ~`lag` samples.
+    pub min_run: usize,
+    /// Minimum distance between stored edges (and between two runs of one step), metres. Default 0.05 m
+    /// (seed 5–10 cm): far more than a step's flicker, far less than the 0.15–0.2 m line spacing.
+    pub min_edge_spacing_m: f32,
+    /// Shortest valid range, metres. Default 0.02 m.
+    pub min_range_m: f32,
+    /// Longest valid range, metres. Default 4.0 m (VL53L1x long-distance limit).
+    pub max_range_m: f32,
+    /// Expected pad side, metres. Default 0.3 m.
+    pub pad_size_m: f32,
+    /// Accepted chord lengths are `pad_size_m·(1 ± chord_tolerance)`. Default 0.5 (0.15–0.45 m): covers
+    /// edge blur from the sensor's footprint and the diagonal of a rotated pad, rejects corner clips and
+    /// "crossings" made of two unrelated edges.
+    pub chord_tolerance: f32,
+    /// The entry and exit steps of a crossing may differ by this much plus 25 % of the larger, metres.
+    /// Default 0.02 m: the two steps are the same pad over the same floor; height-hold drift over the
+    /// ~1 s crossing is ~1 cm.
+    pub step_match_m: f32,
+    /// A crossing whose midpoint is further than this from the fitted centre (along its chord) is an
+    /// outlier, metres. Default 0.05 m: about 10× the midpoint noise, a sixth of the pad.
+    pub outlier_m: f32,
+    /// RMS residual at which the fit factor of the confidence reaches 0, metres. Default 0.05 m.
+    pub fit_tolerance_m: f32,
+    /// Crossings wanted in each of two directions. Default 1: with the default crosshatch sweep at 0.2 m
+    /// spacing, a 0.3 m pad is crossed once or twice per pass, and one crossing per direction already
+    /// pins both coordinates to the edge-detection noise. Use 2 with a sweep spacing < pad/2 (0.15 m) to
+    /// make every coordinate cross-checked, at the price of a denser sweep.
+    pub min_crossings_per_direction: u8,
+    /// Confidence needed to lock, [0, 1]. Default 0.6 (the seed's).
+    pub lock_confidence: f32,
+    /// Supporting edges needed to lock. Default 4: two crossings (one per direction) of two edges each.
+    /// (The seed counted ~12; with one edge per step transition and a 0.2 m sweep, a 0.3 m pad yields at
+    /// most 4 edges per pass, so 12 would never be reached.)
+    pub min_edges: usize,
+}
+
+impl Default for PadConfig {
+    fn default() -> Self {
+        Self {
+            lag: 8,
+            threshold_sigma: 2.0,
+            influence: 0.2,
+            min_step_m: 0.03,
+            min_run: 3,
+            min_edge_spacing_m: 0.05,
+            min_range_m: 0.02,
+            max_range_m: 4.0,
+            pad_size_m: 0.3,
+            chord_tolerance: 0.5,
+            step_match_m: 0.02,
+            outlier_m: 0.05,
+            fit_tolerance_m: 0.05,
+            min_crossings_per_direction: 1,
+            lock_confidence: 0.6,
+            min_edges: 4,
+        }
+    }
+}
+
+/// Why a [`PadConfig`] was rejected.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum PadConfigError {
+    /// A field is NaN or infinite.
+    NonFinite,
+    /// `lag` is outside `2..=MAX_LAG`.
+    Lag,
+    /// A field is outside its documented range.
+    OutOfRange,
+}
+
+impl PadConfig {
+    /// Checks the config; [`PadDetector::new`] calls this.
+    pub fn validate(&self) -> Result<(), PadConfigError> {
+        let all = [
+            self.threshold_sigma,
+            self.influence,
+            self.min_step_m,
+            self.min_edge_spacing_m,
+            self.min_range_m,
+            self.max_range_m,
+            self.pad_size_m,
+            self.chord_tolerance,
+            self.step_match_m,
+            self.outlier_m,
+            self.fit_tolerance_m,
+            self.lock_confidence,
+        ];
+        if all.iter().any(|v| !v.is_finite()) {
+            return Err(PadConfigError::NonFinite);
+        }
+        if !(2..=MAX_LAG).contains(&self.lag) {
+            return Err(PadConfigError::Lag);
+        }
+        let ok = self.threshold_sigma > 0.0
+            && (0.0..=1.0).contains(&self.influence)
+            && self.min_step_m > 0.0
+            && self.min_run >= 1
+            && self.min_edge_spacing_m >= 0.0
+            && self.min_range_m >= 0.0
+            && self.max_range_m > self.min_range_m
+            && self.pad_size_m > 0.0
+            && self.chord_tolerance > 0.0
+            && self.chord_tolerance < 1.0
+            && self.step_match_m >= 0.0
+            && self.outlier_m > 0.0
+            && self.fit_tolerance_m > 0.0
+            && (0.0..=1.0).contains(&self.lock_confidence);
+        if ok { Ok(()) } else { Err(PadConfigError::OutOfRange) }
+    }
+}
+
+/// One gated sample with where and how the drone was moving.
+#[derive(Clone, Copy, Debug, Default)]
+struct Sample {
+    range: f32,
+    x: f32,
+    y: f32,
+    /// Distance travelled since the detector started, metres.
+    odo: f32,
+    /// Unit heading (0, 0 while unknown).
+    heading: (f32, f32),
+}
+
+/// An edge as detected, with the motion data pairing needs (stored edges drop those).
+#[derive(Clone, Copy, Debug)]
+struct Detection {
+    edge: Edge,
+    odo: f32,
+    heading: (f32, f32),
+}
+
+/// The current run of same-sign signals.
+#[derive(Clone, Copy, Debug, Default)]
+struct Run {
+    /// -1 (range down), +1 (range up), 0 (no run).
+    sign: i8,
+    len: usize,
+    start: Sample,
+    /// Window mean when the run started: the level before the step.
+    before: f32,
+    /// Sum of the run's ranges, for the level after the step.
+    sum: f32,
+    emitted: bool,
+}
+
+/// The landing-pad detector; `EDGES` bounds the stored edges and crossings. See the module docs.
+#[derive(Clone, Debug)]
+pub struct PadDetector<const EDGES: usize> {
+    config: PadConfig,
+    // Motion tracking.
+    anchor: Option<(f32, f32)>,
+    odo_at_anchor: f32,
+    heading: (f32, f32),
+    // Median-of-3 prefilter (oldest first).
+    median: [Sample; 3],
+    median_len: usize,
+    // z-score window of filtered values (ring).
+    window: [f32; MAX_LAG],
+    window_len: usize,
+    window_head: usize,
+    last_filtered: f32,
+    run: Run,
+    last_detection: Option<Detection>,
+    pending_enter: Option<Detection>,
+    // Results.
+    edges: Vec<Edge, EDGES>,
+    crossings: Vec<Crossing, EDGES>,
+    estimate: Option<PadEstimate>,
+    dropped: u32,
+}
+
+impl<const EDGES: usize> PadDetector<EDGES> {
+    /// A detector with a validated config and no history.
+    pub fn new(config: PadConfig) -> Result<Self, PadConfigError> {
+        config.validate()?;
+        Ok(Self {
+            config,
+            anchor: None,
+            odo_at_anchor: 0.0,
+            heading: (0.0, 0.0),
+            median: [Sample::default(); 3],
+            median_len: 0,
+            window: [0.0; MAX_LAG],
+            window_len: 0,
+            window_head: 0,
+            last_filtered: 0.0,
+            run: Run::default(),
+            last_detection: None,
+            pending_enter: None,
+            edges: Vec::new(),
+            crossings: Vec::new(),
+            estimate: None,
+            dropped: 0,
+        })
+    }
+
+    /// The config in use.
+    pub fn config(&self) -> &PadConfig {
+        &self.config
+    }
+
+    /// Forgets everything (filter state, edges, crossings, estimate); the config is kept.
+    pub fn reset(&mut self) {
+        let config = self.config;
+        *self = Self {
+            config,
+            anchor: None,
+            odo_at_anchor: 0.0,
+            heading: (0.0, 0.0),
+            median: [Sample::default(); 3],
+            median_len: 0,
+            window: [0.0; MAX_LAG],
+            window_len: 0,
+            window_head: 0,
+            last_filtered: 0.0,
+            run: Run::default(),
+            last_detection: None,
+            pending_enter: None,
+            edges: Vec::new(),
+            crossings: Vec::new(),
+            estimate: None,
+            dropped: 0,
+        };
+    }
+
+    /// Feeds one downward-range sample taken at arena position `(x_m, y_m)`. Returns the edge stored by
+    /// this sample, if any. Non-finite or out-of-range samples are ignored.
+    pub fn update(&mut self, range_m: f32, x_m: f32, y_m: f32) -> Option<Edge> {
+        if !(range_m.is_finite() && x_m.is_finite() && y_m.is_finite()) {
+            return None;
+        }
+        if range_m < self.config.min_range_m || range_m > self.config.max_range_m {
+            return None;
+        }
+        let sample = self.track_motion(range_m, x_m, y_m);
+
+        // Median of 3, attributed to the middle sample.
+        if self.median_len < 3 {
+            if let Some(slot) = self.median.get_mut(self.median_len) {
+                *slot = sample;
+            }
+            self.median_len += 1;
+            if self.median_len < 3 {
+                return None;
+            }
+        } else {
+            let [_, b, c] = self.median;
+            self.median = [b, c, sample];
+        }
+        let [a, b, c] = self.median;
+        let mut filtered = b;
+        filtered.range = median3(a.range, b.range, c.range);
+
+        let (signal, level_before) = self.z_score(filtered.range);
+        let detection = self.follow_run(signal, level_before, filtered)?;
+        self.on_detection(detection)
+    }
+
+    /// Updates the heading and odometer; returns the sample with its motion data.
+    fn track_motion(&mut self, range: f32, x: f32, y: f32) -> Sample {
+        let Some(anchor) = self.anchor else {
+            self.anchor = Some((x, y));
+            return Sample { range, x, y, odo: self.odo_at_anchor, heading: self.heading };
+        };
+        let d = libm::hypotf(x - anchor.0, y - anchor.1);
+        if d >= HEADING_BASELINE_M {
+            self.heading = ((x - anchor.0) / d, (y - anchor.1) / d);
+            self.odo_at_anchor += d;
+            self.anchor = Some((x, y));
+            return Sample { range, x, y, odo: self.odo_at_anchor, heading: self.heading };
+        }
+        Sample { range, x, y, odo: self.odo_at_anchor + d, heading: self.heading }
+    }
+
+    /// The smoothed z-score step: the signal (-1, 0 or +1) and the window mean it was judged against.
+    /// Updates the window.
+    fn z_score(&mut self, y: f32) -> (i8, f32) {
+        let cfg = &self.config;
+        let lag = cfg.lag;
+        if self.window_len < lag {
+            // Training: the first `lag` values fill the window as they are.
+            self.push_window(y);
+            return (0, y);
+        }
+        let (mean, std) = self.window_stats();
+        let dev = y - mean;
+        let signal = if libm::fabsf(dev) > cfg.threshold_sigma * std && libm::fabsf(dev) >= cfg.min_step_m {
+            if dev > 0.0 { 1 } else { -1 }
+        } else {
+            0
+        };
+        let filtered =
+            if signal != 0 { cfg.influence * y + (1.0 - cfg.influence) * self.last_filtered } else { y };
+        self.push_window(filtered);
+        (signal, mean)
+    }
+
+    fn push_window(&mut self, v: f32) {
+        let lag = self.config.lag;
+        if let Some(slot) = self.window.get_mut(self.window_head) {
+            *slot = v;
+        }
+        self.window_head = (self.window_head + 1) % lag;
+        self.window_len = (self.window_len + 1).min(lag);
+        self.last_filtered = v;
+    }
+
+    /// Mean and population standard deviation of the window (two passes: exact, no drift).
+    fn window_stats(&self) -> (f32, f32) {
+        let values = self.window.get(..self.window_len).unwrap_or(&[]);
+        if values.is_empty() {
+            return (0.0, 0.0);
+        }
+        let n = values.len() as f32;
+        let mean = values.iter().sum::<f32>() / n;
+        let var = values.iter().map(|v| (v - mean) * (v - mean)).sum::<f32>() / n;
+        (mean, libm::sqrtf(var))
+    }
+
+    /// Extends or restarts the run of signals; returns a detection when a run reaches `min_run`.
+    /// `level_before` is the window mean the sample was judged against: at a run's first sample, the
+    /// level before the step.
+    fn follow_run(&mut self, signal: i8, level_before: f32, sample: Sample) -> Option<Detection> {
+        if signal == 0 {
+            self.run.sign = 0;
+            return None;
+        }
+        if signal != self.run.sign {
+            self.run = Run { sign: signal, len: 0, start: sample, before: level_before, sum: 0.0, emitted: false };
+        }
+        self.run.len += 1;
+        self.run.sum += sample.range;
+        if self.run.emitted || self.run.len < self.config.min_run {
+            return None;
+        }
+        self.run.emitted = true;
+        let after = self.run.sum / self.run.len as f32;
+        let kind = if self.run.sign < 0 { EdgeKind::Enter } else { EdgeKind::Exit };
+        let start = self.run.start;
+        let detection = Detection {
+            edge: Edge { x: start.x, y: start.y, kind, step_m: after - self.run.before },
+            odo: start.odo,
+            heading: start.heading,
+        };
+        // The same step flickering back on: merge it with the edge it belongs to.
+        if let Some(last) = self.last_detection
+            && last.edge.kind == kind
+            && detection.odo - last.odo < self.config.min_edge_spacing_m
+        {
+            return None;
+        }
+        self.last_detection = Some(detection);
+        Some(detection)
+    }
+
+    /// Stores the edge (unless a duplicate) and pairs it into a crossing.
+    fn on_detection(&mut self, det: Detection) -> Option<Edge> {
+        let stored = self.store_edge(det.edge);
+        match det.edge.kind {
+            EdgeKind::Enter => self.pending_enter = Some(det),
+            EdgeKind::Exit => {
+                if let Some(enter) = self.pending_enter.take()
+                    && let Some(crossing) = self.pair(&enter, &det)
+                {
+                    if self.crossings.push(crossing).is_err() {
+                        self.dropped = self.dropped.saturating_add(1);
+                    } else {
+                        self.refit();
+                    }
+                }
+            }
+        }
+        stored
+    }
+
+    fn store_edge(&mut self, edge: Edge) -> Option<Edge> {
+        let spacing = self.config.min_edge_spacing_m;
+        if self.edges.iter().any(|e| libm::hypotf(e.x - edge.x, e.y - edge.y) < spacing) {
+            return None;
+        }
+        if self.edges.push(edge).is_err() {
+            self.dropped = self.dropped.saturating_add(1);
+            return None;
+        }
+        Some(edge)
+    }
+
+    /// The crossing made by `enter` then `exit`, if it is one (module docs, step 6).
+    fn pair(&self, enter: &Detection, exit: &Detection) -> Option<Crossing> {
+        let cfg = &self.config;
+        let (dx, dy) = (exit.edge.x - enter.edge.x, exit.edge.y - enter.edge.y);
+        let chord = libm::hypotf(dx, dy);
+        let lo = cfg.pad_size_m * (1.0 - cfg.chord_tolerance);
+        let hi = cfg.pad_size_m * (1.0 + cfg.chord_tolerance);
+        if !(chord >= lo && chord <= hi) {
+            return None;
+        }
+        let dir = (dx / chord, dy / chord);
+        let along = |h: (f32, f32)| dir.0 * h.0 + dir.1 * h.1 >= COS_MAX_HEADING_ERROR;
+        if !(along(enter.heading) && along(exit.heading)) {
+            return None;
+        }
+        if exit.odo - enter.odo > TRAVEL_SLACK_RATIO * chord + TRAVEL_SLACK_M {
+            return None;
+        }
+        let (down, up) = (enter.edge.step_m, exit.edge.step_m);
+        if !(down < 0.0 && up > 0.0) {
+            return None;
+        }
+        let larger = libm::fabsf(down).max(up);
+        if libm::fabsf(down + up) > cfg.step_match_m + 0.25 * larger {
+            return None;
+        }
+        Some(Crossing {
+            enter: (enter.edge.x, enter.edge.y),
+            exit: (exit.edge.x, exit.edge.y),
+            step_m: 0.5 * (up - down),
+            inlier: true,
+        })
+    }
+
+    /// Refits the centre over the crossings, dropping outliers one at a time (worst first).
+    fn refit(&mut self) {
+        for c in self.crossings.iter_mut() {
+            c.inlier = true;
+        }
+        self.estimate = None;
+        let total = self.crossings.len();
+        // At most half the crossings may be rejected: beyond that "outlier" has no meaning.
+        for _ in 0..=total / 2 {
+            let Some((cx, cy)) = fit_centre(&self.crossings) else {
+                return;
+            };
+            let worst = self
+                .crossings
+                .iter()
+                .enumerate()
+                .filter(|(_, c)| c.inlier)
+                .map(|(i, c)| (i, libm::fabsf(residual(c, cx, cy))))
+                .fold(None, |acc: Option<(usize, f32)>, (i, r)| match acc {
+                    Some((_, best)) if best >= r => acc,
+                    _ => Some((i, r)),
+                });
+            let inliers = self.crossings.iter().filter(|c| c.inlier).count();
+            match worst {
+                Some((i, r)) if r > self.config.outlier_m && inliers > 1 && total - inliers < total / 2 => {
+                    if let Some(c) = self.crossings.get_mut(i) {
+                        c.inlier = false;
+                    }
+                }
+                _ => {
+                    self.estimate = Some(self.score(cx, cy));
+                    return;
+                }
+            }
+        }
+        // Out of iterations: score the last fit anyway.
+        if let Some((cx, cy)) = fit_centre(&self.crossings) {
+            self.estimate = Some(self.score(cx, cy));
+        }
+    }
+
+    /// Confidence and diagnostics of the centre `(cx, cy)` over the inlier crossings.
+    fn score(&self, cx: f32, cy: f32) -> PadEstimate {
+        let cfg = &self.config;
+        let total = self.crossings.len();
+        let inl = || self.crossings.iter().filter(|c| c.inlier);
+        let inliers = inl().count();
+
+        let (mut a, mut b, mut c) = (0.0f32, 0.0f32, 0.0f32);
+        let mut sq = 0.0f32;
+        for cr in inl() {
+            let d = cr.direction();
+            a += d.0 * d.0;
+            b += d.0 * d.1;
+            c += d.1 * d.1;
+            let r = residual(cr, cx, cy);
+            sq += r * r;
+        }
+        let lambda_min = 0.5 * (a + c) - libm::sqrtf(0.25 * (a - c) * (a - c) + b * b);
+        let rms = if inliers > 0 { libm::sqrtf(sq / inliers as f32) } else { 0.0 };
+
+        // The seed's spread: distances from the centre to every supporting edge.
+        let mut sum = 0.0f32;
+        let mut sum_sq = 0.0f32;
+        let mut n = 0.0f32;
+        for cr in inl() {
+            for p in [cr.enter, cr.exit] {
+                let r = libm::hypotf(p.0 - cx, p.1 - cy);
+                sum += r;
+                sum_sq += r * r;
+                n += 1.0;
+            }
+        }
+        let shape = if n > 0.0 && sum > 0.0 {
+            let mean = sum / n;
+            let std = libm::sqrtf((sum_sq / n - mean * mean).max(0.0));
+            (1.0 - std / mean).clamp(0.0, 1.0)
+        } else {
+            0.0
+        };
+        let wanted = f32::from(cfg.min_crossings_per_direction.max(1));
+        let coverage = (lambda_min / wanted).clamp(0.0, 1.0);
+        let fit = (1.0 - rms / cfg.fit_tolerance_m).clamp(0.0, 1.0);
+        let consensus = if total > 0 { inliers as f32 / total as f32 } else { 0.0 };
+        let confidence = coverage * fit * shape * consensus;
+        PadEstimate {
+            x: cx,
+            y: cy,
+            confidence: if confidence.is_finite() { confidence } else { 0.0 },
+            inliers,
+            outliers: total - inliers,
+            min_direction_crossings: lambda_min.max(0.0),
+            rms_residual_m: rms,
+        }
+    }
+
+    /// The current centre estimate (from crossings), if any crossing has been seen.
+    pub fn estimate(&self) -> Option<PadEstimate> {
+        self.estimate
+    }
+
+    /// Confidence of the current estimate, 0 without one.
+    pub fn confidence(&self) -> f32 {
+        self.estimate.map_or(0.0, |e| e.confidence)
+    }
+
+    /// Whether the estimate is good enough to land on (module docs, step 8).
+    pub fn locked(&self) -> bool {
+        let cfg = &self.config;
+        self.estimate.is_some_and(|e| {
+            e.confidence >= cfg.lock_confidence
+                && e.supporting_edges() >= cfg.min_edges
+                && e.min_direction_crossings >= 0.8 * f32::from(cfg.min_crossings_per_direction)
+        })
+    }
+
+    /// The locked centre `(x, y)`, or `None` while not locked.
+    pub fn locked_centre(&self) -> Option<(f32, f32)> {
+        if self.locked() { self.estimate.map(|e| (e.x, e.y)) } else { None }
+    }
+
+    /// The stored edges, in detection order.
+    pub fn edges(&self) -> &[Edge] {
+        &self.edges
+    }
+
+    /// The crossings, in detection order (with their inlier flag from the last fit).
+    pub fn crossings(&self) -> &[Crossing] {
+        &self.crossings
+    }
+
+    /// The seed's estimate: the plain centroid of the stored edges (for comparison and plots).
+    pub fn edge_centroid(&self) -> Option<(f32, f32)> {
+        if self.edges.is_empty() {
+            return None;
+        }
+        let n = self.edges.len() as f32;
+        let (sx, sy) = self.edges.iter().fold((0.0, 0.0), |(sx, sy), e| (sx + e.x, sy + e.y));
+        Some((sx / n, sy / n))
+    }
+
+    /// Edges and crossings that did not fit in `EDGES` and were discarded.
+    pub fn dropped(&self) -> u32 {
+        self.dropped
+    }
+}
+
+/// Median of three values.
+fn median3(a: f32, b: f32, c: f32) -> f32 {
+    a.min(b).max(a.max(b).min(c))
+}
+
+/// Signed distance along the chord from the crossing's midpoint to the centre.
+fn residual(c: &Crossing, cx: f32, cy: f32) -> f32 {
+    let d = c.direction();
+    let m = c.midpoint();
+    d.0 * (cx - m.0) + d.1 * (cy - m.1)
+}
+
+/// Least-squares centre over the inlier crossings (module docs, step 7); `None` without inliers.
+fn fit_centre(crossings: &[Crossing]) -> Option<(f32, f32)> {
+    // Work relative to the first inlier midpoint: keeps the sums small (f32 precision).
+    let origin = crossings.iter().find(|c| c.inlier)?.midpoint();
+    let (mut m00, mut m01, mut m11) = (0.0f32, 0.0f32, 0.0f32);
+    let (mut r0, mut r1) = (0.0f32, 0.0f32);
+    let (mut sx, mut sy, mut n) = (0.0f32, 0.0f32, 0.0f32);
+    for c in crossings.iter().filter(|c| c.inlier) {
+        let d = c.direction();
+        let m = c.midpoint();
+        let m = (m.0 - origin.0, m.1 - origin.1);
+        let dm = d.0 * m.0 + d.1 * m.1;
+        m00 += d.0 * d.0;
+        m01 += d.0 * d.1;
+        m11 += d.1 * d.1;
+        r0 += d.0 * dm;
+        r1 += d.1 * dm;
+        sx += m.0;
+        sy += m.1;
+        n += 1.0;
+    }
+    let k = CENTROID_PULL * n;
+    let (m00, m11) = (m00 + k, m11 + k);
+    let (r0, r1) = (r0 + CENTROID_PULL * sx, r1 + CENTROID_PULL * sy);
+    let det = m00 * m11 - m01 * m01;
+    if !(det.is_finite() && det > 0.0) {
+        return None;
+    }
+    let cx = (m11 * r0 - m01 * r1) / det;
+    let cy = (m00 * r1 - m01 * r0) / det;
+    Some((cx + origin.0, cy + origin.1))
+}

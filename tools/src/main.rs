@@ -1,0 +1,36 @@
+//! `cfnav`: the host-side tools of the cfnav firmware (simulator, planner replay, firmware image).
+use std::process::ExitCode;
+
+use cfnav_tools::{firmware, plan};
+use clap::{Parser, Subcommand};
+
+/// cfnav host tools: planner replay, firmware image, simulator.
+#[derive(Parser)]
+#[command(name = "cfnav", version, about)]
+struct Cli {
+    #[command(subcommand)]
+    command: Command,
+}
+
+#[derive(Subcommand)]
+enum Command {
+    /// Replay the D* Lite planner on a text map (exit 0 goal reached, 1 no path, 2 bad input).
+    Plan(plan::PlanArgs),
+    /// Build the release firmware and write the raw image for the radio bootloader.
+    Firmware(firmware::FirmwareArgs),
+}
+
+fn main() -> ExitCode {
+    let cli = match Cli::try_parse() {
+        Ok(cli) => cli,
+        Err(e) => {
+            let code = if e.use_stderr() { 2 } else { 0 };
+            let _ = e.print();
+            return ExitCode::from(code);
+        }
+    };
+    match cli.command {
+        Command::Plan(args) => plan::run(&args),
+        Command::Firmware(args) => firmware::run(&args),
+    }
+}

@@ -94,6 +94,7 @@ enum Readiness {
 }
 
 /// See the module documentation.
+#[derive(Clone)]
 pub struct DStarLite<const CELLS: usize, const QUEUE: usize> {
     shape: GridShape,
     g: [u16; CELLS],

@@ -264,7 +264,8 @@ impl<const CELLS: usize> OccupancyGrid<CELLS> {
     pub fn reset_with(&mut self, shape: GridShape, inflation_radius_cells: u8, config: GridConfig) -> bool {
         self.config = config.sanitized();
         self.inflation_radius = inflation_radius_cells.min(MAX_INFLATION_RADIUS_CELLS);
-        self.cells = [0; CELLS];
+        // In place: a `[0; CELLS]` temporary could cost CELLS bytes of stack in unoptimised builds.
+        self.cells.fill(0);
         let fits = shape.cells() <= CELLS;
         self.shape = if fits { shape } else { GridShape { width: 0, height: 0 } };
         for y in 0..i32::from(self.shape.height) {
@@ -647,8 +648,10 @@ impl BeamWalk {
                 }
             }
         }
-        if t0 > t1 || (t0 == t1 && start_in_grid.is_none() && end_in_grid.is_none()) {
-            // Misses the grid, or only touches its border at one point.
+        // Reject a segment that misses the grid or only touches its border at one point. One with an endpoint
+        // inside is always kept, even if rounding made the clipped range empty (an end a hair inside the
+        // border): the walk below only needs the start and end cells, both clamped into the grid.
+        if start_in_grid.is_none() && end_in_grid.is_none() && t0 >= t1 {
             return None;
         }
 

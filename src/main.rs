@@ -230,9 +230,11 @@ mod fw {
     /// Worst lateness of a control tick behind its deadline, microseconds.
     static CONTROL_MAX_LATE_US: AtomicU32 = AtomicU32::new(0);
 
-    // UART4 is unused on the Crazyflie 2.1 (crazyflie-hardware.md §5), so its vector drives the control executor.
+    // The UART4 peripheral is not used (the Crazyflie 2.1's deck UARTs are USART2 and USART3, syslink is USART6:
+    // crazyflie-hardware.md §5), so its interrupt vector drives the control executor. Pick another spare vector
+    // if UART4 is ever needed.
     #[interrupt]
-    unsafe fn UART4() {
+    fn UART4() {
         // SAFETY: this is the UART4 handler, the only place `on_interrupt` is called, and UART4 is unmasked only
         // by `EXECUTOR_HIGH.start()`, so the executor is initialised whenever this runs.
         unsafe { EXECUTOR_HIGH.on_interrupt() }
@@ -322,6 +324,8 @@ mod fw {
 
     /// The planner's state (≈ 40 KiB), in CCM: CPU-only memory that nothing DMAs from. The section is NOLOAD,
     /// so it holds garbage at reset until [`take_planner`] writes the initial state.
+    // SAFETY: `.ccmram` is the NOLOAD output section memory.x places in CCM; the linker lays this static out there
+    // like any other, and the only consequence of NOLOAD (no initial value) is handled by `take_planner`.
     #[unsafe(link_section = ".ccmram")]
     static mut PLANNER: MaybeUninit<ArenaPlanner> = MaybeUninit::uninit();
     /// Set once [`PLANNER`] has been handed out (kept in `.bss`, which is zeroed at reset, not in CCM).

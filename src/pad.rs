@@ -26,8 +26,8 @@
 //!    edge already stored is not stored again (the first is kept).
 //! 6. **Crossings**: an `Enter` followed by an `Exit` is a crossing if the drone flew straight between them
 //!    (travel ≈ chord, both headings along the chord), the chord is a plausible pad width
-//!    (`pad_size_m`·(1 ± `chord_tolerance`)), and the two steps have the same height (same pad, same
-//!    floor). Unpaired edges (a line that ends on the pad, a spurious step) never enter the estimate.
+//!    (`pad_size_m`·(1 ± `chord_tolerance`)), the level in between is at least `min_step_m` below the
+//!    level before, and the level after is the level before (same floor on both sides). Unpaired edges (a line that ends on the pad, a spurious step) never enter the estimate.
 //! 7. **Centre**: a crossing fixes the centre only *along* its chord: for a square pad, the chord's
 //!    midpoint has the centre's coordinate along the chord direction `d`, whatever the line's offset.
 //!    Across the chord it only says "within half a pad of this line". So the centre `c` minimises
@@ -62,9 +62,14 @@
 //! when a new crossing arrives (refit with outlier removal), i.e. a few hundred flops.
 
 use heapless::Vec;
+#[cfg(debug_pad)]
+extern crate std;
 
-/// Largest supported z-score window, samples.
+/// Largest supported z-score window, bins.
 pub const MAX_LAG: usize = 32;
+
+/// Most raw samples one bin holds; a hovering drone closes a bin every this many samples.
+pub const MAX_BIN_SAMPLES: usize = 16;
 
 /// The position is re-anchored (heading and odometer updated) every time the drone has moved this far.
 /// 2 cm averages out position noise in the heading, yet is < 10 samples at 0.3 m/s and 100 Hz.
@@ -109,7 +114,7 @@ pub struct Crossing {
     pub enter: (f32, f32),
     /// Where it flew off (x, y), metres.
     pub exit: (f32, f32),
-    /// Mean absolute step height of the two edges, metres.
+    /// Height of the pad above the floor as measured on this crossing, metres.
     pub step_m: f32,
     /// Whether the last centre fit kept this crossing.
     pub inlier: bool,
@@ -162,20 +167,27 @@ impl PadEstimate {
 /// Tuning of [`PadDetector`]. [`Default`] gives the values below.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct PadConfig {
-    /// z-score window, samples, `2..=MAX_LAG`. Default 8 (seed 5–8): 2.4 cm of travel at 0.3 m/s and
-    /// 100 Hz, long enough for a stable σ, short enough to follow slow height drift.
+    /// Bin length, metres: raw samples are grouped by distance travelled and each bin's (lower) median is
+    /// one z-score input. Default 0.01 m: ~3 samples at 0.3 m/s and 100 Hz, so a single outlier never
+    /// survives the bin; it also makes every other length below a distance rather than a sample count,
+    /// independent of speed and sample rate. Edges are located to ±`bin_m`/2. 0 = one bin per sample.
+    pub bin_m: f32,
+    /// z-score window, bins, `2..=MAX_LAG`. Default 10 (10 cm with 1 cm bins). It must be longer than
+    /// the blur of an edge (the ranger's footprint turns a step into a ramp; a ramp longer than the
+    /// window follows the mean and is never a 2σ outlier) and clearly shorter than the pad (30 cm),
+    /// so that the window settles on the pad's level between its edges. (The seed's 5–8 were samples.)
     pub lag: usize,
     /// Signal threshold, standard deviations. Default 2.0 (seed 1.5–2.0): the upper end, since the
     /// absolute `min_step_m` already makes a 10 cm step fire; this only guards against noisy windows.
     pub threshold_sigma: f32,
-    /// Weight of a signalling sample in the window, [0, 1]. Default 0.2 (seed 0.2–0.6): low, so a step
-    /// signals for ~`lag` samples (enough for `min_run`) and outliers barely move the mean.
+    /// Weight of a signalling value in the window, [0, 1]. Default 0.2 (seed 0.2–0.6): low, so a step
+    /// keeps signalling for about `lag` bins (plenty for `min_run`) and outliers barely move the mean.
     pub influence: f32,
     /// Smallest step that counts, metres. Default 0.03 m: a third of the 10 cm pad height, 6σ of 5 mm
     /// noise, and three times a 1 cm box or cable, which must not count.
     pub min_step_m: f32,
-    /// Consecutive signals that make an edge. Default 3: 1 cm at 0.3 m/s; two-sample outlier bursts
-    /// (rare after the median) are rejected, every real step signals for ~`lag` samples.
+    /// Consecutive signalling bins that make an edge. Default 3 (3 cm): an outlier would have to fill
+    /// more than half of three bins in a row; every real step signals for ~`lag` bins.
     pub min_run: usize,
     /// Minimum distance between stored edges (and between two runs of one step), metres. Default 0.05 m
     /// (seed 5–10 cm): far more than a step's flicker, far less than the 0.15–0.2 m line spacing.
@@ -190,9 +202,9 @@ pub struct PadConfig {
     /// edge blur from the sensor's footprint and the diagonal of a rotated pad, rejects corner clips and
     /// "crossings" made of two unrelated edges.
     pub chord_tolerance: f32,
-    /// The entry and exit steps of a crossing may differ by this much plus 25 % of the larger, metres.
-    /// Default 0.02 m: the two steps are the same pad over the same floor; height-hold drift over the
-    /// ~1 s crossing is ~1 cm.
+    /// The floor levels before entering and after leaving a crossing may differ by this much plus 25 % of
+    /// the pad's measured height, metres. Default 0.02 m: it is the same floor; height-hold drift over
+    /// the ~1 s crossing is ~1 cm.
     pub step_match_m: f32,
     /// A crossing whose midpoint is further than this from the fitted centre (along its chord) is an
     /// outlier, metres. Default 0.05 m: about 10× the midpoint noise, a sixth of the pad.
@@ -215,7 +227,8 @@ pub struct PadConfig {
 impl Default for PadConfig {
     fn default() -> Self {
         Self {
-            lag: 8,
+            bin_m: 0.01,
+            lag: 10,
             threshold_sigma: 2.0,
             influence: 0.2,
             min_step_m: 0.03,
@@ -250,6 +263,7 @@ impl PadConfig {
     /// Checks the config; [`PadDetector::new`] calls this.
     pub fn validate(&self) -> Result<(), PadConfigError> {
         let all = [
+            self.bin_m,
             self.threshold_sigma,
             self.influence,
             self.min_step_m,
@@ -269,7 +283,8 @@ impl PadConfig {
         if !(2..=MAX_LAG).contains(&self.lag) {
             return Err(PadConfigError::Lag);
         }
-        let ok = self.threshold_sigma > 0.0
+        let ok = self.bin_m >= 0.0
+            && self.threshold_sigma > 0.0
             && (0.0..=1.0).contains(&self.influence)
             && self.min_step_m > 0.0
             && self.min_run >= 1
@@ -305,6 +320,10 @@ struct Detection {
     edge: Edge,
     odo: f32,
     heading: (f32, f32),
+    /// Window mean before the step: 8 filtered samples, robust to any one bad sample.
+    level_before: f32,
+    /// Median of the run's first values: the level just after the step.
+    level_after: f32,
 }
 
 /// The current run of same-sign signals.
@@ -316,8 +335,8 @@ struct Run {
     start: Sample,
     /// Window mean when the run started: the level before the step.
     before: f32,
-    /// Sum of the run's ranges, for the level after the step.
-    sum: f32,
+    /// The run's last three ranges (newest last), for the level after the step.
+    recent: [f32; 3],
     emitted: bool,
 }
 
@@ -329,9 +348,10 @@ pub struct PadDetector<const EDGES: usize> {
     anchor: Option<(f32, f32)>,
     odo_at_anchor: f32,
     heading: (f32, f32),
-    // Median-of-3 prefilter (oldest first).
-    median: [Sample; 3],
-    median_len: usize,
+    // The open spatial bin: its first sample and its ranges.
+    bin_start: Sample,
+    bin: [f32; MAX_BIN_SAMPLES],
+    bin_len: usize,
     // z-score window of filtered values (ring).
     window: [f32; MAX_LAG],
     window_len: usize,
@@ -351,13 +371,18 @@ impl<const EDGES: usize> PadDetector<EDGES> {
     /// A detector with a validated config and no history.
     pub fn new(config: PadConfig) -> Result<Self, PadConfigError> {
         config.validate()?;
-        Ok(Self {
+        Ok(Self::fresh(config))
+    }
+
+    fn fresh(config: PadConfig) -> Self {
+        Self {
             config,
             anchor: None,
             odo_at_anchor: 0.0,
             heading: (0.0, 0.0),
-            median: [Sample::default(); 3],
-            median_len: 0,
+            bin_start: Sample::default(),
+            bin: [0.0; MAX_BIN_SAMPLES],
+            bin_len: 0,
             window: [0.0; MAX_LAG],
             window_len: 0,
             window_head: 0,
@@ -369,7 +394,7 @@ impl<const EDGES: usize> PadDetector<EDGES> {
             crossings: Vec::new(),
             estimate: None,
             dropped: 0,
-        })
+        }
     }
 
     /// The config in use.
@@ -379,26 +404,7 @@ impl<const EDGES: usize> PadDetector<EDGES> {
 
     /// Forgets everything (filter state, edges, crossings, estimate); the config is kept.
     pub fn reset(&mut self) {
-        let config = self.config;
-        *self = Self {
-            config,
-            anchor: None,
-            odo_at_anchor: 0.0,
-            heading: (0.0, 0.0),
-            median: [Sample::default(); 3],
-            median_len: 0,
-            window: [0.0; MAX_LAG],
-            window_len: 0,
-            window_head: 0,
-            last_filtered: 0.0,
-            run: Run::default(),
-            last_detection: None,
-            pending_enter: None,
-            edges: Vec::new(),
-            crossings: Vec::new(),
-            estimate: None,
-            dropped: 0,
-        };
+        *self = Self::fresh(self.config);
     }
 
     /// Feeds one downward-range sample taken at arena position `(x_m, y_m)`. Returns the edge stored by
@@ -412,25 +418,36 @@ impl<const EDGES: usize> PadDetector<EDGES> {
         }
         let sample = self.track_motion(range_m, x_m, y_m);
 
-        // Median of 3, attributed to the middle sample.
-        if self.median_len < 3 {
-            if let Some(slot) = self.median.get_mut(self.median_len) {
-                *slot = sample;
+        // Spatial binning: close the open bin once the drone has left it (or it is full, when hovering),
+        // and feed its median to the z-score; this sample opens the next bin.
+        let mut stored = None;
+        if self.bin_len > 0 {
+            let moved = libm::hypotf(x_m - self.bin_start.x, y_m - self.bin_start.y);
+            if moved >= self.config.bin_m || self.bin_len >= MAX_BIN_SAMPLES {
+                let mut binned = self.bin_start;
+                binned.range = lower_median(self.bin.get_mut(..self.bin_len).unwrap_or(&mut []));
+                self.bin_len = 0;
+                stored = self.process_bin(binned);
             }
-            self.median_len += 1;
-            if self.median_len < 3 {
-                return None;
-            }
-        } else {
-            let [_, b, c] = self.median;
-            self.median = [b, c, sample];
         }
-        let [a, b, c] = self.median;
-        let mut filtered = b;
-        filtered.range = median3(a.range, b.range, c.range);
+        if self.bin_len == 0 {
+            self.bin_start = sample;
+        }
+        if let Some(slot) = self.bin.get_mut(self.bin_len) {
+            *slot = range_m;
+            self.bin_len += 1;
+        }
+        stored
+    }
 
-        let (signal, level_before) = self.z_score(filtered.range);
-        let detection = self.follow_run(signal, level_before, filtered)?;
+    /// z-score → runs → edges → crossings for one binned value.
+    fn process_bin(&mut self, binned: Sample) -> Option<Edge> {
+        #[cfg(debug_pad)]
+        let (m0, s0) = self.window_stats();
+        let (signal, level_before) = self.z_score(binned.range);
+        #[cfg(debug_pad)]
+        std::eprintln!("BIN {:.4} {:.4} r {:.4} mean {:.4} std {:.4} sig {}", binned.x, binned.y, binned.range, m0, s0, signal);
+        let detection = self.follow_run(signal, level_before, binned)?;
         self.on_detection(detection)
     }
 
@@ -504,21 +521,28 @@ impl<const EDGES: usize> PadDetector<EDGES> {
             return None;
         }
         if signal != self.run.sign {
-            self.run = Run { sign: signal, len: 0, start: sample, before: level_before, sum: 0.0, emitted: false };
+            let recent = [sample.range; 3];
+            self.run = Run { sign: signal, len: 0, start: sample, before: level_before, recent, emitted: false };
         }
         self.run.len += 1;
-        self.run.sum += sample.range;
+        let [_, b, c] = self.run.recent;
+        self.run.recent = [b, c, sample.range];
         if self.run.emitted || self.run.len < self.config.min_run {
             return None;
         }
         self.run.emitted = true;
-        let after = self.run.sum / self.run.len as f32;
+        // The level after the step: median of the run's last three values (one bad value cannot move it;
+        // with min_run < 3 the array is padded with the run's first value).
+        let [a, b, c] = self.run.recent;
+        let after = median3(a, b, c);
         let kind = if self.run.sign < 0 { EdgeKind::Enter } else { EdgeKind::Exit };
         let start = self.run.start;
         let detection = Detection {
             edge: Edge { x: start.x, y: start.y, kind, step_m: after - self.run.before },
             odo: start.odo,
             heading: start.heading,
+            level_before: self.run.before,
+            level_after: after,
         };
         // The same step flickering back on: merge it with the edge it belongs to.
         if let Some(last) = self.last_detection
@@ -581,18 +605,23 @@ impl<const EDGES: usize> PadDetector<EDGES> {
         if exit.odo - enter.odo > TRAVEL_SLACK_RATIO * chord + TRAVEL_SLACK_M {
             return None;
         }
-        let (down, up) = (enter.edge.step_m, exit.edge.step_m);
-        if !(down < 0.0 && up > 0.0) {
+        // Levels: the floor before entering and the pad while on it are window means (robust); the floor
+        // after leaving is the median of the exit run's first values. The pad must be lower than the floor
+        // by at least a minimum step, and the floor must be the same on both sides.
+        let floor_before = enter.level_before;
+        let pad_level = exit.level_before;
+        let floor_after = exit.level_after;
+        let height = floor_before - pad_level;
+        if !(height >= cfg.min_step_m) {
             return None;
         }
-        let larger = libm::fabsf(down).max(up);
-        if libm::fabsf(down + up) > cfg.step_match_m + 0.25 * larger {
+        if libm::fabsf(floor_after - floor_before) > cfg.step_match_m + 0.25 * height {
             return None;
         }
         Some(Crossing {
             enter: (enter.edge.x, enter.edge.y),
             exit: (exit.edge.x, exit.edge.y),
-            step_m: 0.5 * (up - down),
+            step_m: height,
             inlier: true,
         })
     }
@@ -747,6 +776,23 @@ impl<const EDGES: usize> PadDetector<EDGES> {
 /// Median of three values.
 fn median3(a: f32, b: f32, c: f32) -> f32 {
     a.min(b).max(a.max(b).min(c))
+}
+
+/// Lower median of a short slice (sorted in place by insertion sort: at most [`MAX_BIN_SAMPLES`]
+/// values); 0 for an empty slice.
+fn lower_median(values: &mut [f32]) -> f32 {
+    for i in 1..values.len() {
+        let mut j = i;
+        while j > 0 {
+            let (Some(&a), Some(&b)) = (values.get(j - 1), values.get(j)) else { break };
+            if a <= b {
+                break;
+            }
+            values.swap(j - 1, j);
+            j -= 1;
+        }
+    }
+    values.get(values.len().saturating_sub(1) / 2).copied().unwrap_or(0.0)
 }
 
 /// Signed distance along the chord from the crossing's midpoint to the centre.

@@ -59,12 +59,12 @@ pub fn extract_path<const CELLS: usize, const QUEUE: usize, const N: usize>(
         if next_remaining >= remaining {
             return Err(PathError::Inconsistent);
         }
+        if out.push(next).is_err() {
+            return Ok(PathSummary { cost, complete: false });
+        }
         remaining = next_remaining;
         cost += u32::from(step);
         current = next;
-        if out.push(current).is_err() {
-            return Ok(PathSummary { cost, complete: false });
-        }
     }
     Ok(PathSummary { cost, complete: true })
 }
@@ -130,8 +130,8 @@ pub fn simplify<const M: usize>(map: &impl Traversability, path: &[Cell], out: &
 }
 
 /// Round the corners of a waypoint polyline (arena frame, metres) by one pass of corner cutting
-/// (points at ¼ and ¾ of every inner segment), keeping a corner wherever the cut would not have
-/// [`line_of_sight`] on `map`. End points are kept. Returns `false` if `out` filled up.
+/// (points at ¼ and ¾ of every inner segment), keeping a corner wherever the cut chord would cross a
+/// blocked cell. End points are kept. Returns `false` if `out` filled up.
 pub fn smooth<const M: usize>(
     map: &impl Traversability,
     waypoints: &[(f32, f32)],
@@ -151,10 +151,7 @@ pub fn smooth<const M: usize>(
         let (prev, corner, next) = (waypoints[i - 1], waypoints[i], waypoints[i + 1]);
         let entry = lerp(prev, corner, if i == 1 { 0.5 } else { 0.75 });
         let exit = lerp(corner, next, if i == n - 2 { 0.5 } else { 0.25 });
-        let clear = match (cell_of(shape, entry), cell_of(shape, exit)) {
-            (Some(a), Some(b)) => line_of_sight(map, a, b),
-            _ => false,
-        };
+        let clear = segment_clear(map, shape, entry, exit);
         let pushed = if clear { out.push(entry).and_then(|_| out.push(exit)) } else { out.push(corner) };
         if pushed.is_err() {
             return false;
@@ -174,6 +171,56 @@ pub fn length_m(path: &[Cell]) -> f32 {
         .sum()
 }
 
-fn cell_of(shape: GridShape, p: (f32, f32)) -> Option<Cell> {
-    shape.cell_at(p.0, p.1)
+/// Whether every cell the segment `a`–`b` (arena frame, metres) passes through is unblocked: an exact grid
+/// walk (Amanatides–Woo), conservative where the segment passes exactly through a cell corner.
+fn segment_clear(map: &impl Traversability, shape: GridShape, a: (f32, f32), b: (f32, f32)) -> bool {
+    let (ax, ay, bx, by) = (a.0 / CELL_SIZE_M, a.1 / CELL_SIZE_M, b.0 / CELL_SIZE_M, b.1 / CELL_SIZE_M);
+    if !(ax.is_finite() && ay.is_finite() && bx.is_finite() && by.is_finite()) {
+        return false;
+    }
+    let limit = 2.0 * f32::from(shape.width.max(shape.height));
+    if ax.abs() > limit || ay.abs() > limit || bx.abs() > limit || by.abs() > limit {
+        return false;
+    }
+    let (mut x, mut y) = (libm::floorf(ax) as i32, libm::floorf(ay) as i32);
+    let (end_x, end_y) = (libm::floorf(bx) as i32, libm::floorf(by) as i32);
+    let (dx, dy) = (bx - ax, by - ay);
+    let (step_x, step_y) = (if dx > 0.0 { 1 } else { -1 }, if dy > 0.0 { 1 } else { -1 });
+    // Parameter t in [0, 1] along the segment at which the walk crosses the next vertical/horizontal line.
+    let first_crossing = |p: f32, cell: i32, d: f32| {
+        if d > 0.0 {
+            (cell as f32 + 1.0 - p) / d
+        } else if d < 0.0 {
+            (cell as f32 - p) / d
+        } else {
+            f32::INFINITY
+        }
+    };
+    let (mut t_x, mut t_y) = (first_crossing(ax, x, dx), first_crossing(ay, y, dy));
+    let (dt_x, dt_y) = (if dx != 0.0 { 1.0 / dx.abs() } else { f32::INFINITY }, if dy != 0.0 { 1.0 / dy.abs() } else { f32::INFINITY });
+    let mut steps = (end_x - x).abs() + (end_y - y).abs() + 2;
+    loop {
+        if map.is_blocked(x, y) {
+            return false;
+        }
+        if (x == end_x && y == end_y) || steps == 0 {
+            return true;
+        }
+        steps -= 1;
+        if t_x < t_y {
+            x += step_x;
+            t_x += dt_x;
+        } else if t_y < t_x {
+            y += step_y;
+            t_y += dt_y;
+        } else {
+            if map.is_blocked(x + step_x, y) || map.is_blocked(x, y + step_y) {
+                return false;
+            }
+            x += step_x;
+            y += step_y;
+            t_x += dt_x;
+            t_y += dt_y;
+        }
+    }
 }

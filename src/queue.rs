@@ -35,6 +35,7 @@ impl Key {
 pub struct QueueFull;
 
 /// See the module documentation.
+#[derive(Clone)]
 pub struct IndexedQueue<const CELLS: usize, const CAP: usize> {
     /// `slot + 1` of each cell in the heap, 0 when the cell is not queued.
     position: [u16; CELLS],

@@ -1,1 +1,223 @@
-fn main() {}
+//! Host benchmark: D* Lite against repeated A* (the `pathfinding` crate) on the seed scenario.
+//!
+//! The seed map (`maps/seed.map`, 120 × 60, start (0.6, 1.3) m, goal (5.0, 1.5) m, walls hidden until
+//! sensed within 8 cells) is replayed once with D* Lite to record the drone's trajectory and what it learns
+//! at every step. Both planners are then timed on exactly that sequence: D* Lite repairs incrementally,
+//! A* searches from scratch from the drone's cell each time the map changed.
+//!
+//! Run: `cargo bench -p cfnav-tools --bench planner` (prints the ratio at the end).
+
+use std::hint::black_box;
+use std::time::{Duration, Instant};
+
+use cfnav::dstar::{DStarLite, PlanStatus};
+use cfnav::map::{Cell, GridShape, Traversability};
+use cfnav_tools::plan::{ReplayMap, replay};
+use criterion::{BatchSize, Criterion};
+use pathfinding::prelude::astar;
+
+type Planner = DStarLite<{ 120 * 60 }, 1024>;
+const SENSE_RADIUS: u16 = 8;
+
+#[derive(Clone)]
+struct Belief {
+    width: u16,
+    height: u16,
+    blocked: Vec<bool>,
+}
+
+impl Traversability for Belief {
+    fn shape(&self) -> GridShape {
+        GridShape { width: self.width, height: self.height }
+    }
+    fn is_blocked(&self, x: i32, y: i32) -> bool {
+        x < 0
+            || y < 0
+            || x >= i32::from(self.width)
+            || y >= i32::from(self.height)
+            || self.blocked[y as usize * usize::from(self.width) + x as usize]
+    }
+}
+
+impl Belief {
+    fn set(&mut self, c: Cell, blocked: bool) {
+        self.blocked[usize::from(c.y) * usize::from(self.width) + usize::from(c.x)] = blocked;
+    }
+}
+
+/// One replan of the recorded flight: where the drone was and what it had just learnt.
+struct Event {
+    at: Cell,
+    changed: Vec<Cell>,
+}
+
+struct Scenario {
+    initial: Belief,
+    truth: Belief,
+    start: Cell,
+    goal: Cell,
+    /// Replans after map changes (the first plan excluded).
+    events: Vec<Event>,
+}
+
+fn scenario() -> Scenario {
+    let text = include_str!("../../maps/seed.map");
+    let map = ReplayMap::parse(text).expect("seed map");
+    let cells = usize::from(map.width) * usize::from(map.height);
+    let mut initial = Belief { width: map.width, height: map.height, blocked: vec![false; cells] };
+    let mut truth = initial.clone();
+    for y in 0..map.height {
+        for x in 0..map.width {
+            let c = Cell::new(x, y);
+            initial.set(c, map.is_believed_blocked(c));
+            truth.set(c, map.is_obstacle(c));
+        }
+    }
+    let (start, goal) = (map.start, map.goal);
+    let report = replay(map, SENSE_RADIUS).expect("replay");
+    assert_eq!(report.status, "reached");
+    assert_eq!(report.steps[0].changed, 0, "the first plan starts from the initial belief");
+    let events = report
+        .steps
+        .iter()
+        .skip(1)
+        .filter(|s| !s.changed_cells.is_empty())
+        .map(|s| Event { at: Cell::new(s.x, s.y), changed: s.changed_cells.clone() })
+        .collect();
+    Scenario { initial, truth, start, goal, events }
+}
+
+fn octile(a: Cell, b: Cell) -> u32 {
+    let (dx, dy) = (u32::from(a.x.abs_diff(b.x)), u32::from(a.y.abs_diff(b.y)));
+    10 * dx.max(dy) + 4 * dx.min(dy)
+}
+
+fn astar_cost(map: &Belief, from: Cell, goal: Cell) -> Option<u32> {
+    let successors = |c: &Cell| {
+        let (x, y) = (i32::from(c.x), i32::from(c.y));
+        let mut out = Vec::with_capacity(8);
+        for (dx, dy) in [(1, 0), (0, 1), (-1, 0), (0, -1), (1, 1), (-1, 1), (-1, -1), (1, -1)] {
+            if map.is_blocked(x + dx, y + dy) {
+                continue;
+            }
+            let diagonal = dx != 0 && dy != 0;
+            if diagonal && (map.is_blocked(x + dx, y) || map.is_blocked(x, y + dy)) {
+                continue;
+            }
+            out.push((Cell::new((x + dx) as u16, (y + dy) as u16), if diagonal { 14 } else { 10 }));
+        }
+        out
+    };
+    astar(&from, successors, |c| octile(*c, goal), |c| *c == goal).map(|(_, cost)| cost)
+}
+
+fn first_plan_dstar(s: &Scenario, p: &mut Planner) -> u32 {
+    p.reset(s.initial.shape(), s.start, s.goal).expect("reset");
+    match p.compute(&s.initial, u32::MAX).expect("compute") {
+        PlanStatus::Found { cost } => cost,
+        other => panic!("{other:?}"),
+    }
+}
+
+/// All replans of the flight on a planner that has made the first plan. Returns the summed costs.
+fn replans_dstar(s: &Scenario, p: &mut Planner, belief: &mut Belief) -> u64 {
+    let mut sum = 0u64;
+    for e in &s.events {
+        for &c in &e.changed {
+            belief.set(c, s.truth.is_blocked(i32::from(c.x), i32::from(c.y)));
+        }
+        p.set_start(e.at).expect("start");
+        p.cells_changed(belief, &e.changed).expect("changed");
+        if let PlanStatus::Found { cost } = p.compute(belief, u32::MAX).expect("compute") {
+            sum += u64::from(cost);
+        }
+    }
+    sum
+}
+
+fn replans_astar(s: &Scenario, belief: &mut Belief) -> u64 {
+    let mut sum = 0u64;
+    for e in &s.events {
+        for &c in &e.changed {
+            belief.set(c, s.truth.is_blocked(i32::from(c.x), i32::from(c.y)));
+        }
+        sum += u64::from(astar_cost(belief, e.at, s.goal).unwrap_or(0));
+    }
+    sum
+}
+
+fn median_time(mut f: impl FnMut(), runs: usize) -> Duration {
+    let mut t: Vec<Duration> = (0..runs)
+        .map(|_| {
+            let t0 = Instant::now();
+            f();
+            t0.elapsed()
+        })
+        .collect();
+    t.sort();
+    t[runs / 2]
+}
+
+fn main() {
+    let s = scenario();
+    let mut planner: Box<Planner> = Box::new(DStarLite::new());
+    let first_cost = first_plan_dstar(&s, &mut planner);
+    assert_eq!(astar_cost(&s.initial, s.start, s.goal), Some(first_cost), "both planners agree");
+    let after_first = planner.clone();
+    // Both planners must agree on every replan too.
+    let (mut b1, mut b2) = (s.initial.clone(), s.initial.clone());
+    let mut check = after_first.clone();
+    assert_eq!(replans_dstar(&s, &mut check, &mut b1), replans_astar(&s, &mut b2));
+    println!("seed scenario: {} replans after map changes, first plan cost {first_cost}", s.events.len());
+
+    let mut c = Criterion::default().configure_from_args().warm_up_time(Duration::from_millis(500));
+    let mut g = c.benchmark_group("seed");
+    g.bench_function("first_plan/dstar_lite", |b| b.iter(|| first_plan_dstar(&s, black_box(&mut planner))));
+    g.bench_function("first_plan/astar", |b| b.iter(|| astar_cost(black_box(&s.initial), s.start, s.goal)));
+    g.bench_function("all_replans/dstar_lite", |b| {
+        b.iter_batched_ref(
+            || (after_first.clone(), s.initial.clone()),
+            |(p, belief)| replans_dstar(&s, p, belief),
+            BatchSize::SmallInput,
+        )
+    });
+    g.bench_function("all_replans/astar", |b| {
+        b.iter_batched_ref(|| s.initial.clone(), |belief| replans_astar(&s, belief), BatchSize::SmallInput)
+    });
+    g.finish();
+    c.final_summary();
+
+    // The ratio, measured in this same run (median of repeated runs, setup excluded where possible).
+    let runs = 41;
+    let first_d = median_time(|| drop(black_box(first_plan_dstar(&s, &mut planner))), runs);
+    let first_a = median_time(|| drop(black_box(astar_cost(&s.initial, s.start, s.goal))), runs);
+    let mut pairs: Vec<_> = (0..runs).map(|_| (after_first.clone(), s.initial.clone())).collect();
+    let mut it = pairs.iter_mut();
+    let replan_d = median_time(
+        || {
+            if let Some((p, b)) = it.next() {
+                black_box(replans_dstar(&s, p, b));
+            }
+        },
+        runs,
+    );
+    let mut beliefs: Vec<_> = (0..runs).map(|_| s.initial.clone()).collect();
+    let mut it = beliefs.iter_mut();
+    let replan_a = median_time(
+        || {
+            if let Some(b) = it.next() {
+                black_box(replans_astar(&s, b));
+            }
+        },
+        runs,
+    );
+    let n = s.events.len() as u32;
+    println!("RESULT first_plan dstar_lite={first_d:?} astar={first_a:?} ratio_astar_over_dstar={:.2}",
+        first_a.as_secs_f64() / first_d.as_secs_f64());
+    println!(
+        "RESULT replans n={n} dstar_lite_total={replan_d:?} ({:?}/replan) astar_total={replan_a:?} ({:?}/replan) ratio_astar_over_dstar={:.2}",
+        replan_d / n,
+        replan_a / n,
+        replan_a.as_secs_f64() / replan_d.as_secs_f64()
+    );
+}

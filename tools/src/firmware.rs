@@ -3,7 +3,8 @@
 //!
 //! The image holds the bytes of every ELF `PT_LOAD` segment with file contents, placed at its physical (load)
 //! address, gaps filled with 0xFF (erased flash), starting exactly at the application start 0x0800_4000: the same
-//! bytes as `arm-none-eabi-objcopy -O binary`, checked on the way.
+//! bytes as `arm-none-eabi-objcopy -O binary --gap-fill 0xff` over the image's length. The image is refused if any
+//! byte would land outside the application flash or the vector table looks wrong.
 //!
 //! The ELF → image conversion and the size accounting are pure functions, tested below.
 use std::env;
@@ -26,6 +27,9 @@ pub const APP_FLASH_SIZE: u32 = 1008 * 1024;
 pub const SRAM: Range<u32> = 0x2000_0000..0x2002_0000;
 /// Core-coupled RAM (64 KiB), CPU-only.
 pub const CCM: Range<u32> = 0x1000_0000..0x1001_0000;
+/// What fills the image between segments: erased flash. (`objcopy -O binary` fills with 0x00 unless given
+/// `--gap-fill 0xff`; the bytes differ only in such alignment gaps.)
+pub const GAP_FILL: u8 = 0xFF;
 
 const TARGET_TRIPLE: &str = "thumbv7em-none-eabihf";
 const BIN_NAME: &str = "firmware";
@@ -284,7 +288,7 @@ pub fn build_image(segments: &[LoadSegment<'_>]) -> Result<Vec<u8>> {
         end_of_previous = end;
     }
 
-    let mut image = vec![0xFF; (end_of_previous - app.start) as usize];
+    let mut image = vec![GAP_FILL; (end_of_previous - app.start) as usize];
     for (start, data) in loaded {
         let offset = (start - app.start) as usize;
         image[offset..offset + data.len()].copy_from_slice(data);

@@ -183,6 +183,9 @@ pub struct Step {
     pub expanded: u32,
     pub changed: usize,
     pub us: f64,
+    /// The cells whose occupancy changed before this replan (for benchmarks that replay the sequence).
+    #[serde(skip)]
+    pub changed_cells: Vec<Cell>,
 }
 
 /// The replay report (interfaces.md §2), with a few extra fields.
@@ -220,7 +223,15 @@ pub fn replay(mut map: ReplayMap, radius: u16) -> anyhow::Result<Report> {
             PlanStatus::NoPath => None,
             PlanStatus::Incomplete => anyhow::bail!("planner stopped with an unlimited budget"),
         };
-        steps.push(Step { x: here.x, y: here.y, cost, expanded: planner.expansions(), changed: changed.len(), us });
+        steps.push(Step {
+            x: here.x,
+            y: here.y,
+            cost,
+            expanded: planner.expansions(),
+            changed: changed.len(),
+            us,
+            changed_cells: changed,
+        });
         if cost.is_none() {
             break "no_path";
         }

@@ -62,14 +62,12 @@
 //! when a new crossing arrives (refit with outlier removal), i.e. a few hundred flops.
 
 use heapless::Vec;
-#[cfg(debug_pad)]
-extern crate std;
 
 /// Largest supported z-score window, bins.
 pub const MAX_LAG: usize = 32;
 
-/// Most raw samples one bin holds; a hovering drone closes a bin every this many samples.
-pub const MAX_BIN_SAMPLES: usize = 16;
+/// Most raw samples one bin holds (odd); a hovering drone closes a bin every this many samples.
+pub const MAX_BIN_SAMPLES: usize = 15;
 
 /// The position is re-anchored (heading and odometer updated) every time the drone has moved this far.
 /// 2 cm averages out position noise in the heading, yet is < 10 samples at 0.3 m/s and 100 Hz.
@@ -202,9 +200,10 @@ pub struct PadConfig {
     /// edge blur from the sensor's footprint and the diagonal of a rotated pad, rejects corner clips and
     /// "crossings" made of two unrelated edges.
     pub chord_tolerance: f32,
-    /// The floor levels before entering and after leaving a crossing may differ by this much plus 25 % of
-    /// the pad's measured height, metres. Default 0.02 m: it is the same floor; height-hold drift over
-    /// the ~1 s crossing is ~1 cm.
+    /// The floor levels before entering and after leaving a crossing may differ by this much plus half
+    /// the pad's measured height, metres. Default 0.02 m: it is the same floor, up to the height-hold
+    /// drift over the ~1 s crossing (a few cm); an edge made by a burst of outliers has a "floor" tens of
+    /// cm off.
     pub step_match_m: f32,
     /// A crossing whose midpoint is further than this from the fitted centre (along its chord) is an
     /// outlier, metres. Default 0.05 m: about 10× the midpoint noise, a sixth of the pad.
@@ -305,13 +304,25 @@ impl PadConfig {
 /// One gated sample with where and how the drone was moving.
 #[derive(Clone, Copy, Debug, Default)]
 struct Sample {
-    range: f32,
     x: f32,
     y: f32,
     /// Distance travelled since the detector started, metres.
     odo: f32,
-    /// Unit heading (0, 0 while unknown).
+}
+
+/// One closed bin: its median range at its centre, and the z-score's verdict on it.
+#[derive(Clone, Copy, Debug, Default)]
+struct Bin {
+    range: f32,
+    /// Centre of the bin's samples.
+    x: f32,
+    y: f32,
+    odo: f32,
     heading: (f32, f32),
+    /// z-score signal: -1 (range dropped), 0, +1 (range rose).
+    signal: i8,
+    /// Median of the z-score window just before this bin: the level it was compared with.
+    level: f32,
 }
 
 /// An edge as detected, with the motion data pairing needs (stored edges drop those).
@@ -320,25 +331,29 @@ struct Detection {
     edge: Edge,
     odo: f32,
     heading: (f32, f32),
-    /// Window mean before the step: 8 filtered samples, robust to any one bad sample.
+    /// The level before the step (median of the z-score window before the step's first signal).
     level_before: f32,
-    /// Median of the run's first values: the level just after the step.
+    /// The level after the step (median of the run's last signalling bins).
     level_after: f32,
 }
 
-/// The current run of same-sign signals.
-#[derive(Clone, Copy, Debug, Default)]
-struct Run {
-    /// -1 (range down), +1 (range up), 0 (no run).
+/// A confirmed run of same-sign signals: one step in progress.
+#[derive(Clone, Copy, Debug)]
+struct ActiveRun {
+    /// -1 (range dropped: [`EdgeKind::Enter`]) or +1 (range rose: [`EdgeKind::Exit`]).
     sign: i8,
-    len: usize,
-    start: Sample,
-    /// Window mean when the run started: the level before the step.
-    before: f32,
-    /// The run's last three ranges (newest last), for the level after the step.
-    recent: [f32; 3],
-    emitted: bool,
+    /// Serial number of the run's first signalling bin.
+    first: u32,
+    /// Consecutive bins without this sign's signal.
+    misses: u8,
 }
+
+/// Bins kept for locating a step after it has settled: twice the largest window, which covers the part
+/// of a blurred step before the first signal (< `lag` bins) plus the run itself (~`lag` bins).
+const RING: usize = 2 * MAX_LAG;
+
+/// A run ends after this many bins without its signal (one bad bin does not split a step in two).
+const RUN_END_MISSES: u8 = 2;
 
 /// The landing-pad detector; `EDGES` bounds the stored edges and crossings. See the module docs.
 #[derive(Clone, Debug)]
@@ -348,8 +363,9 @@ pub struct PadDetector<const EDGES: usize> {
     anchor: Option<(f32, f32)>,
     odo_at_anchor: f32,
     heading: (f32, f32),
-    // The open spatial bin: its first sample and its ranges.
-    bin_start: Sample,
+    // The open spatial bin.
+    bin_first: Sample,
+    bin_sum: (f32, f32, f32),
     bin: [f32; MAX_BIN_SAMPLES],
     bin_len: usize,
     // z-score window of filtered values (ring).
@@ -357,7 +373,10 @@ pub struct PadDetector<const EDGES: usize> {
     window_len: usize,
     window_head: usize,
     last_filtered: f32,
-    run: Run,
+    // Closed bins (ring) and their serial numbers: bin `n` is at `ring[n % RING]`.
+    ring: [Bin; RING],
+    bins: u32,
+    run: Option<ActiveRun>,
     last_detection: Option<Detection>,
     pending_enter: Option<Detection>,
     // Results.
@@ -380,14 +399,17 @@ impl<const EDGES: usize> PadDetector<EDGES> {
             anchor: None,
             odo_at_anchor: 0.0,
             heading: (0.0, 0.0),
-            bin_start: Sample::default(),
+            bin_first: Sample::default(),
+            bin_sum: (0.0, 0.0, 0.0),
             bin: [0.0; MAX_BIN_SAMPLES],
             bin_len: 0,
             window: [0.0; MAX_LAG],
             window_len: 0,
             window_head: 0,
             last_filtered: 0.0,
-            run: Run::default(),
+            ring: [Bin::default(); RING],
+            bins: 0,
+            run: None,
             last_detection: None,
             pending_enter: None,
             edges: Vec::new(),
@@ -407,8 +429,9 @@ impl<const EDGES: usize> PadDetector<EDGES> {
         *self = Self::fresh(self.config);
     }
 
-    /// Feeds one downward-range sample taken at arena position `(x_m, y_m)`. Returns the edge stored by
-    /// this sample, if any. Non-finite or out-of-range samples are ignored.
+    /// Feeds one downward-range sample taken at arena position `(x_m, y_m)`. Returns the edge stored
+    /// because of this sample, if any (edges are reported once their step has settled, about `lag` bins
+    /// after it). Non-finite or out-of-range samples are ignored.
     pub fn update(&mut self, range_m: f32, x_m: f32, y_m: f32) -> Option<Edge> {
         if !(range_m.is_finite() && x_m.is_finite() && y_m.is_finite()) {
             return None;
@@ -416,66 +439,80 @@ impl<const EDGES: usize> PadDetector<EDGES> {
         if range_m < self.config.min_range_m || range_m > self.config.max_range_m {
             return None;
         }
-        let sample = self.track_motion(range_m, x_m, y_m);
+        let sample = self.track_motion(x_m, y_m);
 
-        // Spatial binning: close the open bin once the drone has left it (or it is full, when hovering),
-        // and feed its median to the z-score; this sample opens the next bin.
+        // Spatial binning: close the open bin once the drone has left it (or it is full, when hovering)
+        // and process its median; this sample opens the next bin.
         let mut stored = None;
         if self.bin_len > 0 {
-            let moved = libm::hypotf(x_m - self.bin_start.x, y_m - self.bin_start.y);
-            if moved >= self.config.bin_m || self.bin_len >= MAX_BIN_SAMPLES {
-                let mut binned = self.bin_start;
-                binned.range = lower_median(self.bin.get_mut(..self.bin_len).unwrap_or(&mut []));
-                self.bin_len = 0;
-                stored = self.process_bin(binned);
+            let moved = libm::hypotf(x_m - self.bin_first.x, y_m - self.bin_first.y);
+            // Odd counts only: then the median is one real sample, and two outliers in a bin give a value
+            // far from both levels (recognisably stray) rather than halfway between them.
+            let odd = self.bin_len % 2 == 1;
+            if (moved >= self.config.bin_m && odd) || self.bin_len >= MAX_BIN_SAMPLES {
+                stored = self.close_bin();
             }
         }
         if self.bin_len == 0 {
-            self.bin_start = sample;
+            self.bin_first = sample;
+            self.bin_sum = (0.0, 0.0, 0.0);
         }
         if let Some(slot) = self.bin.get_mut(self.bin_len) {
             *slot = range_m;
             self.bin_len += 1;
+            self.bin_sum = (self.bin_sum.0 + x_m, self.bin_sum.1 + y_m, self.bin_sum.2 + sample.odo);
         }
         stored
     }
 
-    /// z-score → runs → edges → crossings for one binned value.
-    fn process_bin(&mut self, binned: Sample) -> Option<Edge> {
-        #[cfg(debug_pad)]
-        let (m0, s0) = self.window_stats();
-        let (signal, level_before) = self.z_score(binned.range);
-        #[cfg(debug_pad)]
-        std::eprintln!("BIN {:.4} {:.4} r {:.4} mean {:.4} std {:.4} sig {}", binned.x, binned.y, binned.range, m0, s0, signal);
-        let detection = self.follow_run(signal, level_before, binned)?;
-        self.on_detection(detection)
-    }
-
-    /// Updates the heading and odometer; returns the sample with its motion data.
-    fn track_motion(&mut self, range: f32, x: f32, y: f32) -> Sample {
+    /// Updates the heading and odometer; returns the sample's motion data.
+    fn track_motion(&mut self, x: f32, y: f32) -> Sample {
         let Some(anchor) = self.anchor else {
             self.anchor = Some((x, y));
-            return Sample { range, x, y, odo: self.odo_at_anchor, heading: self.heading };
+            return Sample { x, y, odo: self.odo_at_anchor };
         };
         let d = libm::hypotf(x - anchor.0, y - anchor.1);
         if d >= HEADING_BASELINE_M {
             self.heading = ((x - anchor.0) / d, (y - anchor.1) / d);
             self.odo_at_anchor += d;
             self.anchor = Some((x, y));
-            return Sample { range, x, y, odo: self.odo_at_anchor, heading: self.heading };
+            return Sample { x, y, odo: self.odo_at_anchor };
         }
-        Sample { range, x, y, odo: self.odo_at_anchor + d, heading: self.heading }
+        Sample { x, y, odo: self.odo_at_anchor + d }
     }
 
-    /// The smoothed z-score step: the signal (-1, 0 or +1) and the window mean it was judged against.
-    /// Updates the window.
-    fn z_score(&mut self, y: f32) -> (i8, f32) {
+    /// Closes the open bin: z-score, ring, run logic. Returns an edge stored as a result.
+    fn close_bin(&mut self) -> Option<Edge> {
+        let n = self.bin_len.max(1) as f32;
+        let range = median(self.bin.get_mut(..self.bin_len).unwrap_or(&mut []));
+        let level = self.window_median();
+        let signal = self.z_score(range);
+        let bin = Bin {
+            range,
+            x: self.bin_sum.0 / n,
+            y: self.bin_sum.1 / n,
+            odo: self.bin_sum.2 / n,
+            heading: self.heading,
+            signal,
+            level,
+        };
+        self.bin_len = 0;
+        let serial = self.bins;
+        if let Some(slot) = self.ring.get_mut(serial as usize % RING) {
+            *slot = bin;
+        }
+        self.bins = self.bins.wrapping_add(1);
+        let detection = self.follow_runs(serial, signal)?;
+        self.on_detection(detection)
+    }
+
+    /// The smoothed z-score of one value: -1, 0 or +1. Updates the window.
+    fn z_score(&mut self, y: f32) -> i8 {
         let cfg = &self.config;
-        let lag = cfg.lag;
-        if self.window_len < lag {
+        if self.window_len < cfg.lag {
             // Training: the first `lag` values fill the window as they are.
             self.push_window(y);
-            return (0, y);
+            return 0;
         }
         let (mean, std) = self.window_stats();
         let dev = y - mean;
@@ -487,7 +524,7 @@ impl<const EDGES: usize> PadDetector<EDGES> {
         let filtered =
             if signal != 0 { cfg.influence * y + (1.0 - cfg.influence) * self.last_filtered } else { y };
         self.push_window(filtered);
-        (signal, mean)
+        signal
     }
 
     fn push_window(&mut self, v: f32) {
@@ -512,42 +549,150 @@ impl<const EDGES: usize> PadDetector<EDGES> {
         (mean, libm::sqrtf(var))
     }
 
-    /// Extends or restarts the run of signals; returns a detection when a run reaches `min_run`.
-    /// `level_before` is the window mean the sample was judged against: at a run's first sample, the
-    /// level before the step.
-    fn follow_run(&mut self, signal: i8, level_before: f32, sample: Sample) -> Option<Detection> {
-        if signal == 0 {
-            self.run.sign = 0;
+    /// Median of the window: the level before a step, robust to the first part of a blurred step and
+    /// to stray values. The last value pushed stands in while the window is empty.
+    fn window_median(&self) -> f32 {
+        let mut copy = [0.0f32; MAX_LAG];
+        let Some(dst) = copy.get_mut(..self.window_len) else { return self.last_filtered };
+        let Some(src) = self.window.get(..self.window_len) else { return self.last_filtered };
+        if src.is_empty() {
+            return self.last_filtered;
+        }
+        dst.copy_from_slice(src);
+        median(dst)
+    }
+
+    fn ring_bin(&self, serial: u32) -> Option<&Bin> {
+        // Only the last RING serials are still in the ring.
+        if self.bins.wrapping_sub(serial) as usize > RING || serial >= self.bins {
             return None;
         }
-        if signal != self.run.sign {
-            let recent = [sample.range; 3];
-            self.run = Run { sign: signal, len: 0, start: sample, before: level_before, recent, emitted: false };
+        self.ring.get(serial as usize % RING)
+    }
+
+    /// Run bookkeeping after bin `serial` with `signal`: ends runs, confirms new ones (module docs,
+    /// step 4). Returns the detection of a run that ended.
+    fn follow_runs(&mut self, serial: u32, signal: i8) -> Option<Detection> {
+        let mut ended = None;
+        if let Some(mut run) = self.run {
+            run.misses = if signal == run.sign { 0 } else { run.misses.saturating_add(1) };
+            // A run older than the ring can hold is located now, before its start is overwritten.
+            let too_long = serial.wrapping_sub(run.first) as usize + self.config.lag + 2 >= RING;
+            if run.misses >= RUN_END_MISSES || too_long {
+                ended = self.locate(&run);
+                self.run = None;
+            } else {
+                self.run = Some(run);
+            }
         }
-        self.run.len += 1;
-        let [_, b, c] = self.run.recent;
-        self.run.recent = [b, c, sample.range];
-        if self.run.emitted || self.run.len < self.config.min_run {
+        if signal != 0 && self.run.is_none_or(|r| r.sign != signal) {
+            // m of n: `min_run` of the last `min_run + 1` bins carry this sign.
+            let n = self.config.min_run as u32 + 1;
+            let mut count = 0usize;
+            let mut first = serial;
+            for back in 0..n {
+                let Some(s) = serial.checked_sub(back) else { break };
+                if self.ring_bin(s).is_some_and(|b| b.signal == signal) {
+                    count += 1;
+                    first = s;
+                }
+            }
+            if count >= self.config.min_run {
+                // An opposite run still open ends here (a narrow crossing); report it first.
+                if let Some(run) = self.run.take() {
+                    ended = ended.or(self.locate(&run));
+                }
+                self.run = Some(ActiveRun { sign: signal, first, misses: 0 });
+            }
+        }
+        ended
+    }
+
+    /// Locates a finished run's step (module docs, step 4): where the binned range crosses halfway
+    /// between the levels before and after, interpolated between bin centres.
+    fn locate(&mut self, run: &ActiveRun) -> Option<Detection> {
+        let first = *self.ring_bin(run.first)?;
+        let before = first.level;
+        // The level after: median of the run's last (up to 3) signalling bins.
+        let mut tail = [0.0f32; 3];
+        let mut k = 0usize;
+        let mut last_signal = None;
+        let mut s = self.bins.wrapping_sub(1);
+        while k < tail.len() && s >= run.first {
+            if let Some(b) = self.ring_bin(s)
+                && b.signal == run.sign
+                && let Some(slot) = tail.get_mut(k)
+            {
+                *slot = b.range;
+                k += 1;
+                last_signal = last_signal.or(Some(s));
+            }
+            let Some(prev) = s.checked_sub(1) else { break };
+            s = prev;
+        }
+        let after = median(tail.get_mut(..k).unwrap_or(&mut []));
+        let height = after - before;
+        if libm::fabsf(height) < self.config.min_step_m {
             return None;
         }
-        self.run.emitted = true;
-        // The level after the step: median of the run's last three values (one bad value cannot move it;
-        // with min_run < 3 the array is padded with the run's first value).
-        let [a, b, c] = self.run.recent;
-        let after = median3(a, b, c);
-        let kind = if self.run.sign < 0 { EdgeKind::Enter } else { EdgeKind::Exit };
-        let start = self.run.start;
+        // Position of a bin between the two levels: 0 = before, 1 = after. Bins beyond either level by
+        // more than half the step are stray (outliers that survived the bin) and are skipped.
+        let level_of = |b: &Bin| (b.range - before) / height;
+        let stray = |b: &Bin| !(-0.5..=1.5).contains(&level_of(b));
+        let new_side = |b: &Bin| level_of(b) > 0.5;
+
+        // Walk back from the settled end of the run to the first two consecutive (non-stray) bins on the
+        // old side of the half level: the step lies between the later of them and the next non-stray bin.
+        // Starting from the settled end (not the first signal) keeps a stray bin just before a blurred
+        // step from being taken for the step; needing two old-side bins skips a stray one on the new level.
+        let start = last_signal?;
+        let limit = serial_span(run.first, start) + self.config.lag;
+        let mut later: Option<Bin> = self.ring_bin(start).copied();
+        let mut old_pair: Option<Bin> = None;
+        let mut crossing = None;
+        let mut s = start;
+        for _ in 0..limit {
+            let Some(prev) = s.checked_sub(1) else { break };
+            s = prev;
+            let Some(b) = self.ring_bin(s).copied() else { break };
+            if stray(&b) {
+                continue;
+            }
+            if new_side(&b) {
+                later = Some(b);
+                old_pair = None;
+            } else if let Some(first_old) = old_pair {
+                crossing = later.map(|hit| (first_old, hit));
+                break;
+            } else {
+                old_pair = Some(b);
+            }
+        }
+        let (old, hit) = match crossing {
+            Some(pair) => pair,
+            // No clean old level found in the ring: fall back to the first signalling bin.
+            None => (*self.ring_bin(run.first)?, *self.ring_bin(run.first)?),
+        };
+        let (mut x, mut y, mut odo) = (hit.x, hit.y, hit.odo);
+        let t = (0.5 - level_of(&old)) / (level_of(&hit) - level_of(&old));
+        if t.is_finite() {
+            let t = t.clamp(0.0, 1.0);
+            x = old.x + t * (hit.x - old.x);
+            y = old.y + t * (hit.y - old.y);
+            odo = old.odo + t * (hit.odo - old.odo);
+        }
+        let kind = if height < 0.0 { EdgeKind::Enter } else { EdgeKind::Exit };
         let detection = Detection {
-            edge: Edge { x: start.x, y: start.y, kind, step_m: after - self.run.before },
-            odo: start.odo,
-            heading: start.heading,
-            level_before: self.run.before,
+            edge: Edge { x, y, kind, step_m: height },
+            odo,
+            heading: hit.heading,
+            level_before: before,
             level_after: after,
         };
         // The same step flickering back on: merge it with the edge it belongs to.
         if let Some(last) = self.last_detection
             && last.edge.kind == kind
-            && detection.odo - last.odo < self.config.min_edge_spacing_m
+            && libm::fabsf(detection.odo - last.odo) < self.config.min_edge_spacing_m
         {
             return None;
         }
@@ -615,7 +760,7 @@ impl<const EDGES: usize> PadDetector<EDGES> {
         if !(height >= cfg.min_step_m) {
             return None;
         }
-        if libm::fabsf(floor_after - floor_before) > cfg.step_match_m + 0.25 * height {
+        if libm::fabsf(floor_after - floor_before) > cfg.step_match_m + 0.5 * height {
             return None;
         }
         Some(Crossing {
@@ -773,14 +918,14 @@ impl<const EDGES: usize> PadDetector<EDGES> {
     }
 }
 
-/// Median of three values.
-fn median3(a: f32, b: f32, c: f32) -> f32 {
-    a.min(b).max(a.max(b).min(c))
+/// Bins from serial `a` to serial `b` (0 if `b` is before `a`).
+fn serial_span(a: u32, b: u32) -> usize {
+    b.saturating_sub(a) as usize
 }
 
-/// Lower median of a short slice (sorted in place by insertion sort: at most [`MAX_BIN_SAMPLES`]
-/// values); 0 for an empty slice.
-fn lower_median(values: &mut [f32]) -> f32 {
+/// Median of a short slice (sorted in place by insertion sort: at most [`MAX_LAG`] values); the mean
+/// of the two middle values for an even length, so one outlier in four cannot move it; 0 when empty.
+fn median(values: &mut [f32]) -> f32 {
     for i in 1..values.len() {
         let mut j = i;
         while j > 0 {
@@ -792,7 +937,11 @@ fn lower_median(values: &mut [f32]) -> f32 {
             j -= 1;
         }
     }
-    values.get(values.len().saturating_sub(1) / 2).copied().unwrap_or(0.0)
+    let n = values.len();
+    match (values.get((n.max(1) - 1) / 2), values.get(n / 2)) {
+        (Some(a), Some(b)) => 0.5 * (a + b),
+        _ => 0.0,
+    }
 }
 
 /// Signed distance along the chord from the crossing's midpoint to the centre.

@@ -20,7 +20,11 @@ fn main() {
     fs::copy("memory.x", &memory).expect("memory.x is next to build.rs");
     let template = fs::read_to_string("cortex-m-rt-link.x").expect("cortex-m-rt-link.x is next to build.rs");
     const PLACEHOLDER: &str = "@MEMORY_X@";
-    assert_eq!(template.matches(PLACEHOLDER).count(), 1, "cortex-m-rt-link.x must INCLUDE \"{PLACEHOLDER}\" once");
+    assert_eq!(
+        template.matches(PLACEHOLDER).count(),
+        1,
+        "cortex-m-rt-link.x must INCLUDE \"{PLACEHOLDER}\" once"
+    );
     let memory_path = memory.to_str().expect("OUT_DIR is valid UTF-8");
     assert!(!memory_path.contains('"'), "OUT_DIR must not contain a double quote");
     let link = out.join("link.x");

@@ -15,7 +15,7 @@ for arg in "$@"; do
     case "$arg" in
         --check) check=1 ;;
         -h | --help)
-            sed -n '2,11p' "${BASH_SOURCE[0]}" | sed 's/^# \{0,1\}//'
+            sed -n '2,10p' "${BASH_SOURCE[0]}" | sed 's/^# \{0,1\}//'
             exit 0
             ;;
         *)
@@ -43,7 +43,7 @@ cd "$root"
 # The executable's path comes from cargo itself, so any target-dir setting (env or config) is honoured.
 artifacts="$(cargo build --release -p qemu-bench --target thumbv7em-none-eabihf \
     --message-format=json-render-diagnostics)"
-elf="$(printf '%s\n' "$artifacts" | grep '"target":{[^}]*"name":"qemu-bench"[^}]*"kind":\["bin"\]' \
+elf="$(printf '%s\n' "$artifacts" | grep '"reason":"compiler-artifact"' | grep '"name":"qemu-bench"' \
     | grep -o '"executable":"[^"]*"' | tail -n 1 | cut -d'"' -f4 || true)"
 if [[ -z "$elf" || ! -f "$elf" ]]; then
     echo "run.sh: cargo did not report the qemu-bench executable" >&2

@@ -2,8 +2,8 @@
 //! bootloader flashes (`cfloader flash cf2.bin stm32-fw`), then reports flash, SRAM and CCM use.
 //!
 //! The image holds the bytes of every ELF `PT_LOAD` segment with file contents, placed at its physical (load)
-//! address, gaps filled with 0xFF (erased flash), starting exactly at the application start 0x0800_4000: the same
-//! bytes as `arm-none-eabi-objcopy -O binary --gap-fill 0xff` over the image's length. The image is refused if any
+//! address, alignment gaps filled with 0x00, starting exactly at the application start 0x0800_4000: the same
+//! bytes as `arm-none-eabi-objcopy -O binary` (CI compares the two). The image is refused if any
 //! byte would land outside the application flash or the vector table looks wrong.
 //!
 //! The ELF → image conversion and the size accounting are pure functions, tested below.
@@ -27,9 +27,9 @@ pub const APP_FLASH_SIZE: u32 = 1008 * 1024;
 pub const SRAM: Range<u32> = 0x2000_0000..0x2002_0000;
 /// Core-coupled RAM (64 KiB), CPU-only.
 pub const CCM: Range<u32> = 0x1000_0000..0x1001_0000;
-/// What fills the image between segments: erased flash. (`objcopy -O binary` fills with 0x00 unless given
-/// `--gap-fill 0xff`; the bytes differ only in such alignment gaps.)
-pub const GAP_FILL: u8 = 0xFF;
+/// What fills the image between segments (alignment gaps): 0x00, as `objcopy -O binary` does, which is
+/// how the stock Crazyflie build makes its `cf2.bin`; the image is then byte-identical to objcopy's.
+pub const GAP_FILL: u8 = 0x00;
 
 const TARGET_TRIPLE: &str = "thumbv7em-none-eabihf";
 const BIN_NAME: &str = "firmware";
@@ -108,6 +108,8 @@ fn cargo_build_firmware(root: &Path) -> Result<PathBuf> {
             "cfnav",
             "--bin",
             BIN_NAME,
+            "--features",
+            "firmware",
             "--target",
             TARGET_TRIPLE,
         ])
@@ -258,7 +260,7 @@ pub fn read_elf(data: &[u8]) -> Result<ElfLayout<'_>> {
 }
 
 /// The raw image: the file bytes of the load segments at their physical addresses, from [`APP_FLASH_START`],
-/// gaps 0xFF. Refuses bytes outside the application flash, overlapping segments and an image with nothing in it.
+/// gaps [`GAP_FILL`]. Refuses bytes outside the application flash, overlapping segments and an image with nothing in it.
 pub fn build_image(segments: &[LoadSegment<'_>]) -> Result<Vec<u8>> {
     let app = u64::from(APP_FLASH_START)..u64::from(APP_FLASH_START) + u64::from(APP_FLASH_SIZE);
     let mut loaded: Vec<(u64, &[u8])> = segments
@@ -465,13 +467,13 @@ mod tests {
             seg(BASE + 12, &data),
         ];
         let image = build_image(&segments).unwrap();
-        assert_eq!(image, [1, 2, 3, 4, 0xFF, 0xFF, 0xFF, 0xFF, 0xFF, 0xFF, 5, 6, 7, 8, 9]);
+        assert_eq!(image, [1, 2, 3, 4, 0, 0, 0, 0, 0, 0, 5, 6, 7, 8, 9]);
     }
 
     #[test]
     fn image_starts_at_the_application_start_even_if_the_first_segment_does_not() {
         let image = build_image(&[seg(BASE + 3, &[0x11])]).unwrap();
-        assert_eq!(image, [0xFF, 0xFF, 0xFF, 0x11]);
+        assert_eq!(image, [0, 0, 0, 0x11]);
     }
 
     #[test]
@@ -786,7 +788,7 @@ mod tests {
         let image = build_image(&layout.segments).unwrap();
         assert_eq!(image.len(), 0x40);
         assert_eq!(&image[..8], &vectors(0x2002_0000, BASE + 9, 0)[..]);
-        assert_eq!(&image[0x28..0x30], &[0xFF; 8]); // gap between .text and .rodata
+        assert_eq!(&image[0x28..0x30], &[GAP_FILL; 8]); // gap between .text and .rodata
         assert_eq!(&image[0x30..0x38], b"cfnav\0\0\0");
         assert_eq!(&image[0x38..0x40], &[0x5A; 8]); // .data's initial values at its load address
         check_vector_table(&image).unwrap();

@@ -109,7 +109,9 @@ impl World {
             height += 1;
         }
         let (w, h) = (u16::try_from(width), u16::try_from(height));
-        let (Ok(w), Ok(h)) = (w, h) else { return Err(MapError::TooLarge) };
+        let (Ok(w), Ok(h)) = (w, h) else {
+            return Err(MapError::TooLarge);
+        };
         let shape = GridShape::new(w, h, ARENA_CELLS).ok_or(MapError::TooLarge)?;
         let mut world = World {
             shape,
@@ -225,7 +227,10 @@ impl Default for Changes {
 impl Changes {
     /// An empty list.
     pub const fn new() -> Self {
-        Self { cells: [Cell::new(0, 0); MAX_CHANGES], len: 0 }
+        Self {
+            cells: [Cell::new(0, 0); MAX_CHANGES],
+            len: 0,
+        }
     }
 
     /// Empty the list.
@@ -354,9 +359,20 @@ impl Default for Report {
 impl Report {
     /// An empty report.
     pub const fn new() -> Self {
-        const STEP: Step = Step { at: Cell::new(0, 0), changed: 0, expansions: 0, instructions: 0, cost: 0 };
-        const BOX: BoxReplan =
-            BoxReplan { k: 0, path_index: 0, centre: Cell::new(0, 0), baseline_expansions: 0, replan: STEP };
+        const STEP: Step = Step {
+            at: Cell::new(0, 0),
+            changed: 0,
+            expansions: 0,
+            instructions: 0,
+            cost: 0,
+        };
+        const BOX: BoxReplan = BoxReplan {
+            k: 0,
+            path_index: 0,
+            centre: Cell::new(0, 0),
+            baseline_expansions: 0,
+            replan: STEP,
+        };
         Self {
             steps: [STEP; MAX_STEPS],
             step_count: 0,
@@ -412,7 +428,12 @@ pub fn summarize(values: &mut [u32]) -> Summary {
         ((u64::from(values[n / 2 - 1]) + u64::from(values[n / 2])) / 2) as u32
     };
     let rank = (9 * n).div_ceil(10); // ceil(0.9 n), at least 1
-    Summary { count: n, median, p90: values[rank - 1], max: values[n - 1] }
+    Summary {
+        count: n,
+        median,
+        p90: values[rank - 1],
+        max: values[n - 1],
+    }
 }
 
 fn found(status: PlanStatus, at: Cell) -> Result<u32, BenchError> {
@@ -437,7 +458,13 @@ fn replan(
         planner.compute(world, u32::MAX)
     });
     let cost = found(status?, at)?;
-    Ok(Step { at, changed: changes.len() as u16, expansions: planner.expansions(), instructions, cost })
+    Ok(Step {
+        at,
+        changed: changes.len() as u16,
+        expansions: planner.expansions(),
+        instructions,
+        cost,
+    })
 }
 
 /// Plan from scratch from the start on the current belief, after the start's sense (`changes`).
@@ -455,7 +482,13 @@ fn first_plan(
         planner.compute(world, u32::MAX)
     });
     let cost = found(status?, start)?;
-    Ok(Step { at: start, changed: changes.len() as u16, expansions: planner.expansions(), instructions, cost })
+    Ok(Step {
+        at: start,
+        changed: changes.len() as u16,
+        expansions: planner.expansions(),
+        instructions,
+        cost,
+    })
 }
 
 /// The planner's next cell from `at` and the move's cost.
@@ -561,7 +594,10 @@ mod tests {
     fn rejects_bad_maps() {
         assert_eq!(World::parse("; only a comment\n").err(), Some(MapError::Empty));
         assert_eq!(World::parse("S.\n.G.\n").err(), Some(MapError::Ragged { line: 2 }));
-        assert_eq!(World::parse("S.\nGx\n").err(), Some(MapError::BadChar { line: 2, column: 2 }));
+        assert_eq!(
+            World::parse("S.\nGx\n").err(),
+            Some(MapError::BadChar { line: 2, column: 2 })
+        );
         assert_eq!(World::parse("SS\nG.\n").err(), Some(MapError::Duplicate { line: 1 }));
         assert_eq!(World::parse("S.\n..\n").err(), Some(MapError::NoGoal));
         assert_eq!(World::parse("#G\r\n..\r\n").err(), Some(MapError::NoStart));
@@ -581,10 +617,34 @@ mod tests {
     #[test]
     fn summaries() {
         assert_eq!(summarize(&mut []), Summary::default());
-        assert_eq!(summarize(&mut [5]), Summary { count: 1, median: 5, p90: 5, max: 5 });
-        assert_eq!(summarize(&mut [4, 1, 3, 2]), Summary { count: 4, median: 2, p90: 4, max: 4 });
+        assert_eq!(
+            summarize(&mut [5]),
+            Summary {
+                count: 1,
+                median: 5,
+                p90: 5,
+                max: 5
+            }
+        );
+        assert_eq!(
+            summarize(&mut [4, 1, 3, 2]),
+            Summary {
+                count: 4,
+                median: 2,
+                p90: 4,
+                max: 4
+            }
+        );
         let mut v: std::vec::Vec<u32> = (1..=20).rev().collect();
-        assert_eq!(summarize(&mut v), Summary { count: 20, median: 10, p90: 18, max: 20 });
+        assert_eq!(
+            summarize(&mut v),
+            Summary {
+                count: 20,
+                median: 10,
+                p90: 18,
+                max: 20
+            }
+        );
     }
 
     #[test]
@@ -599,7 +659,10 @@ mod tests {
         assert_eq!(report.path().first(), Some(&world.start()));
         assert_eq!(report.path().last(), Some(&world.goal()));
         assert_eq!(report.replans().len(), report.moves as usize);
-        assert!(report.replans().iter().any(|s| s.changed > 0), "the flight senses the hidden walls");
+        assert!(
+            report.replans().iter().any(|s| s.changed > 0),
+            "the flight senses the hidden walls"
+        );
         assert!(report.flight_cost >= first.cost);
         for b in &report.boxes {
             // Every re-plan from scratch repeats the first plan exactly, and every box changes cells.

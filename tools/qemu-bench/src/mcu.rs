@@ -22,9 +22,7 @@ use cfnav::grid::OccupancyGrid;
 use cfnav::map::ARENA_CELLS;
 use cortex_m_rt::{ExceptionFrame, entry, exception};
 use cortex_m_semihosting::{debug, hprintln};
-use qemu_bench::{
-    BOX_CELLS, MAX_STEPS, Meter, Report, SEED_MAP, SENSE_RADIUS, Step, Summary, World, run, summarize,
-};
+use qemu_bench::{BOX_CELLS, MAX_STEPS, Meter, Report, SEED_MAP, SENSE_RADIUS, Step, Summary, World, run, summarize};
 
 /// The CMSDK APB timer 0 of mps2-an386, clocked at 25 MHz.
 mod timer0 {
@@ -145,7 +143,13 @@ fn calibrate() -> Option<u32> {
     }
     let overhead = empty[0];
     let mut exact = empty.iter().all(|&e| e == overhead);
-    hprintln!("calib region=empty runs=3 instructions={},{},{} overhead={}", empty[0], empty[1], empty[2], overhead);
+    hprintln!(
+        "calib region=empty runs=3 instructions={},{},{} overhead={}",
+        empty[0],
+        empty[1],
+        empty[2],
+        overhead
+    );
     let mut check = |name: &str, expected: u32, ticks: u32| {
         let measured = instructions(ticks);
         let delta = i64::from(measured) - i64::from(expected);
@@ -194,7 +198,10 @@ fn summary_of<'a>(steps: impl Iterator<Item = &'a Step>, field: fn(&Step) -> u32
 }
 
 fn bench() -> Result<(), ()> {
-    hprintln!("bench=qemu-bench target=cortex-m4 machine=mps2-an386 planner=ArenaPlanner cells={}", ARENA_CELLS);
+    hprintln!(
+        "bench=qemu-bench target=cortex-m4 machine=mps2-an386 planner=ArenaPlanner cells={}",
+        ARENA_CELLS
+    );
     hprintln!("method=icount_shift10_cmsdk_timer0 ticks_per_instruction=25.6");
     timer0::start();
     let Some(overhead) = calibrate() else {
@@ -290,7 +297,11 @@ fn bench() -> Result<(), ()> {
 
 #[entry]
 fn main() -> ! {
-    let status = if bench().is_ok() { debug::EXIT_SUCCESS } else { debug::EXIT_FAILURE };
+    let status = if bench().is_ok() {
+        debug::EXIT_SUCCESS
+    } else {
+        debug::EXIT_FAILURE
+    };
     debug::exit(status);
     loop {
         cortex_m::asm::wfi();

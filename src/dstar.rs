@@ -27,13 +27,18 @@
 //! - Changed cells: when a cell's blocked state flips, the edges that change are those entering it and the
 //!   diagonals that pass beside it; all of them leave one of its 8 neighbours, so those neighbours get their
 //!   `rhs` recomputed from their successors and are re-queued as needed.
+//! - Keys tie-break on the smaller `min(g, rhs)`, as in the paper. This makes the first plan on open ground
+//!   expand every cell that lies on *some* optimal path (the octile heuristic is exact there, so they all
+//!   share `k1`), more than an A* that prefers deep nodes; but the order is what guarantees that an
+//!   under-consistent cell on the greedy path, whose `k1` ties with the start's, is repaired before the
+//!   search stops, so it is kept.
 //! - [`DStarLite::compute`] takes an expansion budget. When it is spent the call returns
 //!   [`PlanStatus::Incomplete`] with all state intact; the next call resumes. The loop always terminates:
 //!   each cell is expanded at most twice per repair (once over-, once under-consistent), so "no path" is an
 //!   answer ([`PlanStatus::NoPath`]), never a hang.
 //!
 //! Memory: `g` `2·CELLS` bytes + the queue `2·CELLS + 10·QUEUE` bytes + a few scalars. The firmware's
-//! [`ArenaPlanner`] (7200 cells, 1024 queue entries) takes 39 104 B.
+//! [`ArenaPlanner`] (7200 cells, 1024 queue entries) takes 39 076 B.
 //!
 //! Complexity: a repair expands `O(k)` cells for `k` affected cells, each expansion `O(8 · log QUEUE)`.
 //! If the queue overflows the planner refuses further work ([`PlanError::QueueFull`]) until
@@ -245,7 +250,7 @@ impl<const CELLS: usize, const QUEUE: usize> DStarLite<CELLS, QUEUE> {
                     }
                     let best = self.best_successor_cost(map, x, y);
                     if best != self.rhs(u) {
-                        self.update_vertex(u, best)?;
+                        self.update_vertex(u, x, y, best)?;
                     }
                 }
             }
@@ -267,7 +272,7 @@ impl<const CELLS: usize, const QUEUE: usize> DStarLite<CELLS, QUEUE> {
         loop {
             let g_start = self.g[start];
             let rhs_start = self.rhs(start);
-            let start_key = self.key(start, g_start, rhs_start);
+            let start_key = self.key(i32::from(self.start.x), i32::from(self.start.y), g_start, rhs_start);
             let Some((u, old_key)) = self.open.top() else { break };
             if old_key >= start_key && rhs_start <= g_start {
                 break;
@@ -280,8 +285,8 @@ impl<const CELLS: usize, const QUEUE: usize> DStarLite<CELLS, QUEUE> {
 
             let g_u = self.g[u];
             let rhs_u = self.rhs(u);
-            let new_key = self.key(u, g_u, rhs_u);
             let (ux, uy) = self.coords(u);
+            let new_key = self.key(ux, uy, g_u, rhs_u);
             if old_key < new_key {
                 self.open.update(u, new_key, rhs_u);
             } else if g_u > rhs_u {
@@ -300,7 +305,7 @@ impl<const CELLS: usize, const QUEUE: usize> DStarLite<CELLS, QUEUE> {
                     let Some(c) = move_cost(map, sx, sy, dx, dy) else { continue };
                     let through_u = add_cost(c, rhs_u);
                     if through_u < self.rhs(s) {
-                        self.update_vertex(s, through_u)?;
+                        self.update_vertex(s, sx, sy, through_u)?;
                     }
                 }
             } else {
@@ -320,11 +325,11 @@ impl<const CELLS: usize, const QUEUE: usize> DStarLite<CELLS, QUEUE> {
                     let rhs_s = self.rhs(s);
                     if rhs_s != INFINITE && rhs_s == add_cost(c, g_old) {
                         let best = self.best_successor_cost(map, sx, sy);
-                        self.update_vertex(s, best)?;
+                        self.update_vertex(s, sx, sy, best)?;
                     }
                 }
                 // u's own rhs does not depend on g(u); it only changes consistency.
-                self.update_vertex(u, rhs_u)?;
+                self.update_vertex(u, ux, uy, rhs_u)?;
             }
         }
         self.resuming = false;
@@ -416,17 +421,23 @@ impl<const CELLS: usize, const QUEUE: usize> DStarLite<CELLS, QUEUE> {
         self.open.payload(cell).unwrap_or(self.g[cell])
     }
 
+    /// The key of the cell at `(x, y)` (coordinates passed in because the callers have them; deriving them
+    /// from the index would cost a division per key).
     #[inline]
-    fn key(&self, cell: usize, g: u16, rhs: u16) -> Key {
+    fn key(&self, x: i32, y: i32, g: u16, rhs: u16) -> Key {
         let m = g.min(rhs);
-        Key { k1: u32::from(m) + octile(self.start, self.shape.cell(cell)) + self.km, k2: m }
+        let dx = x.abs_diff(i32::from(self.start.x));
+        let dy = y.abs_diff(i32::from(self.start.y));
+        let (lo, hi) = if dx < dy { (dx, dy) } else { (dy, dx) };
+        let h = u32::from(STRAIGHT_COST) * hi + u32::from(DIAGONAL_COST - STRAIGHT_COST) * lo;
+        Key { k1: u32::from(m) + h + self.km, k2: m }
     }
 
     /// D* Lite's UpdateVertex with the new `rhs`: queue the cell iff it is inconsistent.
-    fn update_vertex(&mut self, cell: usize, rhs: u16) -> Result<(), PlanError> {
+    fn update_vertex(&mut self, cell: usize, x: i32, y: i32, rhs: u16) -> Result<(), PlanError> {
         let g = self.g[cell];
         if g != rhs {
-            let key = self.key(cell, g, rhs);
+            let key = self.key(x, y, g, rhs);
             if self.open.push(cell, key, rhs).is_err() {
                 self.readiness = Readiness::Broken;
                 return Err(PlanError::QueueFull);

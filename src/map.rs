@@ -104,10 +104,10 @@ impl GridShape {
         usize::from(cell.y) * usize::from(self.width) + usize::from(cell.x)
     }
 
-    /// The cell of a row-major index.
+    /// The cell of a row-major index (a 0-wide shape maps everything to column 0 rather than dividing by 0).
     #[inline]
     pub fn cell(self, index: usize) -> Cell {
-        let w = usize::from(self.width);
+        let w = usize::from(self.width.max(1));
         Cell::new((index % w) as u16, (index / w) as u16)
     }
 

@@ -10,24 +10,35 @@
 //! ## Pipeline
 //!
 //! 1. **Gate**: non-finite positions and ranges outside `[min_range_m, max_range_m]` are ignored.
-//! 2. **Median of 3** on the range. A single outlier sample (the VL53L1x occasionally returns one wild
-//!    value) disappears here instead of becoming a half-edge. The median is attributed to the *middle*
-//!    sample's position, so a clean step is still located at its first sample: no position lag.
-//! 3. **Smoothed z-score** (the seed's detector): a ring of the last `lag` *filtered* values gives a mean
-//!    and standard deviation; a sample is a signal if it deviates from the mean by more than
-//!    `threshold_sigma`·σ **and** by at least `min_step_m` (the absolute floor is what rejects a 1 cm box
-//!    and makes a noise-free floor, σ = 0, safe). Signalling samples enter the ring only with weight
-//!    `influence`, so a step keeps signalling for about `lag` samples instead of being absorbed at once.
-//! 4. **Runs → edges**: a run of `min_run` consecutive signals of the same sign is one edge, placed at the
-//!    run's *first* sample. One edge per step, not per sample; shorter runs (bursts of outliers that
-//!    survived the median) are dropped. A second run of the same sign within `min_edge_spacing_m` of
-//!    travel is the same step flickering and is merged.
+//! 2. **Spatial bins**: samples are grouped by distance travelled (`bin_m`, an odd number of samples per
+//!    bin) and each bin contributes its median range, located at the bin's centre. One wild sample (the
+//!    VL53L1x returns some) never survives its bin; two in one bin give a value far from any level, which
+//!    the later stages recognise as stray. Binning by distance makes every length below a distance, the
+//!    same at any speed or sample rate.
+//! 3. **Smoothed z-score** (the seed's detector): a ring of the last `lag` *filtered* bin values gives a
+//!    centre and spread — by default the median and `1.4826·MAD` ([`PadConfig::robust_stats`]), else
+//!    the seed's mean and σ. A bin is a signal if it deviates from the centre by more than
+//!    `threshold_sigma`·spread **and** by at least `min_step_m` (the absolute floor is what rejects a
+//!    1 cm box and keeps a noise-free floor, spread 0, quiet). Signalling values enter the ring only with
+//!    weight `influence`, so a step keeps signalling for about `lag` bins instead of being absorbed.
+//! 4. **Runs → edges**: `min_run` signals of one sign among the last `min_run + 1` bins confirm a step
+//!    (one bad bin inside a step does not split it; shorter bursts are dropped); the step's run ends
+//!    after two bins without its signal, so each step gives one edge, not one per sample. The edge is
+//!    then *located* where the binned range crosses halfway between the level before (window median at
+//!    the first signal) and the level after (median of the run's last bins), interpolated between the
+//!    two bins around the crossing, searching backwards from the settled end of the run and skipping
+//!    stray bins. Unlike "the first signalling sample", this is not delayed along the direction of
+//!    travel when the ranger's footprint blurs the step, which would shift every chord midpoint forward.
+//!    Edges are therefore reported when their run ends, ~`lag` bins after the step. A second step of
+//!    the same sign within `min_edge_spacing_m` of travel is the same step flickering and is merged.
 //! 5. **Edge list** (for plots and the seed's centroid): an edge closer than `min_edge_spacing_m` to an
 //!    edge already stored is not stored again (the first is kept).
-//! 6. **Crossings**: an `Enter` followed by an `Exit` is a crossing if the drone flew straight between them
-//!    (travel ≈ chord, both headings along the chord), the chord is a plausible pad width
-//!    (`pad_size_m`·(1 ± `chord_tolerance`)), the level in between is at least `min_step_m` below the
-//!    level before, and the level after is the level before (same floor on both sides). Unpaired edges (a line that ends on the pad, a spurious step) never enter the estimate.
+//! 6. **Crossings**: an `Enter` followed by an `Exit` is a crossing if the drone flew straight between
+//!    them (travel ≈ chord, the headings just before both edges along the chord), the chord is a
+//!    plausible pad width (`min_chord_ratio`…`max_chord_ratio` × `pad_size_m`), the level in between is
+//!    at least `min_step_m` below the level before, and the level after matches the level before (same
+//!    floor on both sides). Unpaired edges (a line that ends or turns on the pad, a spurious step) never
+//!    enter the estimate.
 //! 7. **Centre**: a crossing fixes the centre only *along* its chord: for a square pad, the chord's
 //!    midpoint has the centre's coordinate along the chord direction `d`, whatever the line's offset.
 //!    Across the chord it only says "within half a pad of this line". So the centre `c` minimises
@@ -56,10 +67,11 @@
 //!
 //! ## Units, frames, size
 //!
-//! Metres, arena frame (x right, y up). Memory: `24·EDGES` bytes of edges + `24·EDGES` of crossings +
-//! ~250 bytes of filter state (≈ 1.8 KiB for `EDGES = 32`). Complexity: O(`lag`) per sample (the window's
-//! mean and σ are recomputed exactly, which cannot drift like running sums); O(`EDGES`²) in the worst case
-//! when a new crossing arrives (refit with outlier removal), i.e. a few hundred flops.
+//! Metres, arena frame (x right, y up). Memory: `16·EDGES` bytes of edges + `24·EDGES` of crossings +
+//! a 64-bin ring (2 KiB) + ~0.4 KiB of filter state: ≈ 3.7 KiB for `EDGES = 32` (see the `size` test).
+//! Complexity per sample: O(1), plus per closed bin (every ~1 cm) two insertion-sort medians of the
+//! `lag ≤ 32` window (exact, no running sums to drift), plus O(`lag`) when a step ends; per new crossing
+//! O(`EDGES`²) in the worst case (refit with outlier removal), a few thousand flops at most.
 
 use heapless::Vec;
 
@@ -76,9 +88,13 @@ const HEADING_BASELINE_M: f32 = 0.02;
 /// A crossing's chord must be within 20° of the drone's heading at both edges: straight flight.
 const COS_MAX_HEADING_ERROR: f32 = 0.9397;
 
-/// Travel between the edges of a crossing may exceed the chord by 15 % + 3 cm (position noise) at most.
-const TRAVEL_SLACK_RATIO: f32 = 1.15;
-const TRAVEL_SLACK_M: f32 = 0.03;
+/// Travel between the edges of a crossing may exceed the chord by 5 % + 2 cm (position noise) at most.
+const TRAVEL_SLACK_RATIO: f32 = 1.05;
+const TRAVEL_SLACK_M: f32 = 0.02;
+
+/// The heading at an edge is measured over this many bins before it (~2 cm): recent enough to notice a
+/// turn just before the edge, long enough to average position noise.
+const HEADING_BINS: u32 = 2;
 
 /// Weight of the pull towards the midpoints' centroid in the centre fit (see the module docs, step 7).
 const CENTROID_PULL: f32 = 1e-3;
@@ -95,9 +111,9 @@ pub enum EdgeKind {
 /// A detected step in the downward range.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct Edge {
-    /// Arena x of the first sample past the step, metres.
+    /// Arena x where the range crossed halfway between the two levels, metres.
     pub x: f32,
-    /// Arena y of the first sample past the step, metres.
+    /// Arena y where the range crossed halfway between the two levels, metres.
     pub y: f32,
     /// Step direction.
     pub kind: EdgeKind,
@@ -165,16 +181,21 @@ impl PadEstimate {
 /// Tuning of [`PadDetector`]. [`Default`] gives the values below.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct PadConfig {
-    /// Bin length, metres: raw samples are grouped by distance travelled and each bin's (lower) median is
-    /// one z-score input. Default 0.01 m: ~3 samples at 0.3 m/s and 100 Hz, so a single outlier never
-    /// survives the bin; it also makes every other length below a distance rather than a sample count,
-    /// independent of speed and sample rate. Edges are located to ±`bin_m`/2. 0 = one bin per sample.
+    /// Bin length, metres: raw samples are grouped by distance travelled (an odd number per bin) and
+    /// each bin's median is one z-score input. Default 0.008 m: 3 samples (9 mm) at 0.3 m/s and 100 Hz,
+    /// so a single outlier never survives its bin; it also makes every length below a distance rather
+    /// than a sample count, independent of speed and rate. Edges are interpolated between bins.
+    /// 0 = one bin per sample.
     pub bin_m: f32,
-    /// z-score window, bins, `2..=MAX_LAG`. Default 10 (10 cm with 1 cm bins). It must be longer than
+    /// z-score window, bins, `2..=MAX_LAG`. Default 12 (≈ 11 cm at 9 mm bins). It must be longer than
     /// the blur of an edge (the ranger's footprint turns a step into a ramp; a ramp longer than the
     /// window follows the mean and is never a 2σ outlier) and clearly shorter than the pad (30 cm),
     /// so that the window settles on the pad's level between its edges. (The seed's 5–8 were samples.)
     pub lag: usize,
+    /// Use the window's median and MAD-based σ (true) or its mean and standard deviation (false, the
+    /// seed's form). Default true: a stray value or the first bins of a blurred step inflate the
+    /// standard deviation enough to hide the rest of the step; the median and MAD barely move.
+    pub robust_stats: bool,
     /// Signal threshold, standard deviations. Default 2.0 (seed 1.5–2.0): the upper end, since the
     /// absolute `min_step_m` already makes a 10 cm step fire; this only guards against noisy windows.
     pub threshold_sigma: f32,
@@ -184,8 +205,8 @@ pub struct PadConfig {
     /// Smallest step that counts, metres. Default 0.03 m: a third of the 10 cm pad height, 6σ of 5 mm
     /// noise, and three times a 1 cm box or cable, which must not count.
     pub min_step_m: f32,
-    /// Consecutive signalling bins that make an edge. Default 3 (3 cm): an outlier would have to fill
-    /// more than half of three bins in a row; every real step signals for ~`lag` bins.
+    /// Signalling bins (among the last `min_run + 1`) that confirm a step. Default 3 (~3 cm): stray
+    /// bins are rare and isolated; every real step signals for ~`lag` bins.
     pub min_run: usize,
     /// Minimum distance between stored edges (and between two runs of one step), metres. Default 0.05 m
     /// (seed 5–10 cm): far more than a step's flicker, far less than the 0.15–0.2 m line spacing.
@@ -196,10 +217,14 @@ pub struct PadConfig {
     pub max_range_m: f32,
     /// Expected pad side, metres. Default 0.3 m.
     pub pad_size_m: f32,
-    /// Accepted chord lengths are `pad_size_m·(1 ± chord_tolerance)`. Default 0.5 (0.15–0.45 m): covers
-    /// edge blur from the sensor's footprint and the diagonal of a rotated pad, rejects corner clips and
-    /// "crossings" made of two unrelated edges.
-    pub chord_tolerance: f32,
+    /// Shortest accepted chord, as a fraction of `pad_size_m`. Default 0.7 (0.21 m): a line across an
+    /// aligned square pad has a chord of exactly its side; shorter chords are corner clips of a rotated
+    /// pad (whose midpoints say little about the centre) or a line that turned or ended on the pad.
+    pub min_chord_ratio: f32,
+    /// Longest accepted chord, as a fraction of `pad_size_m`. Default 1.6 (0.48 m): the diagonal of the
+    /// pad (1.41) plus room for a footprint that makes the pad look wider; longer "crossings" pair
+    /// edges of unrelated steps.
+    pub max_chord_ratio: f32,
     /// The floor levels before entering and after leaving a crossing may differ by this much plus half
     /// the pad's measured height, metres. Default 0.02 m: it is the same floor, up to the height-hold
     /// drift over the ~1 s crossing (a few cm); an edge made by a burst of outliers has a "floor" tens of
@@ -226,8 +251,9 @@ pub struct PadConfig {
 impl Default for PadConfig {
     fn default() -> Self {
         Self {
-            bin_m: 0.01,
-            lag: 10,
+            bin_m: 0.008,
+            lag: 12,
+            robust_stats: true,
             threshold_sigma: 2.0,
             influence: 0.2,
             min_step_m: 0.03,
@@ -236,7 +262,8 @@ impl Default for PadConfig {
             min_range_m: 0.02,
             max_range_m: 4.0,
             pad_size_m: 0.3,
-            chord_tolerance: 0.5,
+            min_chord_ratio: 0.7,
+            max_chord_ratio: 1.6,
             step_match_m: 0.02,
             outlier_m: 0.05,
             fit_tolerance_m: 0.05,
@@ -270,7 +297,8 @@ impl PadConfig {
             self.min_range_m,
             self.max_range_m,
             self.pad_size_m,
-            self.chord_tolerance,
+            self.min_chord_ratio,
+            self.max_chord_ratio,
             self.step_match_m,
             self.outlier_m,
             self.fit_tolerance_m,
@@ -291,8 +319,8 @@ impl PadConfig {
             && self.min_range_m >= 0.0
             && self.max_range_m > self.min_range_m
             && self.pad_size_m > 0.0
-            && self.chord_tolerance > 0.0
-            && self.chord_tolerance < 1.0
+            && self.min_chord_ratio > 0.0
+            && self.max_chord_ratio > self.min_chord_ratio
             && self.step_match_m >= 0.0
             && self.outlier_m > 0.0
             && self.fit_tolerance_m > 0.0
@@ -333,7 +361,7 @@ struct Detection {
     heading: (f32, f32),
     /// The level before the step (median of the z-score window before the step's first signal).
     level_before: f32,
-    /// The level after the step (median of the run's last signalling bins).
+    /// The level after the step (median of the run's last bins).
     level_after: f32,
 }
 
@@ -351,6 +379,9 @@ struct ActiveRun {
 /// Bins kept for locating a step after it has settled: twice the largest window, which covers the part
 /// of a blurred step before the first signal (< `lag` bins) plus the run itself (~`lag` bins).
 const RING: usize = 2 * MAX_LAG;
+
+/// Bins whose median is the level after a step (two stray bins among them cannot move it).
+const AFTER_BINS: usize = 5;
 
 /// A run ends after this many bins without its signal (one bad bin does not split a step in two).
 const RUN_END_MISSES: u8 = 2;
@@ -514,9 +545,9 @@ impl<const EDGES: usize> PadDetector<EDGES> {
             self.push_window(y);
             return 0;
         }
-        let (mean, std) = self.window_stats();
-        let dev = y - mean;
-        let signal = if libm::fabsf(dev) > cfg.threshold_sigma * std && libm::fabsf(dev) >= cfg.min_step_m {
+        let (centre, spread) = if cfg.robust_stats { self.window_robust_stats() } else { self.window_stats() };
+        let dev = y - centre;
+        let signal = if libm::fabsf(dev) > cfg.threshold_sigma * spread && libm::fabsf(dev) >= cfg.min_step_m {
             if dev > 0.0 { 1 } else { -1 }
         } else {
             0
@@ -549,6 +580,24 @@ impl<const EDGES: usize> PadDetector<EDGES> {
         (mean, libm::sqrtf(var))
     }
 
+    /// Median and σ estimated from the median absolute deviation (`1.4826·MAD`, the Gaussian σ). Neither
+    /// moves for a few stray values in the window, or for the first bins of a blurred step.
+    fn window_robust_stats(&self) -> (f32, f32) {
+        let mut copy = [0.0f32; MAX_LAG];
+        let (Some(dst), Some(src)) = (copy.get_mut(..self.window_len), self.window.get(..self.window_len)) else {
+            return (self.last_filtered, 0.0);
+        };
+        if src.is_empty() {
+            return (self.last_filtered, 0.0);
+        }
+        dst.copy_from_slice(src);
+        let med = median(dst);
+        for v in dst.iter_mut() {
+            *v = libm::fabsf(*v - med);
+        }
+        (med, 1.4826 * median(dst))
+    }
+
     /// Median of the window: the level before a step, robust to the first part of a blurred step and
     /// to stray values. The last value pushed stands in while the window is empty.
     fn window_median(&self) -> f32 {
@@ -560,6 +609,20 @@ impl<const EDGES: usize> PadDetector<EDGES> {
         }
         dst.copy_from_slice(src);
         median(dst)
+    }
+
+    /// Direction of travel into bin `serial` (at `hit`), from the bin [`HEADING_BINS`] before it; the
+    /// slower-moving anchor heading when that is missing or too close (hovering).
+    fn heading_before(&self, serial: u32, hit: Bin) -> (f32, f32) {
+        let from = serial.checked_sub(HEADING_BINS).and_then(|s| self.ring_bin(s));
+        if let Some(b) = from {
+            let (dx, dy) = (hit.x - b.x, hit.y - b.y);
+            let d = libm::hypotf(dx, dy);
+            if d >= 0.005 {
+                return (dx / d, dy / d);
+            }
+        }
+        hit.heading
     }
 
     fn ring_bin(&self, serial: u32) -> Option<&Bin> {
@@ -579,7 +642,7 @@ impl<const EDGES: usize> PadDetector<EDGES> {
             // A run older than the ring can hold is located now, before its start is overwritten.
             let too_long = serial.wrapping_sub(run.first) as usize + self.config.lag + 2 >= RING;
             if run.misses >= RUN_END_MISSES || too_long {
-                ended = self.locate(&run);
+                ended = self.locate(&run, serial);
                 self.run = None;
             } else {
                 self.run = Some(run);
@@ -600,7 +663,7 @@ impl<const EDGES: usize> PadDetector<EDGES> {
             if count >= self.config.min_run {
                 // An opposite run still open ends here (a narrow crossing); report it first.
                 if let Some(run) = self.run.take() {
-                    ended = ended.or(self.locate(&run));
+                    ended = ended.or(first.checked_sub(1).and_then(|end| self.locate(&run, end)));
                 }
                 self.run = Some(ActiveRun { sign: signal, first, misses: 0 });
             }
@@ -610,22 +673,19 @@ impl<const EDGES: usize> PadDetector<EDGES> {
 
     /// Locates a finished run's step (module docs, step 4): where the binned range crosses halfway
     /// between the levels before and after, interpolated between bin centres.
-    fn locate(&mut self, run: &ActiveRun) -> Option<Detection> {
+    /// `end` is the run's last bin (the newest, or the one before a new run took over).
+    fn locate(&mut self, run: &ActiveRun, end: u32) -> Option<Detection> {
         let first = *self.ring_bin(run.first)?;
         let before = first.level;
-        // The level after: median of the run's last (up to 3) signalling bins.
-        let mut tail = [0.0f32; 3];
+        // The level after: median of the run's last bins, signalling or not. (Not "the last signalling
+        // bins": once the window has caught up with the step only stray bins still signal.)
+        let mut tail = [0.0f32; AFTER_BINS];
         let mut k = 0usize;
-        let mut last_signal = None;
-        let mut s = self.bins.wrapping_sub(1);
+        let mut s = end;
         while k < tail.len() && s >= run.first {
-            if let Some(b) = self.ring_bin(s)
-                && b.signal == run.sign
-                && let Some(slot) = tail.get_mut(k)
-            {
+            if let (Some(b), Some(slot)) = (self.ring_bin(s), tail.get_mut(k)) {
                 *slot = b.range;
                 k += 1;
-                last_signal = last_signal.or(Some(s));
             }
             let Some(prev) = s.checked_sub(1) else { break };
             s = prev;
@@ -645,9 +705,9 @@ impl<const EDGES: usize> PadDetector<EDGES> {
         // old side of the half level: the step lies between the later of them and the next non-stray bin.
         // Starting from the settled end (not the first signal) keeps a stray bin just before a blurred
         // step from being taken for the step; needing two old-side bins skips a stray one on the new level.
-        let start = last_signal?;
+        let start = end.wrapping_add(1);
         let limit = serial_span(run.first, start) + self.config.lag;
-        let mut later: Option<Bin> = self.ring_bin(start).copied();
+        let mut later: Option<(u32, Bin)> = None;
         let mut old_pair: Option<Bin> = None;
         let mut crossing = None;
         let mut s = start;
@@ -659,19 +719,19 @@ impl<const EDGES: usize> PadDetector<EDGES> {
                 continue;
             }
             if new_side(&b) {
-                later = Some(b);
+                later = Some((s, b));
                 old_pair = None;
             } else if let Some(first_old) = old_pair {
-                crossing = later.map(|hit| (first_old, hit));
+                crossing = later.map(|(at, hit)| (first_old, hit, at));
                 break;
             } else {
                 old_pair = Some(b);
             }
         }
-        let (old, hit) = match crossing {
-            Some(pair) => pair,
+        let (old, hit, at_serial) = match crossing {
+            Some(found) => found,
             // No clean old level found in the ring: fall back to the first signalling bin.
-            None => (*self.ring_bin(run.first)?, *self.ring_bin(run.first)?),
+            None => (*self.ring_bin(run.first)?, *self.ring_bin(run.first)?, run.first),
         };
         let (mut x, mut y, mut odo) = (hit.x, hit.y, hit.odo);
         let t = (0.5 - level_of(&old)) / (level_of(&hit) - level_of(&old));
@@ -685,7 +745,7 @@ impl<const EDGES: usize> PadDetector<EDGES> {
         let detection = Detection {
             edge: Edge { x, y, kind, step_m: height },
             odo,
-            heading: hit.heading,
+            heading: self.heading_before(at_serial, hit),
             level_before: before,
             level_after: after,
         };
@@ -737,8 +797,8 @@ impl<const EDGES: usize> PadDetector<EDGES> {
         let cfg = &self.config;
         let (dx, dy) = (exit.edge.x - enter.edge.x, exit.edge.y - enter.edge.y);
         let chord = libm::hypotf(dx, dy);
-        let lo = cfg.pad_size_m * (1.0 - cfg.chord_tolerance);
-        let hi = cfg.pad_size_m * (1.0 + cfg.chord_tolerance);
+        let lo = cfg.pad_size_m * cfg.min_chord_ratio;
+        let hi = cfg.pad_size_m * cfg.max_chord_ratio;
         if !(chord >= lo && chord <= hi) {
             return None;
         }
@@ -750,9 +810,9 @@ impl<const EDGES: usize> PadDetector<EDGES> {
         if exit.odo - enter.odo > TRAVEL_SLACK_RATIO * chord + TRAVEL_SLACK_M {
             return None;
         }
-        // Levels: the floor before entering and the pad while on it are window means (robust); the floor
-        // after leaving is the median of the exit run's first values. The pad must be lower than the floor
-        // by at least a minimum step, and the floor must be the same on both sides.
+        // Levels: the floor before entering and the pad while on it are window medians; the floor after
+        // leaving is the median of the exit run's last bins. The pad must be lower than the floor by at
+        // least a minimum step, and the floor must be the same on both sides.
         let floor_before = enter.level_before;
         let pad_level = exit.level_before;
         let floor_after = exit.level_after;
@@ -867,6 +927,15 @@ impl<const EDGES: usize> PadDetector<EDGES> {
         }
     }
 
+    /// Reports a step still in progress (its run has not ended yet because no bins followed it), e.g.
+    /// when the sweep is over and the drone stops feeding samples. Returns the edge stored, if any.
+    pub fn flush(&mut self) -> Option<Edge> {
+        let run = self.run.take()?;
+        let end = self.bins.checked_sub(1)?;
+        let detection = self.locate(&run, end)?;
+        self.on_detection(detection)
+    }
+
     /// The current centre estimate (from crossings), if any crossing has been seen.
     pub fn estimate(&self) -> Option<PadEstimate> {
         self.estimate
@@ -929,11 +998,11 @@ fn median(values: &mut [f32]) -> f32 {
     for i in 1..values.len() {
         let mut j = i;
         while j > 0 {
-            let (Some(&a), Some(&b)) = (values.get(j - 1), values.get(j)) else { break };
-            if a <= b {
+            let Some([a, b]) = values.get_mut(j - 1..=j) else { break };
+            if *a <= *b {
                 break;
             }
-            values.swap(j - 1, j);
+            core::mem::swap(a, b);
             j -= 1;
         }
     }

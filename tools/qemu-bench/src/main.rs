@@ -1,12 +1,14 @@
 //! Exact Cortex-M4 instruction counts of the firmware's D* Lite planner on the seed scenario, under QEMU.
 //!
-//! On `thumbv7em-none-eabihf` this is a bare-metal program for QEMU's `mps2-an386` (see `src/mcu.rs` and
-//! `run.sh`); on the host it only prints how to run it, so that `cargo clippy --workspace` and
-//! `cargo test --workspace` build it.
+//! On `thumbv7em-none-eabihf` this is a bare-metal program for QEMU's `mps2-an386` (see `src/mcu.rs`, its
+//! runtime `src/rt.rs` with the linker script `qemu-bench.x`, and `run.sh`); on the host it only prints how to run
+//! it, so that `cargo clippy --workspace` and `cargo test --workspace` build it.
 #![cfg_attr(target_os = "none", no_std, no_main)]
 
 #[cfg(target_os = "none")]
 mod mcu;
+#[cfg(target_os = "none")]
+mod rt;
 
 #[cfg(not(target_os = "none"))]
 fn main() {

@@ -20,7 +20,6 @@ use core::sync::atomic::{Ordering, compiler_fence};
 use cfnav::dstar::ArenaPlanner;
 use cfnav::grid::OccupancyGrid;
 use cfnav::map::ARENA_CELLS;
-use cortex_m_rt::{ExceptionFrame, entry, exception};
 use cortex_m_semihosting::{debug, hprintln};
 use qemu_bench::{BOX_CELLS, MAX_STEPS, Meter, Report, SEED_MAP, SENSE_RADIUS, Step, Summary, World, run, summarize};
 
@@ -51,21 +50,6 @@ mod timer0 {
         // SAFETY: VALUE is a readable 32-bit register of the timer (see `start`); reading it has no side effect.
         unsafe { VALUE.read_volatile() }
     }
-}
-
-/// The device interrupt vectors (mps2-an386 has 32 external interrupts). cfnav's MCU dependencies
-/// (embassy-stm32 `rt`) turn on cortex-m-rt's `device` feature, which leaves this table to a device crate; no
-/// device crate is linked here and no interrupt is ever enabled, so every entry is cortex-m-rt's `DefaultHandler`.
-/// (Should the firmware ever drop that feature, cortex-m-rt defines `__INTERRUPTS` itself and the link fails
-/// with a duplicate symbol: delete this table then.)
-#[unsafe(link_section = ".vector_table.interrupts")]
-#[unsafe(no_mangle)]
-#[used]
-static __INTERRUPTS: [unsafe extern "C" fn(); 32] = [DefaultHandler; 32];
-
-unsafe extern "C" {
-    /// cortex-m-rt's default exception handler (`PROVIDE`d by its `link.x`).
-    fn DefaultHandler();
 }
 
 /// Virtual timer ticks per instruction × 10: 25 MHz × 1024 ns = 25.6.
@@ -295,23 +279,15 @@ fn bench() -> Result<(), ()> {
     Ok(())
 }
 
-#[entry]
-fn main() -> ! {
+/// The program, called by the reset handler (`src/rt.rs`) once the FPU is on and RAM is initialised: run the
+/// benchmark and exit QEMU with its status.
+pub extern "C" fn main() -> ! {
     let status = if bench().is_ok() {
         debug::EXIT_SUCCESS
     } else {
         debug::EXIT_FAILURE
     };
     debug::exit(status);
-    loop {
-        cortex_m::asm::wfi();
-    }
-}
-
-#[exception]
-unsafe fn HardFault(frame: &ExceptionFrame) -> ! {
-    hprintln!("error=hardfault pc={:#010x}", frame.pc());
-    debug::exit(debug::EXIT_FAILURE);
     loop {
         cortex_m::asm::wfi();
     }

@@ -7,15 +7,21 @@
 //! 1. **repulsion** from every ranger that sees something inside the danger distance `d0`, by one of two
 //!    methods chosen by [`AvoidanceMethod`]:
 //!    * [`AvoidanceMethod::PotentialField`], the seed's law: per ranger `((d0 − d)/d0)²`, pushing opposite
-//!      to the beam, engaged only once the net force leaves a dead band (with hysteresis, see below);
+//!      to the beam;
 //!    * [`AvoidanceMethod::VirtualForceField`]: per ranger `tanh(k·(d0 − d)/d)`, which grows like `1/d`
 //!      near the obstacle but saturates smoothly at 1, **plus velocity damping**: the part of the desired
 //!      velocity that points at a near obstacle is reduced in proportion to the proximity `(d0 − d)/d0`;
-//! 2. the repulsion (times the gain, m/s) is rotated body → arena with the yaw and added to the desired
+//! 2. **dead band and hysteresis** (both methods): the repulsion engages once the net force exceeds the
+//!    dead band, and releases only when every ranger reads more than `d0 + hysteresis`. While engaged it
+//!    acts in full, so it stays continuous and fades to zero at `d0`; the only jump (at engagement) is
+//!    small and smoothed. Grazing readings near `d0` therefore neither wobble the drone nor make the
+//!    `active` flag chatter;
+//! 3. the repulsion (times the gain, m/s) is rotated body → arena with the yaw and added to the desired
 //!    velocity;
-//! 3. **exponential smoothing** with time constant `τ` (`α = 1 − e^(−dt/τ)`, exact for any `dt`);
-//! 4. a **speed clamp**: the allowed speed falls linearly from the cruise speed at the slow-down distance
-//!    to the minimum speed at `d0`, judged on the nearest valid range.
+//! 4. **exponential smoothing** with time constant `τ` (`α = 1 − e^(−dt/τ)`, exact for any `dt`);
+//! 5. a **speed clamp**: the allowed speed falls linearly from the cruise speed at the slow-down distance
+//!    to the minimum speed at `d0`, judged on the nearest valid range. The clamp comes last, so the
+//!    command never exceeds it (up to f32 rounding); the filter's state is the clamped command.
 //!
 //! Non-goals: planning around obstacles (the planner does that on the map), vertical avoidance (the up
 //! ranger is not used), and detecting obstacles the beams miss: four beams see four directions only.
@@ -30,7 +36,7 @@
 //! direction would be a guess) but the speed clamp still is. A `dt` that is not a positive finite
 //! number advances no time: the previous command is held (and re-clamped). The output is always finite.
 //!
-//! Memory: [`ReactiveAvoidance`] is a few dozen bytes (config + 4 flags + last yaw + last command).
+//! Memory: [`ReactiveAvoidance`] is 68 bytes (the config, an engaged flag, the last yaw and command).
 //! Complexity: O(1) per step (four rangers, one `expf`, a few `tanhf`/`sinf`/`cosf`).
 
 /// Body-frame unit vectors of the beams, in the order of [`RangerReadings`]' fields: front, back, left,
@@ -151,7 +157,13 @@ impl AvoidanceConfig {
         if self.danger_distance_m <= 0.0 || self.vff_steepness <= 0.0 || self.max_range_m <= self.danger_distance_m {
             return Err(AvoidanceConfigError::NonPositive);
         }
-        let non_negative = [self.hysteresis_m, self.dead_band, self.gain_mps, self.smoothing_tau_s, self.min_speed_mps];
+        let non_negative = [
+            self.hysteresis_m,
+            self.dead_band,
+            self.gain_mps,
+            self.smoothing_tau_s,
+            self.min_speed_mps,
+        ];
         if non_negative.iter().any(|&v| v < 0.0) || !(0.0..=1.0).contains(&self.vff_damping) {
             return Err(AvoidanceConfigError::OutOfRange);
         }
@@ -199,7 +211,12 @@ pub struct RangerReadings {
 impl RangerReadings {
     /// Readings from front, back, left, right.
     pub const fn new(front: Option<f32>, back: Option<f32>, left: Option<f32>, right: Option<f32>) -> Self {
-        Self { front, back, left, right }
+        Self {
+            front,
+            back,
+            left,
+            right,
+        }
     }
 
     /// No ranger sees anything.
@@ -245,7 +262,12 @@ impl ReactiveAvoidance {
     /// An avoider with a validated config, at rest (last command zero).
     pub fn new(config: AvoidanceConfig) -> Result<Self, AvoidanceConfigError> {
         config.validate()?;
-        Ok(Self { config, engaged: false, last_yaw: None, last: (0.0, 0.0) })
+        Ok(Self {
+            config,
+            engaged: false,
+            last_yaw: None,
+            last: (0.0, 0.0),
+        })
     }
 
     /// The config in use.
@@ -291,22 +313,18 @@ impl ReactiveAvoidance {
         let mut desired = sanitize_velocity(desired_vx_mps, desired_vy_mps);
 
         // Per-ranger force magnitudes (dimensionless, ≥ 0) and the net body-frame force.
-        let mut forces = [0.0f32; 4];
-        let mut proximity = [0.0f32; 4];
-        for (i, d) in valid.iter().enumerate() {
-            let Some(d) = *d else { continue };
-            if d >= d0 {
-                continue;
-            }
-            let p = (d0 - d) / d0; // proximity in (0, 1]
-            proximity[i] = p;
-            forces[i] = match cfg.method {
-                AvoidanceMethod::PotentialField => p * p,
-                AvoidanceMethod::VirtualForceField => {
-                    libm::tanhf(cfg.vff_steepness * (d0 - d) / d.max(MIN_DIVISOR_M))
-                }
-            };
-        }
+        // Proximity (d0 − d)/d0 ∈ (0, 1] of each ranger inside d0, else 0.
+        let proximity = valid.map(|d| match d {
+            Some(d) if d < d0 => (d0 - d) / d0,
+            _ => 0.0,
+        });
+        let forces = valid.map(|d| match d {
+            Some(d) if d < d0 => match cfg.method {
+                AvoidanceMethod::PotentialField => ((d0 - d) / d0) * ((d0 - d) / d0),
+                AvoidanceMethod::VirtualForceField => libm::tanhf(cfg.vff_steepness * (d0 - d) / d.max(MIN_DIVISOR_M)),
+            },
+            _ => 0.0,
+        });
         let (mut fx, mut fy) = (0.0f32, 0.0f32);
         for (f, (bx, by)) in forces.iter().zip(BEAMS) {
             fx -= f * bx;
@@ -362,7 +380,10 @@ impl ReactiveAvoidance {
         } else {
             1.0 - libm::expf(-dt_s / cfg.smoothing_tau_s)
         };
-        let smoothed = (self.last.0 + alpha * (raw.0 - self.last.0), self.last.1 + alpha * (raw.1 - self.last.1));
+        let smoothed = (
+            self.last.0 + alpha * (raw.0 - self.last.0),
+            self.last.1 + alpha * (raw.1 - self.last.1),
+        );
 
         let speed_limit_mps = cfg.speed_limit(nearest_m);
         let out = clamp_speed(smoothed, speed_limit_mps);

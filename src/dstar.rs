@@ -153,7 +153,11 @@ fn add_cost(c: u16, g: u16) -> u16 {
         return INFINITE;
     }
     let sum = u32::from(c) + u32::from(g);
-    if sum >= u32::from(INFINITE) { INFINITE } else { sum as u16 }
+    if sum >= u32::from(INFINITE) {
+        INFINITE
+    } else {
+        sum as u16
+    }
 }
 
 impl<const CELLS: usize, const QUEUE: usize> DStarLite<CELLS, QUEUE> {
@@ -196,7 +200,10 @@ impl<const CELLS: usize, const QUEUE: usize> DStarLite<CELLS, QUEUE> {
         self.expansions = 0;
         self.resuming = false;
         let goal_index = shape.index(goal);
-        let key = Key { k1: octile(start, goal), k2: 0 };
+        let key = Key {
+            k1: octile(start, goal),
+            k2: 0,
+        };
         self.open.push(goal_index, key, 0).map_err(|_| PlanError::QueueFull)?;
         self.readiness = Readiness::Ready;
         Ok(())
@@ -302,7 +309,9 @@ impl<const CELLS: usize, const QUEUE: usize> DStarLite<CELLS, QUEUE> {
                     if s == goal {
                         continue;
                     }
-                    let Some(c) = move_cost(map, sx, sy, dx, dy) else { continue };
+                    let Some(c) = move_cost(map, sx, sy, dx, dy) else {
+                        continue;
+                    };
                     let through_u = add_cost(c, rhs_u);
                     if through_u < self.rhs(s) {
                         self.update_vertex(s, sx, sy, through_u)?;
@@ -321,7 +330,9 @@ impl<const CELLS: usize, const QUEUE: usize> DStarLite<CELLS, QUEUE> {
                     if s == goal {
                         continue;
                     }
-                    let Some(c) = move_cost(map, sx, sy, dx, dy) else { continue };
+                    let Some(c) = move_cost(map, sx, sy, dx, dy) else {
+                        continue;
+                    };
                     let rhs_s = self.rhs(s);
                     if rhs_s != INFINITE && rhs_s == add_cost(c, g_old) {
                         let best = self.best_successor_cost(map, sx, sy);
@@ -334,7 +345,11 @@ impl<const CELLS: usize, const QUEUE: usize> DStarLite<CELLS, QUEUE> {
         }
         self.resuming = false;
         let cost = self.rhs(start);
-        Ok(if cost == INFINITE { PlanStatus::NoPath } else { PlanStatus::Found { cost: u32::from(cost) } })
+        Ok(if cost == INFINITE {
+            PlanStatus::NoPath
+        } else {
+            PlanStatus::Found { cost: u32::from(cost) }
+        })
     }
 
     /// Expansions of the latest repair (all of its slices).
@@ -377,7 +392,9 @@ impl<const CELLS: usize, const QUEUE: usize> DStarLite<CELLS, QUEUE> {
         let (x, y) = (i32::from(from.x), i32::from(from.y));
         let mut best: Option<(u16, Cell)> = None;
         for (dx, dy) in NEIGHBOURS {
-            let Some(c) = move_cost(map, x, y, dx, dy) else { continue };
+            let Some(c) = move_cost(map, x, y, dx, dy) else {
+                continue;
+            };
             let (nx, ny) = (x + dx, y + dy);
             if !self.shape.contains(nx, ny) {
                 continue;
@@ -411,7 +428,10 @@ impl<const CELLS: usize, const QUEUE: usize> DStarLite<CELLS, QUEUE> {
             let (shape, start, g) = (self.shape, self.start, &self.g);
             self.open.rekey(|cell, rhs| {
                 let m = g[cell].min(rhs);
-                Key { k1: u32::from(m) + octile(start, shape.cell(cell)), k2: m }
+                Key {
+                    k1: u32::from(m) + octile(start, shape.cell(cell)),
+                    k2: m,
+                }
             });
         }
     }
@@ -430,7 +450,10 @@ impl<const CELLS: usize, const QUEUE: usize> DStarLite<CELLS, QUEUE> {
         let dy = y.abs_diff(i32::from(self.start.y));
         let (lo, hi) = if dx < dy { (dx, dy) } else { (dy, dx) };
         let h = u32::from(STRAIGHT_COST) * hi + u32::from(DIAGONAL_COST - STRAIGHT_COST) * lo;
-        Key { k1: u32::from(m) + h + self.km, k2: m }
+        Key {
+            k1: u32::from(m) + h + self.km,
+            k2: m,
+        }
     }
 
     /// D* Lite's UpdateVertex with the new `rhs`: queue the cell iff it is inconsistent.
@@ -451,7 +474,9 @@ impl<const CELLS: usize, const QUEUE: usize> DStarLite<CELLS, QUEUE> {
     fn best_successor_cost(&self, map: &impl Traversability, x: i32, y: i32) -> u16 {
         let mut best = INFINITE;
         for (dx, dy) in NEIGHBOURS {
-            let Some(c) = move_cost(map, x, y, dx, dy) else { continue };
+            let Some(c) = move_cost(map, x, y, dx, dy) else {
+                continue;
+            };
             let (nx, ny) = (x + dx, y + dy);
             if self.shape.contains(nx, ny) {
                 best = best.min(add_cost(c, self.g[self.index_of(nx, ny)]));

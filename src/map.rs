@@ -67,10 +67,8 @@ impl GridShape {
     /// A shape of `width × height` cells, if it is non-empty and holds at most `capacity` cells.
     pub fn new(width: u16, height: u16, capacity: usize) -> Option<Self> {
         let cells = usize::from(width) * usize::from(height);
-        (width > 0 && height > 0 && cells <= capacity && cells <= usize::from(u16::MAX)).then_some(Self {
-            width,
-            height,
-        })
+        (width > 0 && height > 0 && cells <= capacity && cells <= usize::from(u16::MAX))
+            .then_some(Self { width, height })
     }
 
     /// The shape that covers an arena of `size_x_m × size_y_m` metres (rounded to whole cells), if it
@@ -126,7 +124,10 @@ impl GridShape {
 
     /// The arena-frame centre of a cell, metres.
     pub fn center_of(self, cell: Cell) -> (f32, f32) {
-        ((f32::from(cell.x) + 0.5) * CELL_SIZE_M, (f32::from(cell.y) + 0.5) * CELL_SIZE_M)
+        (
+            (f32::from(cell.x) + 0.5) * CELL_SIZE_M,
+            (f32::from(cell.y) + 0.5) * CELL_SIZE_M,
+        )
     }
 }
 

@@ -68,7 +68,7 @@
 //! ## Units, frames, size
 //!
 //! Metres, arena frame (x right, y up). Memory: `16·EDGES` bytes of edges + `24·EDGES` of crossings +
-//! a 64-bin ring (2 KiB) + ~0.4 KiB of filter state: ≈ 3.7 KiB for `EDGES = 32` (see the `size` test).
+//! a 64-bin ring (2 KiB) + ~0.5 KiB of filter state: 3.8 KiB for `EDGES = 32` (the `memory_size` test).
 //! Complexity per sample: O(1), plus per closed bin (every ~1 cm) two insertion-sort medians of the
 //! `lag ≤ 32` window (exact, no running sums to drift), plus O(`lag`) when a step ends; per new crossing
 //! O(`EDGES`²) in the worst case (refit with outlier removal), a few thousand flops at most.
@@ -148,7 +148,11 @@ impl Crossing {
     /// Unit chord direction (from enter to exit); (0, 0) for a zero-length chord.
     pub fn direction(&self) -> (f32, f32) {
         let l = self.length();
-        if l > 0.0 { ((self.exit.0 - self.enter.0) / l, (self.exit.1 - self.enter.1) / l) } else { (0.0, 0.0) }
+        if l > 0.0 {
+            ((self.exit.0 - self.enter.0) / l, (self.exit.1 - self.enter.1) / l)
+        } else {
+            (0.0, 0.0)
+        }
     }
 }
 
@@ -235,16 +239,17 @@ pub struct PadConfig {
     pub outlier_m: f32,
     /// RMS residual at which the fit factor of the confidence reaches 0, metres. Default 0.05 m.
     pub fit_tolerance_m: f32,
-    /// Crossings wanted in each of two directions. Default 1: with the default crosshatch sweep at 0.2 m
-    /// spacing, a 0.3 m pad is crossed once or twice per pass, and one crossing per direction already
-    /// pins both coordinates to the edge-detection noise. Use 2 with a sweep spacing < pad/2 (0.15 m) to
-    /// make every coordinate cross-checked, at the price of a denser sweep.
+    /// Crossings wanted in each of two directions. Default 2, so every coordinate of the centre is
+    /// cross-checked by two independent crossings. One crossing per direction already pins both
+    /// coordinates to the edge-detection noise (a coarse 0.2 m crosshatch, with `min_edges` 4, locks
+    /// within 2 cm too; tested), but a single spurious pair could then go unnoticed.
     pub min_crossings_per_direction: u8,
     /// Confidence needed to lock, [0, 1]. Default 0.6 (the seed's).
     pub lock_confidence: f32,
-    /// Supporting edges needed to lock. Default 4: two crossings (one per direction) of two edges each.
-    /// (The seed counted ~12; with one edge per step transition and a 0.2 m sweep, a 0.3 m pad yields at
-    /// most 4 edges per pass, so 12 would never be reached.)
+    /// Supporting edges needed to lock. Default 12 (the project's requirement): with one edge per step
+    /// transition that is three crossings per direction, which a crosshatch at ≤ 0.1 m spacing gives over
+    /// a 0.3 m pad; a coarser 0.2 m crosshatch yields only 4–8 edges, so the mission refines its sweep
+    /// around the first crossings (or lowers this, see `min_crossings_per_direction`).
     pub min_edges: usize,
 }
 
@@ -267,9 +272,9 @@ impl Default for PadConfig {
             step_match_m: 0.02,
             outlier_m: 0.05,
             fit_tolerance_m: 0.05,
-            min_crossings_per_direction: 1,
+            min_crossings_per_direction: 2,
             lock_confidence: 0.6,
-            min_edges: 4,
+            min_edges: 12,
         }
     }
 }
@@ -500,16 +505,28 @@ impl<const EDGES: usize> PadDetector<EDGES> {
     fn track_motion(&mut self, x: f32, y: f32) -> Sample {
         let Some(anchor) = self.anchor else {
             self.anchor = Some((x, y));
-            return Sample { x, y, odo: self.odo_at_anchor };
+            return Sample {
+                x,
+                y,
+                odo: self.odo_at_anchor,
+            };
         };
         let d = libm::hypotf(x - anchor.0, y - anchor.1);
         if d >= HEADING_BASELINE_M {
             self.heading = ((x - anchor.0) / d, (y - anchor.1) / d);
             self.odo_at_anchor += d;
             self.anchor = Some((x, y));
-            return Sample { x, y, odo: self.odo_at_anchor };
+            return Sample {
+                x,
+                y,
+                odo: self.odo_at_anchor,
+            };
         }
-        Sample { x, y, odo: self.odo_at_anchor + d }
+        Sample {
+            x,
+            y,
+            odo: self.odo_at_anchor + d,
+        }
     }
 
     /// Closes the open bin: z-score, ring, run logic. Returns an edge stored as a result.
@@ -545,15 +562,22 @@ impl<const EDGES: usize> PadDetector<EDGES> {
             self.push_window(y);
             return 0;
         }
-        let (centre, spread) = if cfg.robust_stats { self.window_robust_stats() } else { self.window_stats() };
+        let (centre, spread) = if cfg.robust_stats {
+            self.window_robust_stats()
+        } else {
+            self.window_stats()
+        };
         let dev = y - centre;
         let signal = if libm::fabsf(dev) > cfg.threshold_sigma * spread && libm::fabsf(dev) >= cfg.min_step_m {
             if dev > 0.0 { 1 } else { -1 }
         } else {
             0
         };
-        let filtered =
-            if signal != 0 { cfg.influence * y + (1.0 - cfg.influence) * self.last_filtered } else { y };
+        let filtered = if signal != 0 {
+            cfg.influence * y + (1.0 - cfg.influence) * self.last_filtered
+        } else {
+            y
+        };
         self.push_window(filtered);
         signal
     }
@@ -602,8 +626,12 @@ impl<const EDGES: usize> PadDetector<EDGES> {
     /// to stray values. The last value pushed stands in while the window is empty.
     fn window_median(&self) -> f32 {
         let mut copy = [0.0f32; MAX_LAG];
-        let Some(dst) = copy.get_mut(..self.window_len) else { return self.last_filtered };
-        let Some(src) = self.window.get(..self.window_len) else { return self.last_filtered };
+        let Some(dst) = copy.get_mut(..self.window_len) else {
+            return self.last_filtered;
+        };
+        let Some(src) = self.window.get(..self.window_len) else {
+            return self.last_filtered;
+        };
         if src.is_empty() {
             return self.last_filtered;
         }
@@ -638,7 +666,11 @@ impl<const EDGES: usize> PadDetector<EDGES> {
     fn follow_runs(&mut self, serial: u32, signal: i8) -> Option<Detection> {
         let mut ended = None;
         if let Some(mut run) = self.run {
-            run.misses = if signal == run.sign { 0 } else { run.misses.saturating_add(1) };
+            run.misses = if signal == run.sign {
+                0
+            } else {
+                run.misses.saturating_add(1)
+            };
             // A run older than the ring can hold is located now, before its start is overwritten.
             let too_long = serial.wrapping_sub(run.first) as usize + self.config.lag + 2 >= RING;
             if run.misses >= RUN_END_MISSES || too_long {
@@ -665,7 +697,11 @@ impl<const EDGES: usize> PadDetector<EDGES> {
                 if let Some(run) = self.run.take() {
                     ended = ended.or(first.checked_sub(1).and_then(|end| self.locate(&run, end)));
                 }
-                self.run = Some(ActiveRun { sign: signal, first, misses: 0 });
+                self.run = Some(ActiveRun {
+                    sign: signal,
+                    first,
+                    misses: 0,
+                });
             }
         }
         ended
@@ -743,7 +779,12 @@ impl<const EDGES: usize> PadDetector<EDGES> {
         }
         let kind = if height < 0.0 { EdgeKind::Enter } else { EdgeKind::Exit };
         let detection = Detection {
-            edge: Edge { x, y, kind, step_m: height },
+            edge: Edge {
+                x,
+                y,
+                kind,
+                step_m: height,
+            },
             odo,
             heading: self.heading_before(at_serial, hit),
             level_before: before,
@@ -782,7 +823,11 @@ impl<const EDGES: usize> PadDetector<EDGES> {
 
     fn store_edge(&mut self, edge: Edge) -> Option<Edge> {
         let spacing = self.config.min_edge_spacing_m;
-        if self.edges.iter().any(|e| libm::hypotf(e.x - edge.x, e.y - edge.y) < spacing) {
+        if self
+            .edges
+            .iter()
+            .any(|e| libm::hypotf(e.x - edge.x, e.y - edge.y) < spacing)
+        {
             return None;
         }
         if self.edges.push(edge).is_err() {
@@ -817,7 +862,7 @@ impl<const EDGES: usize> PadDetector<EDGES> {
         let pad_level = exit.level_before;
         let floor_after = exit.level_after;
         let height = floor_before - pad_level;
-        if !(height >= cfg.min_step_m) {
+        if height.is_nan() || height < cfg.min_step_m {
             return None;
         }
         if libm::fabsf(floor_after - floor_before) > cfg.step_match_m + 0.5 * height {
@@ -890,7 +935,11 @@ impl<const EDGES: usize> PadDetector<EDGES> {
             sq += r * r;
         }
         let lambda_min = 0.5 * (a + c) - libm::sqrtf(0.25 * (a - c) * (a - c) + b * b);
-        let rms = if inliers > 0 { libm::sqrtf(sq / inliers as f32) } else { 0.0 };
+        let rms = if inliers > 0 {
+            libm::sqrtf(sq / inliers as f32)
+        } else {
+            0.0
+        };
 
         // The seed's spread: distances from the centre to every supporting edge.
         let mut sum = 0.0f32;
@@ -958,7 +1007,11 @@ impl<const EDGES: usize> PadDetector<EDGES> {
 
     /// The locked centre `(x, y)`, or `None` while not locked.
     pub fn locked_centre(&self) -> Option<(f32, f32)> {
-        if self.locked() { self.estimate.map(|e| (e.x, e.y)) } else { None }
+        if self.locked() {
+            self.estimate.map(|e| (e.x, e.y))
+        } else {
+            None
+        }
     }
 
     /// The stored edges, in detection order.

@@ -44,7 +44,11 @@ pub fn extract_path<const CELLS: usize, const QUEUE: usize, const N: usize>(
     out.clear();
     let start = planner.start();
     let goal = planner.goal();
-    let mut remaining = if start == goal { 0 } else { planner.rhs_of(start).ok_or(PathError::NoPath)? };
+    let mut remaining = if start == goal {
+        0
+    } else {
+        planner.rhs_of(start).ok_or(PathError::NoPath)?
+    };
     let mut cost = 0u32;
     let mut current = start;
     if out.push(current).is_err() {
@@ -55,7 +59,11 @@ pub fn extract_path<const CELLS: usize, const QUEUE: usize, const N: usize>(
         let dx = i32::from(next.x) - i32::from(current.x);
         let dy = i32::from(next.y) - i32::from(current.y);
         let step = move_cost(map, i32::from(current.x), i32::from(current.y), dx, dy).ok_or(PathError::NoPath)?;
-        let next_remaining = if next == goal { 0 } else { planner.g(next).ok_or(PathError::NoPath)? };
+        let next_remaining = if next == goal {
+            0
+        } else {
+            planner.g(next).ok_or(PathError::NoPath)?
+        };
         if next_remaining >= remaining {
             return Err(PathError::Inconsistent);
         }
@@ -152,7 +160,11 @@ pub fn smooth<const M: usize>(
         let entry = lerp(prev, corner, if i == 1 { 0.5 } else { 0.75 });
         let exit = lerp(corner, next, if i == n - 2 { 0.5 } else { 0.25 });
         let clear = segment_clear(map, shape, entry, exit);
-        let pushed = if clear { out.push(entry).and_then(|_| out.push(exit)) } else { out.push(corner) };
+        let pushed = if clear {
+            out.push(entry).and_then(|_| out.push(exit))
+        } else {
+            out.push(corner)
+        };
         if pushed.is_err() {
             return false;
         }
@@ -174,7 +186,12 @@ pub fn length_m(path: &[Cell]) -> f32 {
 /// Whether every cell the segment `a`–`b` (arena frame, metres) passes through is unblocked: an exact grid
 /// walk (Amanatides–Woo), conservative where the segment passes exactly through a cell corner.
 fn segment_clear(map: &impl Traversability, shape: GridShape, a: (f32, f32), b: (f32, f32)) -> bool {
-    let (ax, ay, bx, by) = (a.0 / CELL_SIZE_M, a.1 / CELL_SIZE_M, b.0 / CELL_SIZE_M, b.1 / CELL_SIZE_M);
+    let (ax, ay, bx, by) = (
+        a.0 / CELL_SIZE_M,
+        a.1 / CELL_SIZE_M,
+        b.0 / CELL_SIZE_M,
+        b.1 / CELL_SIZE_M,
+    );
     if !(ax.is_finite() && ay.is_finite() && bx.is_finite() && by.is_finite()) {
         return false;
     }
@@ -197,7 +214,10 @@ fn segment_clear(map: &impl Traversability, shape: GridShape, a: (f32, f32), b: 
         }
     };
     let (mut t_x, mut t_y) = (first_crossing(ax, x, dx), first_crossing(ay, y, dy));
-    let (dt_x, dt_y) = (if dx != 0.0 { 1.0 / dx.abs() } else { f32::INFINITY }, if dy != 0.0 { 1.0 / dy.abs() } else { f32::INFINITY });
+    let (dt_x, dt_y) = (
+        if dx != 0.0 { 1.0 / dx.abs() } else { f32::INFINITY },
+        if dy != 0.0 { 1.0 / dy.abs() } else { f32::INFINITY },
+    );
     let mut steps = (end_x - x).abs() + (end_y - y).abs() + 2;
     loop {
         if map.is_blocked(x, y) {

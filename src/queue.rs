@@ -27,7 +27,10 @@ pub struct Key {
 
 impl Key {
     /// A key larger than any real one (what an empty queue's top compares as).
-    pub const MAX: Key = Key { k1: u32::MAX, k2: u16::MAX };
+    pub const MAX: Key = Key {
+        k1: u32::MAX,
+        k2: u16::MAX,
+    };
 }
 
 /// The queue already holds `CAP` cells.
@@ -228,7 +231,10 @@ impl<const CELLS: usize, const CAP: usize> IndexedQueue<CELLS, CAP> {
 
     #[inline]
     fn key(&self, slot: usize) -> Key {
-        Key { k1: self.k1[slot], k2: self.k2[slot] }
+        Key {
+            k1: self.k1[slot],
+            k2: self.k2[slot],
+        }
     }
 
     #[inline]
@@ -267,7 +273,11 @@ impl<const CELLS: usize, const CAP: usize> IndexedQueue<CELLS, CAP> {
                 break;
             }
             let right = left + 1;
-            let child = if right < self.len && self.key(right) < self.key(left) { right } else { left };
+            let child = if right < self.len && self.key(right) < self.key(left) {
+                right
+            } else {
+                left
+            };
             if self.key(slot) <= self.key(child) {
                 break;
             }

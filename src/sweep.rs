@@ -30,19 +30,19 @@
 //! Units and frames: metres, arena frame (origin at the arena's lower-left corner, x right, y up). The
 //! arena spans `[0, width] × [0, height]`.
 //!
-//! Memory: `8·N` bytes of waypoints plus a few words; `N` is a const generic (default
+//! Memory: `8·N` bytes of waypoints plus ~50 bytes (568 bytes for the default `N`); `N` is a const generic (default
 //! [`DEFAULT_SWEEP_CAPACITY`]). Complexity: O(lines) to build, O(1) per waypoint access.
 
 use heapless::Vec;
 
-/// Default waypoint capacity: a 1 × 1 m crosshatch at 0.05 m spacing (2 passes × 20 lines × 2 waypoints
-/// = 80) does not fit, but everything down to 0.075 m spacing does (2 × 14 × 2 = 56 ≤ 64). 512 bytes.
+/// Default waypoint capacity (512 bytes): a 1 × 1 m crosshatch fits down to 1/16 m = 0.0625 m spacing
+/// (2 passes × 16 lines × 2 waypoints = 64); at 0.05 m it would need 80.
 pub const DEFAULT_SWEEP_CAPACITY: usize = 64;
 
-/// Lines shorter than this (after clipping) make the area degenerate, metres.
+/// An area narrower than this in either direction (after clipping) is degenerate, metres.
 const MIN_EXTENT_M: f32 = 1e-3;
 
-/// Relative slack when counting lines, so that e.g. 1.0/0.2 = 5.0000005 in f32 gives 5 lines, not 6.
+/// Slack, in lines, when counting lines, so that e.g. 1.0/0.2 = 5.0000005 in f32 gives 5 lines, not 6.
 const LINE_COUNT_SLACK: f32 = 1e-4;
 
 /// Along which arena axis the sweep's (first pass) lines run.
@@ -76,7 +76,13 @@ pub struct SweepConfig {
 
 impl Default for SweepConfig {
     fn default() -> Self {
-        Self { size_x_m: 1.0, size_y_m: 1.0, spacing_m: 0.2, axis: SweepAxis::Auto, crosshatch: true }
+        Self {
+            size_x_m: 1.0,
+            size_y_m: 1.0,
+            spacing_m: 0.2,
+            axis: SweepAxis::Auto,
+            crosshatch: true,
+        }
     }
 }
 
@@ -94,7 +100,11 @@ pub struct ArenaBounds {
 impl ArenaBounds {
     /// An arena of `width_m × height_m` with `margin_m` kept from the walls.
     pub const fn new(width_m: f32, height_m: f32, margin_m: f32) -> Self {
-        Self { width_m, height_m, margin_m }
+        Self {
+            width_m,
+            height_m,
+            margin_m,
+        }
     }
 }
 
@@ -111,7 +121,7 @@ pub enum SweepError {
     OutsideArena,
     /// The pattern needs more waypoints than the capacity `N`.
     TooManyWaypoints {
-        /// Waypoints the pattern needs.
+        /// Waypoints the pattern needs (`usize::MAX` when the line count alone exceeds the capacity).
         needed: usize,
         /// The sweep's capacity `N`.
         capacity: usize,
@@ -212,13 +222,22 @@ impl<const N: usize> LawnmowerSweep<N> {
             let n = libm::ceilf(across / config.spacing_m - LINE_COUNT_SLACK).max(1.0);
             // Reject before the cast: a tiny spacing could give a count no usize (or capacity) holds.
             if n > N as f32 {
-                return Err(SweepError::TooManyWaypoints { needed: usize::MAX, capacity: N });
+                return Err(SweepError::TooManyWaypoints {
+                    needed: usize::MAX,
+                    capacity: N,
+                });
             }
             Ok(n as usize)
         };
-        let first = Pass { along_x: first_along_x, lines: line_count(if first_along_x { ext_y } else { ext_x })? };
+        let first = Pass {
+            along_x: first_along_x,
+            lines: line_count(if first_along_x { ext_y } else { ext_x })?,
+        };
         let second = if config.crosshatch {
-            Some(Pass { along_x: !first_along_x, lines: line_count(if first_along_x { ext_x } else { ext_y })? })
+            Some(Pass {
+                along_x: !first_along_x,
+                lines: line_count(if first_along_x { ext_x } else { ext_y })?,
+            })
         } else {
             None
         };
@@ -234,12 +253,14 @@ impl<const N: usize> LawnmowerSweep<N> {
             lines_per_pass: [first.lines, second.as_ref().map_or(0, |p| p.lines)],
             line_spacing: [0.0; 2],
         };
-        sweep.line_spacing[0] = sweep.write_pass(&first, drone)?;
+        let first_spacing = sweep.write_pass(&first, drone)?;
+        let mut second_spacing = 0.0;
         if let Some(second) = second {
             // Start the second pass at its corner nearest to where the first pass ended.
             let end = sweep.waypoints.last().copied().unwrap_or(drone);
-            sweep.line_spacing[1] = sweep.write_pass(&second, end)?;
+            second_spacing = sweep.write_pass(&second, end)?;
         }
+        sweep.line_spacing = [first_spacing, second_spacing];
         Ok(sweep)
     }
 
@@ -247,8 +268,11 @@ impl<const N: usize> LawnmowerSweep<N> {
     fn write_pass(&mut self, pass: &Pass, from: (f32, f32)) -> Result<f32, SweepError> {
         let a = self.area;
         // (along-axis range, across-axis range) in this pass's own coordinates.
-        let (along, across) =
-            if pass.along_x { ((a.min_x, a.max_x), (a.min_y, a.max_y)) } else { ((a.min_y, a.max_y), (a.min_x, a.max_x)) };
+        let (along, across) = if pass.along_x {
+            ((a.min_x, a.max_x), (a.min_y, a.max_y))
+        } else {
+            ((a.min_y, a.max_y), (a.min_x, a.max_x))
+        };
         let n = pass.lines;
         let strip = (across.1 - across.0) / n as f32;
         let line_at = |k: usize| across.0 + (k as f32 + 0.5) * strip;
@@ -274,7 +298,9 @@ impl<const N: usize> LawnmowerSweep<N> {
             let (u0, u1) = if at_max { (along.1, along.0) } else { (along.0, along.1) };
             for u in [u0, u1] {
                 let needed = self.waypoints.len() + 1;
-                self.waypoints.push(to_xy(u, v)).map_err(|_| SweepError::TooManyWaypoints { needed, capacity: N })?;
+                self.waypoints
+                    .push(to_xy(u, v))
+                    .map_err(|_| SweepError::TooManyWaypoints { needed, capacity: N })?;
             }
             at_max = !at_max;
         }
@@ -328,7 +354,8 @@ impl<const N: usize> LawnmowerSweep<N> {
 
     /// Number of waypoints of the first pass (the second pass, if any, follows them).
     pub fn first_pass_len(&self) -> usize {
-        2 * self.lines_per_pass[0]
+        let [first, _] = self.lines_per_pass;
+        2 * first
     }
 }
 

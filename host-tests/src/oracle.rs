@@ -16,7 +16,11 @@ pub struct VecMap {
 
 impl VecMap {
     pub fn new(width: u16, height: u16) -> Self {
-        Self { width, height, blocked: vec![false; usize::from(width) * usize::from(height)] }
+        Self {
+            width,
+            height,
+            blocked: vec![false; usize::from(width) * usize::from(height)],
+        }
     }
 
     pub fn index(&self, c: Cell) -> usize {
@@ -39,7 +43,10 @@ impl VecMap {
 
 impl Traversability for VecMap {
     fn shape(&self) -> GridShape {
-        GridShape { width: self.width, height: self.height }
+        GridShape {
+            width: self.width,
+            height: self.height,
+        }
     }
 
     fn is_blocked(&self, x: i32, y: i32) -> bool {
@@ -75,7 +82,10 @@ pub fn moves(map: &VecMap, c: Cell) -> Vec<(Cell, u32)> {
             if diagonal && !(free(map, x + dx, y) && free(map, x, y + dy)) {
                 continue;
             }
-            out.push((Cell::new((x + dx) as u16, (y + dy) as u16), if diagonal { 14 } else { 10 }));
+            out.push((
+                Cell::new((x + dx) as u16, (y + dy) as u16),
+                if diagonal { 14 } else { 10 },
+            ));
         }
     }
     out

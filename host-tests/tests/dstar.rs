@@ -32,7 +32,11 @@ fn check_against_oracle<const C: usize, const Q: usize>(
     let oracle = dijkstra(map, p.start(), p.goal());
     match (status, oracle) {
         (PlanStatus::NoPath, None) => {
-            assert_eq!(extract_path(p, map, &mut HVec::<Cell, 16>::new()), Err(PathError::NoPath), "{context}");
+            assert_eq!(
+                extract_path(p, map, &mut HVec::<Cell, 16>::new()),
+                Err(PathError::NoPath),
+                "{context}"
+            );
             None
         }
         (PlanStatus::Found { cost }, Some(best)) => {
@@ -72,14 +76,24 @@ fn random_scenario(seed: u64, max_w: u16, max_h: u16, budget: Option<u32>) -> (u
     for c in truth.cells().collect::<Vec<_>>() {
         truth.set(c, rng.random_bool(density));
     }
-    let Some(start) = random_free_cell(&mut rng, &truth) else { return (0, 0) };
-    let goal = if rng.random_bool(0.05) { start } else { random_free_cell(&mut rng, &truth).unwrap_or(start) };
+    let Some(start) = random_free_cell(&mut rng, &truth) else {
+        return (0, 0);
+    };
+    let goal = if rng.random_bool(0.05) {
+        start
+    } else {
+        random_free_cell(&mut rng, &truth).unwrap_or(start)
+    };
     // Believed map: each true obstacle known with some probability; some phantom obstacles.
     let known = rng.random_range(0.0..1.0);
     let phantom = rng.random_range(0.0..0.1);
     let mut belief = VecMap::new(w, h);
     for c in truth.cells().collect::<Vec<_>>() {
-        let b = if truth.get(c) { rng.random_bool(known) } else { c != start && rng.random_bool(phantom) };
+        let b = if truth.get(c) {
+            rng.random_bool(known)
+        } else {
+            c != start && rng.random_bool(phantom)
+        };
         belief.set(c, b);
     }
     let radius = rng.random_range(1..=3u16);
@@ -109,7 +123,9 @@ fn random_scenario(seed: u64, max_w: u16, max_h: u16, budget: Option<u32>) -> (u
         };
         replans += 1;
         let ctx = format!("seed {seed} step {step} at {here:?} goal {goal:?} {w}x{h}");
-        let Some(path) = check_against_oracle(&p, &belief, status, &ctx) else { return (replans, step) };
+        let Some(path) = check_against_oracle(&p, &belief, status, &ctx) else {
+            return (replans, step);
+        };
         if here == goal {
             return (replans, step);
         }
@@ -123,7 +139,10 @@ fn random_scenario(seed: u64, max_w: u16, max_h: u16, budget: Option<u32>) -> (u
 }
 
 fn belief_shape(m: &VecMap) -> GridShape {
-    GridShape { width: m.width, height: m.height }
+    GridShape {
+        width: m.width,
+        height: m.height,
+    }
 }
 
 #[test]
@@ -168,18 +187,15 @@ fn no_corner_cutting() {
     let path = check_against_oracle(&*p, &map, s, "corner").unwrap();
     // Without the rule the diagonal (0,1)→(1,2) past the blocked (1,1) would give 10 + 14.
     assert_eq!(s, PlanStatus::Found { cost: 30 });
-    assert_eq!(path, vec![Cell::new(0, 0), Cell::new(0, 1), Cell::new(0, 2), Cell::new(1, 2)]);
+    assert_eq!(
+        path,
+        vec![Cell::new(0, 0), Cell::new(0, 1), Cell::new(0, 2), Cell::new(1, 2)]
+    );
 }
 
 #[test]
 fn enclosed_goal_reports_no_path_quickly_and_repeatedly() {
-    let mut map = parse(&[
-        "..........",
-        "...###....",
-        "...#.#....",
-        "...###....",
-        "..........",
-    ]);
+    let mut map = parse(&["..........", "...###....", "...#.#....", "...###....", ".........."]);
     let mut p: Box<SmallPlanner> = boxed();
     p.reset(belief_shape(&map), Cell::new(0, 0), Cell::new(4, 2)).unwrap();
     assert_eq!(solve(&mut p, &map), PlanStatus::NoPath);
@@ -214,7 +230,8 @@ fn goal_becoming_blocked() {
 fn obstacle_on_next_cell() {
     let mut map = VecMap::new(40, 30);
     let mut p: Box<SmallPlanner> = boxed();
-    p.reset(belief_shape(&map), Cell::new(8, 15), Cell::new(38, 15)).unwrap();
+    p.reset(belief_shape(&map), Cell::new(8, 15), Cell::new(38, 15))
+        .unwrap();
     let mut here = Cell::new(8, 15);
     for _ in 0..10 {
         let s = solve(&mut p, &map);
@@ -225,7 +242,10 @@ fn obstacle_on_next_cell() {
         p.cells_changed(&map, &[next]).unwrap();
         let s = solve(&mut p, &map);
         let Some(path) = check_against_oracle(&*p, &map, s, "after block") else {
-            panic!("enclosed at {here:?}: {:?}", map.cells().filter(|c| map.get(*c)).collect::<Vec<_>>());
+            panic!(
+                "enclosed at {here:?}: {:?}",
+                map.cells().filter(|c| map.get(*c)).collect::<Vec<_>>()
+            );
         };
         assert!(!path.contains(&next), "the new path avoids the blocked cell");
         here = path[1];
@@ -238,7 +258,8 @@ fn obstacle_on_next_cell() {
 fn empty_map_costs_octile_distance() {
     let map = VecMap::new(120, 60);
     let mut p: Box<Planner> = boxed();
-    p.reset(belief_shape(&map), Cell::new(12, 26), Cell::new(100, 30)).unwrap();
+    p.reset(belief_shape(&map), Cell::new(12, 26), Cell::new(100, 30))
+        .unwrap();
     assert_eq!(solve(&mut p, &map), PlanStatus::Found { cost: 88 * 10 + 4 * 4 });
     // The octile heuristic keeps the search near the straight line: far fewer than the 7200 cells a
     // constant heuristic would flood (ties on k1 are broken by the smaller g, as D* Lite requires).
@@ -258,7 +279,8 @@ fn largest_grid_serpentine() {
         map.set(Cell::new(gap, y), false);
     }
     let mut p: Box<Planner> = boxed();
-    p.reset(belief_shape(&map), Cell::new(0, 0), Cell::new(0, h - 2)).unwrap();
+    p.reset(belief_shape(&map), Cell::new(0, 0), Cell::new(0, h - 2))
+        .unwrap();
     let s = solve(&mut p, &map);
     let path = check_against_oracle(&*p, &map, s, "serpentine").unwrap();
     assert!(path.len() > 3500);
@@ -306,7 +328,9 @@ fn largest_grid_random_reveals() {
             p.cells_changed(&belief, &changed).unwrap();
             let s = solve(&mut p, &belief);
             let ctx = format!("large seed {seed} step {step}");
-            let Some(path) = check_against_oracle(&*p, &belief, s, &ctx) else { break };
+            let Some(path) = check_against_oracle(&*p, &belief, s, &ctx) else {
+                break;
+            };
             if here == goal {
                 break;
             }
@@ -355,9 +379,25 @@ fn refuses_bad_setup_without_panicking() {
     let map = VecMap::new(10, 10);
     assert_eq!(p.compute(&map, 10), Err(PlanError::NotReady));
     assert_eq!(p.set_start(Cell::new(1, 1)), Err(PlanError::NotReady));
-    assert_eq!(p.reset(GridShape { width: 100, height: 100 }, Cell::new(0, 0), Cell::new(1, 1)), Err(PlanError::BadShape));
-    assert_eq!(p.reset(GridShape { width: 0, height: 10 }, Cell::new(0, 0), Cell::new(1, 1)), Err(PlanError::BadShape));
-    assert_eq!(p.reset(belief_shape(&map), Cell::new(10, 0), Cell::new(1, 1)), Err(PlanError::OutOfBounds));
+    assert_eq!(
+        p.reset(
+            GridShape {
+                width: 100,
+                height: 100
+            },
+            Cell::new(0, 0),
+            Cell::new(1, 1)
+        ),
+        Err(PlanError::BadShape)
+    );
+    assert_eq!(
+        p.reset(GridShape { width: 0, height: 10 }, Cell::new(0, 0), Cell::new(1, 1)),
+        Err(PlanError::BadShape)
+    );
+    assert_eq!(
+        p.reset(belief_shape(&map), Cell::new(10, 0), Cell::new(1, 1)),
+        Err(PlanError::OutOfBounds)
+    );
     p.reset(belief_shape(&map), Cell::new(0, 0), Cell::new(9, 9)).unwrap();
     assert_eq!(p.set_start(Cell::new(0, 10)), Err(PlanError::OutOfBounds));
     // Changed cells outside the grid are ignored.
@@ -373,7 +413,11 @@ fn queue_overflow_is_an_error_and_reset_recovers() {
     let mut p: Box<Tiny> = boxed();
     p.reset(belief_shape(&map), Cell::new(0, 0), Cell::new(39, 29)).unwrap();
     assert_eq!(p.compute(&map, u32::MAX), Err(PlanError::QueueFull));
-    assert_eq!(p.compute(&map, u32::MAX), Err(PlanError::QueueFull), "stays refused until reset");
+    assert_eq!(
+        p.compute(&map, u32::MAX),
+        Err(PlanError::QueueFull),
+        "stays refused until reset"
+    );
     // A small problem fits after a reset.
     p.reset(belief_shape(&map), Cell::new(0, 0), Cell::new(2, 0)).unwrap();
     assert_eq!(p.compute(&map, u32::MAX), Ok(PlanStatus::Found { cost: 20 }));

@@ -13,7 +13,12 @@ use rand::{Rng, SeedableRng};
 fn touches(a: Cell, b: Cell, c: Cell) -> bool {
     let (x0, y0) = (f64::from(a.x) + 0.5, f64::from(a.y) + 0.5);
     let (dx, dy) = (f64::from(b.x) - f64::from(a.x), f64::from(b.y) - f64::from(a.y));
-    let (lo_x, hi_x, lo_y, hi_y) = (f64::from(c.x), f64::from(c.x) + 1.0, f64::from(c.y), f64::from(c.y) + 1.0);
+    let (lo_x, hi_x, lo_y, hi_y) = (
+        f64::from(c.x),
+        f64::from(c.x) + 1.0,
+        f64::from(c.y),
+        f64::from(c.y) + 1.0,
+    );
     let (mut t0, mut t1) = (0.0f64, 1.0f64);
     for (p, q) in [(-dx, x0 - lo_x), (dx, hi_x - x0), (-dy, y0 - lo_y), (dy, hi_y - y0)] {
         if p == 0.0 {
@@ -69,7 +74,10 @@ fn simplified_paths_keep_sight_and_shorten() {
         if free.len() < 2 {
             continue;
         }
-        let (s, g) = (free[rng.random_range(0..free.len())], free[rng.random_range(0..free.len())]);
+        let (s, g) = (
+            free[rng.random_range(0..free.len())],
+            free[rng.random_range(0..free.len())],
+        );
         let mut p: Box<DStarLite<1200, 1200>> = Box::new(DStarLite::new());
         p.reset(map.shape(), s, g).unwrap();
         if !matches!(p.compute(&map, u32::MAX).unwrap(), PlanStatus::Found { .. }) {
@@ -95,7 +103,10 @@ fn simplified_paths_keep_sight_and_shorten() {
         let poly: f32 = way
             .windows(2)
             .map(|l| {
-                let (dx, dy) = (f32::from(l[0].x) - f32::from(l[1].x), f32::from(l[0].y) - f32::from(l[1].y));
+                let (dx, dy) = (
+                    f32::from(l[0].x) - f32::from(l[1].x),
+                    f32::from(l[0].y) - f32::from(l[1].y),
+                );
                 (dx * dx + dy * dy).sqrt() * CELL_SIZE_M
             })
             .sum();
@@ -109,9 +120,15 @@ fn simplified_paths_keep_sight_and_shorten() {
         for seg in smoothed.windows(2) {
             for k in 0..=40 {
                 let t = k as f32 / 40.0;
-                let (x, y) = (seg[0].0 + (seg[1].0 - seg[0].0) * t, seg[0].1 + (seg[1].1 - seg[0].1) * t);
+                let (x, y) = (
+                    seg[0].0 + (seg[1].0 - seg[0].0) * t,
+                    seg[0].1 + (seg[1].1 - seg[0].1) * t,
+                );
                 let c = map.shape().cell_at(x, y).expect("inside");
-                assert!(!map.is_blocked(i32::from(c.x), i32::from(c.y)), "smoothed point in a blocked cell");
+                assert!(
+                    !map.is_blocked(i32::from(c.x), i32::from(c.y)),
+                    "smoothed point in a blocked cell"
+                );
             }
         }
         tested += 1;
@@ -123,7 +140,8 @@ fn simplified_paths_keep_sight_and_shorten() {
 fn open_space_path_collapses_to_one_leg() {
     let map = VecMap::new(30, 20);
     let mut p: Box<DStarLite<600, 600>> = Box::new(DStarLite::new());
-    p.reset(GridShape { width: 30, height: 20 }, Cell::new(1, 1), Cell::new(25, 12)).unwrap();
+    p.reset(GridShape { width: 30, height: 20 }, Cell::new(1, 1), Cell::new(25, 12))
+        .unwrap();
     p.compute(&map, u32::MAX).unwrap();
     let mut path = HVec::<Cell, 600>::new();
     extract_path(&*p, &map, &mut path).unwrap();
@@ -136,7 +154,8 @@ fn open_space_path_collapses_to_one_leg() {
 fn tiny_buffers_report_truncation() {
     let map = VecMap::new(30, 20);
     let mut p: Box<DStarLite<600, 600>> = Box::new(DStarLite::new());
-    p.reset(GridShape { width: 30, height: 20 }, Cell::new(1, 1), Cell::new(25, 1)).unwrap();
+    p.reset(GridShape { width: 30, height: 20 }, Cell::new(1, 1), Cell::new(25, 1))
+        .unwrap();
     p.compute(&map, u32::MAX).unwrap();
     let mut path = HVec::<Cell, 4>::new();
     let s = extract_path(&*p, &map, &mut path).unwrap();

@@ -23,16 +23,29 @@ fn check(map: ReplayMap, radius: u16, name: &str) {
     let (start, goal) = (map.start, map.goal);
     let report = replay(map, radius).expect("replay");
     let best_true = dijkstra(&truth, start, goal);
-    assert_eq!(report.status == "reached", best_true.is_some(), "{name}: status {}", report.status);
+    assert_eq!(
+        report.status == "reached",
+        best_true.is_some(),
+        "{name}: status {}",
+        report.status
+    );
     let first = &report.steps[0];
     assert_eq!((first.x, first.y), (start.x, start.y), "{name}");
     // The first plan is made after the first sense, which may already reveal cells near the start.
     if first.changed == 0 {
         assert_eq!(first.cost, dijkstra(&belief, start, goal), "{name}: first plan");
     }
-    assert_eq!(report.steps.len(), report.moves as usize + 1, "{name}: one step per move plus the first");
+    assert_eq!(
+        report.steps.len(),
+        report.moves as usize + 1,
+        "{name}: one step per move plus the first"
+    );
     if let Some(best) = best_true {
-        assert!(report.path_cost >= best, "{name}: flew {} < optimum {best}", report.path_cost);
+        assert!(
+            report.path_cost >= best,
+            "{name}: flew {} < optimum {best}",
+            report.path_cost
+        );
         let last = report.steps.last().unwrap();
         assert_eq!((last.x, last.y, last.cost), (goal.x, goal.y, Some(0)), "{name}");
     } else {
@@ -40,7 +53,10 @@ fn check(map: ReplayMap, radius: u16, name: &str) {
     }
     for pair in report.steps.windows(2) {
         let (a, b) = (&pair[0], &pair[1]);
-        assert!(a.x.abs_diff(b.x) <= 1 && a.y.abs_diff(b.y) <= 1, "{name}: one cell per move");
+        assert!(
+            a.x.abs_diff(b.x) <= 1 && a.y.abs_diff(b.y) <= 1,
+            "{name}: one cell per move"
+        );
     }
 }
 

@@ -90,7 +90,10 @@ fn rekey_restores_heap_order() {
         q.push(c, Key { k1: c as u32, k2: 0 }, c as u16).unwrap();
     }
     // Reverse every key.
-    q.rekey(|c, _| Key { k1: 100 - c as u32, k2: 0 });
+    q.rekey(|c, _| Key {
+        k1: 100 - c as u32,
+        k2: 0,
+    });
     let mut popped = Vec::new();
     while let Some((c, k, p)) = q.pop() {
         assert_eq!(k.k1, 100 - c as u32);

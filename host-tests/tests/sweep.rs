@@ -10,13 +10,19 @@ const ARENA: ArenaBounds = ArenaBounds::new(6.0, 3.0, 0.2);
 fn seg_dist(p: (f32, f32), a: (f32, f32), b: (f32, f32)) -> f32 {
     let (dx, dy) = (b.0 - a.0, b.1 - a.1);
     let l2 = dx * dx + dy * dy;
-    let t = if l2 > 0.0 { (((p.0 - a.0) * dx + (p.1 - a.1) * dy) / l2).clamp(0.0, 1.0) } else { 0.0 };
+    let t = if l2 > 0.0 {
+        (((p.0 - a.0) * dx + (p.1 - a.1) * dy) / l2).clamp(0.0, 1.0)
+    } else {
+        0.0
+    };
     let (qx, qy) = (a.0 + t * dx, a.1 + t * dy);
     ((p.0 - qx).powi(2) + (p.1 - qy).powi(2)).sqrt()
 }
 
 fn dist_to_path(p: (f32, f32), path: &[(f32, f32)]) -> f32 {
-    path.windows(2).map(|w| seg_dist(p, w[0], w[1])).fold(f32::INFINITY, f32::min)
+    path.windows(2)
+        .map(|w| seg_dist(p, w[0], w[1]))
+        .fold(f32::INFINITY, f32::min)
 }
 
 /// The largest distance from any point of `area` (a 1 cm grid including the border) to the path.
@@ -59,7 +65,10 @@ fn default_sweep_layout() {
     }
     // Drone at the lower left: start at the lower-left corner, first line at y = 1.0 + 0.1.
     let first = s.waypoint(0).unwrap();
-    assert!((first.0 - 2.5).abs() < 1e-5 && (first.1 - 1.1).abs() < 1e-5, "{first:?}");
+    assert!(
+        (first.0 - 2.5).abs() < 1e-5 && (first.1 - 1.1).abs() < 1e-5,
+        "{first:?}"
+    );
     // Lines along x at y = 1.1, 1.3, …, 1.9, alternating direction.
     let wps = s.waypoints();
     for k in 0..5 {
@@ -67,14 +76,23 @@ fn default_sweep_layout() {
         assert!((a.1 - (1.1 + 0.2 * k as f32)).abs() < 1e-5 && (a.1 - b.1).abs() < 1e-6);
         assert!((a.0 - b.0).abs() > 0.99, "a full-width line");
         if k > 0 {
-            assert!((a.0 - wps[2 * k - 1].0).abs() < 1e-6, "each line starts where the last ended");
+            assert!(
+                (a.0 - wps[2 * k - 1].0).abs() < 1e-6,
+                "each line starts where the last ended"
+            );
         }
     }
     // Second pass along y, starting at the corner nearest the end of the first.
     let end = wps[9];
     let second = &wps[10..];
-    assert!(second.chunks(2).all(|l| (l[0].0 - l[1].0).abs() < 1e-6), "second pass along y");
-    let nearest = pass_corners(second).iter().map(|c| dist(*c, end)).fold(f32::INFINITY, f32::min);
+    assert!(
+        second.chunks(2).all(|l| (l[0].0 - l[1].0).abs() < 1e-6),
+        "second pass along y"
+    );
+    let nearest = pass_corners(second)
+        .iter()
+        .map(|c| dist(*c, end))
+        .fold(f32::INFINITY, f32::min);
     assert!((dist(second[0], end) - nearest).abs() < 1e-6);
     // Accessors agree.
     assert_eq!(s.iter().collect::<Vec<_>>(), wps.to_vec());
@@ -88,14 +106,20 @@ fn start_is_the_corner_nearest_the_drone_in_every_quadrant() {
     let centre = (3.0, 1.5);
     for (sx, sy) in [(-1.0f32, -1.0f32), (1.0, -1.0), (-1.0, 1.0), (1.0, 1.0)] {
         for crosshatch in [false, true] {
-            let cfg = SweepConfig { crosshatch, ..SweepConfig::default() };
+            let cfg = SweepConfig {
+                crosshatch,
+                ..SweepConfig::default()
+            };
             let drone = (centre.0 + sx * 2.0, centre.1 + sy * 1.0);
             let s: Sweep = LawnmowerSweep::new(centre, drone, &cfg, &ARENA).unwrap();
             let first = s.waypoint(0).unwrap();
             assert_eq!((first.0 - centre.0).signum(), sx, "quadrant {sx},{sy}: {first:?}");
             assert_eq!((first.1 - centre.1).signum(), sy, "quadrant {sx},{sy}: {first:?}");
             let pass = &s.waypoints()[..s.first_pass_len()];
-            let nearest = pass_corners(pass).iter().map(|c| dist(*c, drone)).fold(f32::INFINITY, f32::min);
+            let nearest = pass_corners(pass)
+                .iter()
+                .map(|c| dist(*c, drone))
+                .fold(f32::INFINITY, f32::min);
             assert!((dist(first, drone) - nearest).abs() < 1e-6);
         }
     }
@@ -103,19 +127,34 @@ fn start_is_the_corner_nearest_the_drone_in_every_quadrant() {
 
 #[test]
 fn auto_axis_runs_lines_along_the_longer_side() {
-    let wide = SweepConfig { size_x_m: 1.0, size_y_m: 0.5, crosshatch: false, ..SweepConfig::default() };
+    let wide = SweepConfig {
+        size_x_m: 1.0,
+        size_y_m: 0.5,
+        crosshatch: false,
+        ..SweepConfig::default()
+    };
     let s: Sweep = LawnmowerSweep::new((3.0, 1.5), (3.0, 1.5), &wide, &ARENA).unwrap();
     assert!(s.first_pass_along_x());
     assert_eq!(s.lines_per_pass(), [3, 0]);
-    let tall = SweepConfig { size_x_m: 0.5, size_y_m: 1.0, ..wide };
+    let tall = SweepConfig {
+        size_x_m: 0.5,
+        size_y_m: 1.0,
+        ..wide
+    };
     let s: Sweep = LawnmowerSweep::new((3.0, 1.5), (3.0, 1.5), &tall, &ARENA).unwrap();
     assert!(!s.first_pass_along_x());
     assert_eq!(s.lines_per_pass(), [3, 0]);
-    let forced = SweepConfig { axis: SweepAxis::AlongY, ..wide };
+    let forced = SweepConfig {
+        axis: SweepAxis::AlongY,
+        ..wide
+    };
     let s: Sweep = LawnmowerSweep::new((3.0, 1.5), (3.0, 1.5), &forced, &ARENA).unwrap();
     assert!(!s.first_pass_along_x());
     assert_eq!(s.lines_per_pass(), [5, 0]);
-    let forced = SweepConfig { axis: SweepAxis::AlongX, ..tall };
+    let forced = SweepConfig {
+        axis: SweepAxis::AlongX,
+        ..tall
+    };
     let s: Sweep = LawnmowerSweep::new((3.0, 1.5), (3.0, 1.5), &forced, &ARENA).unwrap();
     assert!(s.first_pass_along_x());
     assert_eq!(s.lines_per_pass(), [5, 0]);
@@ -129,7 +168,10 @@ fn clipped_to_the_arena_margin() {
     assert_eq!((a.min_x, a.min_y), (0.2, 0.2));
     assert!((a.max_x - 0.5).abs() < 1e-6 && (a.max_y - 0.5).abs() < 1e-6);
     assert_eq!(s.lines_per_pass(), [2, 2]);
-    assert!(s.iter().all(|(x, y)| (0.2..=0.5).contains(&x) && (0.2..=0.5).contains(&y)));
+    assert!(
+        s.iter()
+            .all(|(x, y)| (0.2..=0.5).contains(&x) && (0.2..=0.5).contains(&y))
+    );
     assert!(worst_gap(a, s.waypoints()) <= 0.1 + 1e-4);
 }
 
@@ -140,15 +182,55 @@ fn invalid_parameters_are_errors() {
     let new = |cfg: &SweepConfig, centre: (f32, f32), drone: (f32, f32), arena: &ArenaBounds| {
         LawnmowerSweep::<64>::new(centre, drone, cfg, arena).map(|s| s.len())
     };
-    assert_eq!(new(&SweepConfig { spacing_m: 0.0, ..ok }, c, c, &ARENA), Err(SweepError::NonPositiveSpacing));
-    assert_eq!(new(&SweepConfig { spacing_m: -0.2, ..ok }, c, c, &ARENA), Err(SweepError::NonPositiveSpacing));
-    assert_eq!(new(&SweepConfig { spacing_m: f32::NAN, ..ok }, c, c, &ARENA), Err(SweepError::NonFinite));
-    assert_eq!(new(&SweepConfig { size_x_m: f32::INFINITY, ..ok }, c, c, &ARENA), Err(SweepError::NonFinite));
+    assert_eq!(
+        new(&SweepConfig { spacing_m: 0.0, ..ok }, c, c, &ARENA),
+        Err(SweepError::NonPositiveSpacing)
+    );
+    assert_eq!(
+        new(&SweepConfig { spacing_m: -0.2, ..ok }, c, c, &ARENA),
+        Err(SweepError::NonPositiveSpacing)
+    );
+    assert_eq!(
+        new(
+            &SweepConfig {
+                spacing_m: f32::NAN,
+                ..ok
+            },
+            c,
+            c,
+            &ARENA
+        ),
+        Err(SweepError::NonFinite)
+    );
+    assert_eq!(
+        new(
+            &SweepConfig {
+                size_x_m: f32::INFINITY,
+                ..ok
+            },
+            c,
+            c,
+            &ARENA
+        ),
+        Err(SweepError::NonFinite)
+    );
     assert_eq!(new(&ok, (f32::NAN, 1.0), c, &ARENA), Err(SweepError::NonFinite));
-    assert_eq!(new(&ok, c, (1.0, f32::NEG_INFINITY), &ARENA), Err(SweepError::NonFinite));
-    assert_eq!(new(&SweepConfig { size_y_m: 0.0, ..ok }, c, c, &ARENA), Err(SweepError::InvalidSize));
-    assert_eq!(new(&ok, c, c, &ArenaBounds::new(6.0, 3.0, -0.1)), Err(SweepError::InvalidSize));
-    assert_eq!(new(&ok, c, c, &ArenaBounds::new(6.0, 0.3, 0.2)), Err(SweepError::InvalidSize));
+    assert_eq!(
+        new(&ok, c, (1.0, f32::NEG_INFINITY), &ARENA),
+        Err(SweepError::NonFinite)
+    );
+    assert_eq!(
+        new(&SweepConfig { size_y_m: 0.0, ..ok }, c, c, &ARENA),
+        Err(SweepError::InvalidSize)
+    );
+    assert_eq!(
+        new(&ok, c, c, &ArenaBounds::new(6.0, 3.0, -0.1)),
+        Err(SweepError::InvalidSize)
+    );
+    assert_eq!(
+        new(&ok, c, c, &ArenaBounds::new(6.0, 0.3, 0.2)),
+        Err(SweepError::InvalidSize)
+    );
     assert_eq!(new(&ok, (9.0, 1.5), c, &ARENA), Err(SweepError::OutsideArena));
     // Too many lines: 1 m at 1 cm is 100 lines per pass.
     assert!(matches!(
@@ -161,9 +243,15 @@ fn invalid_parameters_are_errors() {
         Err(SweepError::TooManyWaypoints { .. })
     ));
     // Exactly at capacity: 16 lines × 2 waypoints × 2 passes = 64.
-    let tight = SweepConfig { spacing_m: 1.0 / 16.0, ..ok };
+    let tight = SweepConfig {
+        spacing_m: 1.0 / 16.0,
+        ..ok
+    };
     assert_eq!(new(&tight, c, c, &ARENA), Ok(64));
-    assert!(matches!(LawnmowerSweep::<63>::new(c, c, &tight, &ARENA), Err(SweepError::TooManyWaypoints { .. })));
+    assert!(matches!(
+        LawnmowerSweep::<63>::new(c, c, &tight, &ARENA),
+        Err(SweepError::TooManyWaypoints { .. })
+    ));
 }
 
 fn finite_setup() -> impl Strategy<Value = ((f32, f32), (f32, f32), SweepConfig)> {
@@ -175,7 +263,17 @@ fn finite_setup() -> impl Strategy<Value = ((f32, f32), (f32, f32), SweepConfig)
         any::<bool>(),
     )
         .prop_map(|(centre, drone, (sx, sy, spacing), axis, crosshatch)| {
-            (centre, drone, SweepConfig { size_x_m: sx, size_y_m: sy, spacing_m: spacing, axis, crosshatch })
+            (
+                centre,
+                drone,
+                SweepConfig {
+                    size_x_m: sx,
+                    size_y_m: sy,
+                    spacing_m: spacing,
+                    axis,
+                    crosshatch,
+                },
+            )
         })
 }
 
@@ -231,4 +329,11 @@ proptest! {
             prop_assert!(s.iter().all(|(x, y)| x.is_finite() && y.is_finite()));
         }
     }
+}
+
+#[test]
+fn memory_size() {
+    let size = std::mem::size_of::<Sweep>();
+    eprintln!("LawnmowerSweep (N = 64): {size} bytes");
+    assert!(size <= 600, "{size} bytes");
 }

@@ -28,7 +28,10 @@ struct Belief {
 
 impl Traversability for Belief {
     fn shape(&self) -> GridShape {
-        GridShape { width: self.width, height: self.height }
+        GridShape {
+            width: self.width,
+            height: self.height,
+        }
     }
     fn is_blocked(&self, x: i32, y: i32) -> bool {
         x < 0
@@ -64,7 +67,11 @@ fn scenario() -> Scenario {
     let text = include_str!("../../maps/seed.map");
     let map = ReplayMap::parse(text).expect("seed map");
     let cells = usize::from(map.width) * usize::from(map.height);
-    let mut initial = Belief { width: map.width, height: map.height, blocked: vec![false; cells] };
+    let mut initial = Belief {
+        width: map.width,
+        height: map.height,
+        blocked: vec![false; cells],
+    };
     let mut truth = initial.clone();
     for y in 0..map.height {
         for x in 0..map.width {
@@ -76,15 +83,27 @@ fn scenario() -> Scenario {
     let (start, goal) = (map.start, map.goal);
     let report = replay(map, SENSE_RADIUS).expect("replay");
     assert_eq!(report.status, "reached");
-    assert_eq!(report.steps[0].changed, 0, "the first plan starts from the initial belief");
+    assert_eq!(
+        report.steps[0].changed, 0,
+        "the first plan starts from the initial belief"
+    );
     let events = report
         .steps
         .iter()
         .skip(1)
         .filter(|s| !s.changed_cells.is_empty())
-        .map(|s| Event { at: Cell::new(s.x, s.y), changed: s.changed_cells.clone() })
+        .map(|s| Event {
+            at: Cell::new(s.x, s.y),
+            changed: s.changed_cells.clone(),
+        })
         .collect();
-    Scenario { initial, truth, start, goal, events }
+    Scenario {
+        initial,
+        truth,
+        start,
+        goal,
+        events,
+    }
 }
 
 fn octile(a: Cell, b: Cell) -> u32 {
@@ -104,7 +123,10 @@ fn astar_cost(map: &Belief, from: Cell, goal: Cell) -> Option<u32> {
             if diagonal && (map.is_blocked(x + dx, y) || map.is_blocked(x, y + dy)) {
                 continue;
             }
-            out.push((Cell::new((x + dx) as u16, (y + dy) as u16), if diagonal { 14 } else { 10 }));
+            out.push((
+                Cell::new((x + dx) as u16, (y + dy) as u16),
+                if diagonal { 14 } else { 10 },
+            ));
         }
         out
     };
@@ -162,18 +184,31 @@ fn main() {
     let s = scenario();
     let mut planner: Box<Planner> = Box::new(DStarLite::new());
     let first_cost = first_plan_dstar(&s, &mut planner);
-    assert_eq!(astar_cost(&s.initial, s.start, s.goal), Some(first_cost), "both planners agree");
+    assert_eq!(
+        astar_cost(&s.initial, s.start, s.goal),
+        Some(first_cost),
+        "both planners agree"
+    );
     let after_first = planner.clone();
     // Both planners must agree on every replan too.
     let (mut b1, mut b2) = (s.initial.clone(), s.initial.clone());
     let mut check = after_first.clone();
     assert_eq!(replans_dstar(&s, &mut check, &mut b1), replans_astar(&s, &mut b2));
-    println!("seed scenario: {} replans after map changes, first plan cost {first_cost}", s.events.len());
+    println!(
+        "seed scenario: {} replans after map changes, first plan cost {first_cost}",
+        s.events.len()
+    );
 
-    let mut c = Criterion::default().configure_from_args().warm_up_time(Duration::from_millis(500));
+    let mut c = Criterion::default()
+        .configure_from_args()
+        .warm_up_time(Duration::from_millis(500));
     let mut g = c.benchmark_group("seed");
-    g.bench_function("first_plan/dstar_lite", |b| b.iter(|| first_plan_dstar(&s, black_box(&mut planner))));
-    g.bench_function("first_plan/astar", |b| b.iter(|| astar_cost(black_box(&s.initial), s.start, s.goal)));
+    g.bench_function("first_plan/dstar_lite", |b| {
+        b.iter(|| first_plan_dstar(&s, black_box(&mut planner)))
+    });
+    g.bench_function("first_plan/astar", |b| {
+        b.iter(|| astar_cost(black_box(&s.initial), s.start, s.goal))
+    });
     g.bench_function("all_replans/dstar_lite", |b| {
         b.iter_batched_ref(
             || (after_first.clone(), s.initial.clone()),
@@ -182,15 +217,29 @@ fn main() {
         )
     });
     g.bench_function("all_replans/astar", |b| {
-        b.iter_batched_ref(|| s.initial.clone(), |belief| replans_astar(&s, belief), BatchSize::SmallInput)
+        b.iter_batched_ref(
+            || s.initial.clone(),
+            |belief| replans_astar(&s, belief),
+            BatchSize::SmallInput,
+        )
     });
     g.finish();
     c.final_summary();
 
     // The ratio, measured in this same run (median of repeated runs, setup excluded where possible).
     let runs = 41;
-    let first_d = median_time(|| drop(black_box(first_plan_dstar(&s, &mut planner))), runs);
-    let first_a = median_time(|| drop(black_box(astar_cost(&s.initial, s.start, s.goal))), runs);
+    let first_d = median_time(
+        || {
+            black_box(first_plan_dstar(&s, &mut planner));
+        },
+        runs,
+    );
+    let first_a = median_time(
+        || {
+            black_box(astar_cost(&s.initial, s.start, s.goal));
+        },
+        runs,
+    );
     let mut pairs: Vec<_> = (0..runs).map(|_| (after_first.clone(), s.initial.clone())).collect();
     let mut it = pairs.iter_mut();
     let replan_d = median_time(
@@ -212,8 +261,10 @@ fn main() {
         runs,
     );
     let n = s.events.len() as u32;
-    println!("RESULT first_plan dstar_lite={first_d:?} astar={first_a:?} ratio_astar_over_dstar={:.2}",
-        first_a.as_secs_f64() / first_d.as_secs_f64());
+    println!(
+        "RESULT first_plan dstar_lite={first_d:?} astar={first_a:?} ratio_astar_over_dstar={:.2}",
+        first_a.as_secs_f64() / first_d.as_secs_f64()
+    );
     println!(
         "RESULT replans n={n} dstar_lite_total={replan_d:?} ({:?}/replan) astar_total={replan_a:?} ({:?}/replan) ratio_astar_over_dstar={:.2}",
         replan_d / n,

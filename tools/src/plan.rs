@@ -56,7 +56,11 @@ pub struct MapError {
 
 impl fmt::Display for MapError {
     fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
-        if self.line == 0 { write!(f, "{}", self.message) } else { write!(f, "line {}: {}", self.line, self.message) }
+        if self.line == 0 {
+            write!(f, "{}", self.message)
+        } else {
+            write!(f, "line {}: {}", self.line, self.message)
+        }
     }
 }
 
@@ -75,7 +79,11 @@ impl ReplayMap {
             {
                 return Err(err(
                     n + 1,
-                    format!("row is {} cells wide, expected {} like the first row", line.chars().count(), first.chars().count()),
+                    format!(
+                        "row is {} cells wide, expected {} like the first row",
+                        line.chars().count(),
+                        first.chars().count()
+                    ),
                 ));
             }
             rows.push((n + 1, line));
@@ -88,7 +96,10 @@ impl ReplayMap {
         if width * height > MAX_MAP_CELLS || width > usize::from(u16::MAX) || height > usize::from(u16::MAX) {
             return Err(err(
                 0,
-                format!("the map is {width} × {height} = {} cells; the planner holds at most {MAX_MAP_CELLS} (e.g. 128 × 64)", width * height),
+                format!(
+                    "the map is {width} × {height} = {} cells; the planner holds at most {MAX_MAP_CELLS} (e.g. 128 × 64)",
+                    width * height
+                ),
             ));
         }
         let (w, h) = (width as u16, height as u16);
@@ -107,14 +118,21 @@ impl ReplayMap {
                         belief[i] = true;
                     }
                     'o' => truth[i] = true,
-                    'S' if start.is_some() => return Err(err(*line_no, "a second start `S`; expected exactly one".into())),
-                    'G' if goal.is_some() => return Err(err(*line_no, "a second goal `G`; expected exactly one".into())),
+                    'S' if start.is_some() => {
+                        return Err(err(*line_no, "a second start `S`; expected exactly one".into()));
+                    }
+                    'G' if goal.is_some() => {
+                        return Err(err(*line_no, "a second goal `G`; expected exactly one".into()));
+                    }
                     'S' => start = Some(cell),
                     'G' => goal = Some(cell),
                     other => {
                         return Err(err(
                             *line_no,
-                            format!("unexpected character {other:?} in column {}; expected one of . # o S G", x + 1),
+                            format!(
+                                "unexpected character {other:?} in column {}; expected one of . # o S G",
+                                x + 1
+                            ),
                         ));
                     }
                 }
@@ -122,7 +140,14 @@ impl ReplayMap {
         }
         let start = start.ok_or_else(|| err(0, "no start `S` in the map".into()))?;
         let goal = goal.ok_or_else(|| err(0, "no goal `G` in the map".into()))?;
-        Ok(Self { width: w, height: h, truth, belief, start, goal })
+        Ok(Self {
+            width: w,
+            height: h,
+            truth,
+            belief,
+            start,
+            goal,
+        })
     }
 
     /// Whether the world holds an obstacle at `c` (`#` or `o`).
@@ -142,8 +167,14 @@ impl ReplayMap {
     /// Reveal every hidden obstacle within `radius` of `at`; returns the cells that changed.
     fn sense(&mut self, at: Cell, radius: u16) -> Vec<Cell> {
         let mut changed = Vec::new();
-        let (x0, x1) = (at.x.saturating_sub(radius), at.x.saturating_add(radius).min(self.width - 1));
-        let (y0, y1) = (at.y.saturating_sub(radius), at.y.saturating_add(radius).min(self.height - 1));
+        let (x0, x1) = (
+            at.x.saturating_sub(radius),
+            at.x.saturating_add(radius).min(self.width - 1),
+        );
+        let (y0, y1) = (
+            at.y.saturating_sub(radius),
+            at.y.saturating_add(radius).min(self.height - 1),
+        );
         for y in y0..=y1 {
             for x in x0..=x1 {
                 let c = Cell::new(x, y);
@@ -163,7 +194,10 @@ struct Belief<'a>(&'a ReplayMap);
 
 impl Traversability for Belief<'_> {
     fn shape(&self) -> GridShape {
-        GridShape { width: self.0.width, height: self.0.height }
+        GridShape {
+            width: self.0.width,
+            height: self.0.height,
+        }
     }
 
     fn is_blocked(&self, x: i32, y: i32) -> bool {
@@ -207,16 +241,25 @@ pub struct Report {
 /// Replay the planner on a parsed map.
 pub fn replay(mut map: ReplayMap, radius: u16) -> anyhow::Result<Report> {
     let mut planner: Box<ReplayPlanner> = Box::new(DStarLite::new());
-    let shape = GridShape { width: map.width, height: map.height };
-    planner.reset(shape, map.start, map.goal).map_err(|e| anyhow::anyhow!("planner refused the map: {e:?}"))?;
+    let shape = GridShape {
+        width: map.width,
+        height: map.height,
+    };
+    planner
+        .reset(shape, map.start, map.goal)
+        .map_err(|e| anyhow::anyhow!("planner refused the map: {e:?}"))?;
     let mut here = map.start;
     let (mut steps, mut moves, mut path_cost) = (Vec::new(), 0u32, 0u32);
     let status = loop {
         let changed = map.sense(here, radius);
         let t0 = Instant::now();
         planner.set_start(here).map_err(|e| anyhow::anyhow!("planner: {e:?}"))?;
-        planner.cells_changed(&Belief(&map), &changed).map_err(|e| anyhow::anyhow!("planner: {e:?}"))?;
-        let result = planner.compute(&Belief(&map), u32::MAX).map_err(|e| anyhow::anyhow!("planner: {e:?}"))?;
+        planner
+            .cells_changed(&Belief(&map), &changed)
+            .map_err(|e| anyhow::anyhow!("planner: {e:?}"))?;
+        let result = planner
+            .compute(&Belief(&map), u32::MAX)
+            .map_err(|e| anyhow::anyhow!("planner: {e:?}"))?;
         let us = t0.elapsed().as_secs_f64() * 1e6;
         let cost = match result {
             PlanStatus::Found { cost } => Some(cost),
@@ -239,10 +282,15 @@ pub fn replay(mut map: ReplayMap, radius: u16) -> anyhow::Result<Report> {
             break "reached";
         }
         let belief = Belief(&map);
-        let next = planner.next_cell(&belief, here).context("planner has a cost but no next cell")?;
-        let (dx, dy) = (i32::from(next.x) - i32::from(here.x), i32::from(next.y) - i32::from(here.y));
-        let step_cost =
-            move_cost(&belief, i32::from(here.x), i32::from(here.y), dx, dy).context("planner chose an illegal move")?;
+        let next = planner
+            .next_cell(&belief, here)
+            .context("planner has a cost but no next cell")?;
+        let (dx, dy) = (
+            i32::from(next.x) - i32::from(here.x),
+            i32::from(next.y) - i32::from(here.y),
+        );
+        let step_cost = move_cost(&belief, i32::from(here.x), i32::from(here.y), dx, dy)
+            .context("planner chose an illegal move")?;
         path_cost += u32::from(step_cost);
         moves += 1;
         here = next;
@@ -309,7 +357,13 @@ pub fn run(args: &PlanArgs) -> ExitCode {
     if args.json.as_deref().is_none_or(|p| p.as_os_str() != "-") {
         let first = report.steps.first();
         let replans = report.steps.len().saturating_sub(1);
-        let replan_us: Vec<f64> = report.steps.iter().skip(1).filter(|s| s.changed > 0).map(|s| s.us).collect();
+        let replan_us: Vec<f64> = report
+            .steps
+            .iter()
+            .skip(1)
+            .filter(|s| s.changed > 0)
+            .map(|s| s.us)
+            .collect();
         println!(
             "{}: {} ({}×{}), {} moves, path cost {}, first plan {} expansions in {:.0} µs, {} replans ({} after changes, mean {:.0} µs), {} expansions in all",
             args.map.display(),
@@ -322,7 +376,11 @@ pub fn run(args: &PlanArgs) -> ExitCode {
             first.map_or(0.0, |s| s.us),
             replans,
             replan_us.len(),
-            if replan_us.is_empty() { 0.0 } else { replan_us.iter().sum::<f64>() / replan_us.len() as f64 },
+            if replan_us.is_empty() {
+                0.0
+            } else {
+                replan_us.iter().sum::<f64>() / replan_us.len() as f64
+            },
             report.total_expanded,
         );
     }

@@ -18,3 +18,4 @@ pub mod pad;
 pub mod path;
 pub mod queue;
 pub mod sweep;
+pub mod types;

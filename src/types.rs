@@ -1,0 +1,181 @@
+//! The vocabulary the flight modules share: sensor samples as the drivers deliver them, the state estimate,
+//! setpoints and motor outputs. Plain data, no behaviour beyond small conversions.
+//!
+//! Frames and conventions (every module follows them):
+//! - **Arena frame**: origin at the arena's lower-left corner on the floor, x right, y up the page, z up
+//!   (metres). Yaw 0 looks along +x, positive yaw turns counter-clockwise seen from above (towards +y).
+//! - **Body frame**: x forward, y left, z up (the Crazyflie's frame). The IMU axes are the body axes.
+//! - **Attitude**: roll φ about body x, pitch θ about body y, yaw ψ about z, right-hand rule, radians,
+//!   composed as `R = Rz(ψ)·Ry(θ)·Rx(φ)` (body → arena). Positive pitch therefore tilts the nose **down**
+//!   (so accelerating forward needs positive pitch) and positive roll lowers the right side (accelerating
+//!   to the right, −y, needs positive roll). (The stock firmware exports pitch with the opposite sign;
+//!   cfnav uses the right-hand rule everywhere and converts only at the radio boundary.)
+//! - **Accelerometer**: specific force in the body frame, m/s²: at rest and level it reads (0, 0, +g).
+//! - **Time**: microseconds since boot as `u64` ([`Micros`]); durations as `f32` seconds named `dt_s`.
+
+/// Standard gravity, m/s².
+pub const GRAVITY_M_S2: f32 = 9.81;
+
+/// Microseconds since boot.
+pub type Micros = u64;
+
+/// One gyro + accelerometer reading (BMI088), body frame, at 1 kHz (the gyro's data-ready).
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct ImuSample {
+    /// Angular rate, rad/s.
+    pub gyro_rad_s: [f32; 3],
+    /// Specific force, m/s² (level at rest: `[0, 0, 9.81]`).
+    pub accel_m_s2: [f32; 3],
+}
+
+/// One optical-flow reading (PMW3901 motion burst, 100 Hz), already mapped to the body axes the way the
+/// stock Flow-deck driver does (`dpixel_x = −deltaY`, `dpixel_y = −deltaX`; crazyflie-hardware.md §5.4).
+///
+/// Measurement model (stock `mm_flow.c`, crazyflie-hardware.md §9): with `N = 0.1 · dpixel`,
+/// `N_x ≈ dt·(35/0.71674)·(v_bx·R22/z − ω_y)` and `N_y ≈ dt·(35/0.71674)·(v_by·R22/z + ω_x)`, where
+/// `v_b` is the body-frame velocity, `ω` the body rates, `R22` the cosine of the tilt and `z` the height of
+/// the camera above the surface below it.
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct FlowSample {
+    /// Accumulated motion along body x since the previous reading, sensor counts.
+    pub dpixel_x: i16,
+    /// Accumulated motion along body y since the previous reading, sensor counts.
+    pub dpixel_y: i16,
+    /// Surface quality (SQUAL register), 0 = no features.
+    pub squal: u8,
+    /// The sensor reports valid motion (stock: motion byte == 0xB0). False in darkness or when too low.
+    pub motion_valid: bool,
+    /// Time since the previous reading, seconds.
+    pub dt_s: f32,
+}
+
+/// One reading of a VL53L1x ranger, metres along its beam; `None` when there was no valid return
+/// (range status not VALID, beyond the sensor's reach, or a bus fault).
+pub type RangeReading = Option<f32>;
+
+/// The Multi-ranger deck's five beams (10 Hz): body +x, −x, +y, −y and +z.
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct MultiRangerSample {
+    /// Along body +x.
+    pub front_m: RangeReading,
+    /// Along body −x.
+    pub back_m: RangeReading,
+    /// Along body +y.
+    pub left_m: RangeReading,
+    /// Along body −y.
+    pub right_m: RangeReading,
+    /// Along body +z.
+    pub up_m: RangeReading,
+}
+
+/// The vehicle state as the estimator believes it.
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct StateEstimate {
+    /// Position in the arena frame, m (z = height above the arena floor, not above a pad).
+    pub position_m: [f32; 3],
+    /// Velocity in the arena frame, m/s.
+    pub velocity_m_s: [f32; 3],
+    /// Roll, pitch, yaw, rad (see the module conventions).
+    pub attitude_rad: [f32; 3],
+    /// Body rates, rad/s (the filtered gyro).
+    pub rates_rad_s: [f32; 3],
+    /// Height of the surface under the drone above the arena floor, m (0 over the floor, ≈ pad height
+    /// over a pad): what the downward ranger's steps were attributed to instead of the drone's height.
+    pub surface_height_m: f32,
+    /// The estimate can be flown on (attitude converged, position fixes recent and plausible).
+    pub valid: bool,
+}
+
+/// What the mission (or the radio commander) asks of the controller.
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub enum Setpoint {
+    /// Motors off.
+    #[default]
+    Stop,
+    /// Hold a position and heading: arena frame, m and rad.
+    Position {
+        /// Target x, m.
+        x_m: f32,
+        /// Target y, m.
+        y_m: f32,
+        /// Target height above the arena floor, m.
+        z_m: f32,
+        /// Target heading, rad.
+        yaw_rad: f32,
+    },
+    /// Fly a horizontal velocity (arena frame) at a height, with a heading.
+    Velocity {
+        /// Target velocity along arena x, m/s.
+        vx_m_s: f32,
+        /// Target velocity along arena y, m/s.
+        vy_m_s: f32,
+        /// Target height above the arena floor, m.
+        z_m: f32,
+        /// Target heading, rad.
+        yaw_rad: f32,
+    },
+    /// Descend (or climb) at a vertical speed while holding a horizontal position: landing.
+    Descend {
+        /// Target x, m.
+        x_m: f32,
+        /// Target y, m.
+        y_m: f32,
+        /// Vertical speed, m/s (negative = down).
+        vz_m_s: f32,
+        /// Target heading, rad.
+        yaw_rad: f32,
+    },
+}
+
+/// The four motor duties as the firmware writes them to TIM2/TIM4 (8-bit, 0..=255), in the stock motor
+/// numbering: M1 front-right, M2 back-right, M3 back-left, M4 front-left (crazyflie-hardware.md §6).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct MotorDuty(pub [u8; 4]);
+
+/// Wrap an angle to (−π, π].
+pub fn wrap_angle(a: f32) -> f32 {
+    if !a.is_finite() {
+        return 0.0;
+    }
+    let two_pi = 2.0 * core::f32::consts::PI;
+    let mut w = libm::fmodf(a + core::f32::consts::PI, two_pi);
+    if w < 0.0 {
+        w += two_pi;
+    }
+    w - core::f32::consts::PI
+}
+
+/// Rotate a body-frame vector into the arena frame with the attitude `[roll, pitch, yaw]`.
+pub fn body_to_arena(v: [f32; 3], attitude_rad: [f32; 3]) -> [f32; 3] {
+    let (sr, cr) = (libm::sinf(attitude_rad[0]), libm::cosf(attitude_rad[0]));
+    let (sp, cp) = (libm::sinf(attitude_rad[1]), libm::cosf(attitude_rad[1]));
+    let (sy, cy) = (libm::sinf(attitude_rad[2]), libm::cosf(attitude_rad[2]));
+    // R = Rz(yaw)·Ry(pitch)·Rx(roll).
+    let r = [
+        [cy * cp, cy * sp * sr - sy * cr, cy * sp * cr + sy * sr],
+        [sy * cp, sy * sp * sr + cy * cr, sy * sp * cr - cy * sr],
+        [-sp, cp * sr, cp * cr],
+    ];
+    [
+        r[0][0] * v[0] + r[0][1] * v[1] + r[0][2] * v[2],
+        r[1][0] * v[0] + r[1][1] * v[1] + r[1][2] * v[2],
+        r[2][0] * v[0] + r[2][1] * v[1] + r[2][2] * v[2],
+    ]
+}
+
+/// Rotate an arena-frame vector into the body frame (the transpose of [`body_to_arena`]).
+pub fn arena_to_body(v: [f32; 3], attitude_rad: [f32; 3]) -> [f32; 3] {
+    let (sr, cr) = (libm::sinf(attitude_rad[0]), libm::cosf(attitude_rad[0]));
+    let (sp, cp) = (libm::sinf(attitude_rad[1]), libm::cosf(attitude_rad[1]));
+    let (sy, cy) = (libm::sinf(attitude_rad[2]), libm::cosf(attitude_rad[2]));
+    let r = [
+        [cy * cp, cy * sp * sr - sy * cr, cy * sp * cr + sy * sr],
+        [sy * cp, sy * sp * sr + cy * cr, sy * sp * cr - cy * sr],
+        [-sp, cp * sr, cp * cr],
+    ];
+    [
+        r[0][0] * v[0] + r[1][0] * v[1] + r[2][0] * v[2],
+        r[0][1] * v[0] + r[1][1] * v[1] + r[2][1] * v[2],
+        r[0][2] * v[0] + r[1][2] * v[1] + r[2][2] * v[2],
+    ]
+}

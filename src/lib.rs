@@ -14,6 +14,7 @@ pub mod avoidance;
 pub mod dstar;
 pub mod grid;
 pub mod map;
+pub mod mission;
 pub mod pad;
 pub mod path;
 pub mod queue;

@@ -1,0 +1,830 @@
+//! The round-trip mission: take off from the home pad, map and plan to the goal, find the goal pad, land on
+//! it, take off again, fly home, find the home pad, land, stop.
+//!
+//! Job: a sans-IO state machine. Each [`Mission::tick`] (20–50 Hz) takes the state estimate and a few
+//! supervisor flags and returns the [`Setpoint`] the controller should fly, plus a [`MissionState`] code for
+//! the `mission.state` log variable. Range data arrive through [`Mission::on_ranges`] (Multi-ranger, 10 Hz:
+//! mapping and avoidance) and [`Mission::on_zrange`] (downward ranger, 40 Hz: the pad detector).
+//!
+//! Non-goals: estimation, control and motor safety (the supervisor cuts motors on touchdown, tumble and
+//! timeouts; the mission only reacts to what it reports).
+//!
+//! Units and frames: arena frame, metres, seconds, radians; the drone keeps the heading it took off with
+//! (yaw 0), which keeps the Multi-ranger's beams along the grid axes.
+//!
+//! How each phase works:
+//! - **Navigate**: the four horizontal ranges update the [`OccupancyGrid`] (freed along each beam, the end
+//!   cell marked); the cells whose inflated state changed go to D\* Lite, which repairs its plan with an
+//!   expansion budget per tick; the path is shortened by line of sight, and the drone flies towards its
+//!   first waypoint at cruise speed (slowing into the goal), through [`ReactiveAvoidance`] (repulsion,
+//!   smoothing, speed clamp near obstacles).
+//! - **No path**: hover and keep mapping (false obstacles clear, the plan repairs itself) for
+//!   [`MissionConfig::no_path_wait_s`]; then land where it is and end with [`MissionState::NoPath`].
+//! - **Search**: a coarse lawnmower pass around the nominal goal until the [`PadDetector`] has a first
+//!   crossing; then two short refinement stages centred on the estimate — three lines across the first
+//!   crossing (which fixes the other coordinate), then three along it — until the detector locks. If the
+//!   pattern ends without a lock the drone lands on the best estimate (or the nominal point) and the
+//!   mission ends with [`MissionState::PadNotFound`] after flying the rest of the round trip.
+//! - **Land**: hover over the pad centre until settled, descend at a controlled rate; the supervisor
+//!   detects the touchdown and stops the motors, which the mission sees as `landed`.
+//!
+//! Memory: the grid (`CELLS + 12` B), the planner (`4·CELLS + 10·QUEUE` B), a path buffer and the small
+//! detectors: about 50 KB for the 6 × 3 m arena. Cost per tick: one bounded planner slice
+//! ([`MissionConfig::planner_budget`] expansions) plus a path read-off (O(path length)).
+
+use heapless::Vec;
+
+use crate::avoidance::{AvoidanceConfig, ReactiveAvoidance, RangerReadings};
+use crate::dstar::{DStarLite, PlanError, PlanStatus};
+use crate::grid::{ChangedCells, OccupancyGrid};
+use crate::map::{CELL_SIZE_M, Cell, GridShape};
+use crate::pad::{PadConfig, PadDetector};
+use crate::path::{extract_path, simplify};
+use crate::sweep::{ArenaBounds, LawnmowerSweep, SweepConfig};
+use crate::types::{Micros, MultiRangerSample, RangeReading, Setpoint, StateEstimate};
+
+/// The `mission.state` codes (interfaces.md §5): 0 idle, 1..99 phases, 100 completed, ≥ 200 ended without
+/// completing (the value says why).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[repr(u8)]
+pub enum MissionState {
+    /// Idle and ready for `mission.start`.
+    Idle = 0,
+    /// Started; waiting for a valid state estimate before the motors spin.
+    Preflight = 1,
+    /// Climbing off the home pad.
+    TakeOffOutbound = 10,
+    /// Mapping and planning towards the goal.
+    NavigateToGoal = 11,
+    /// Sweeping around the nominal goal for the goal pad.
+    SearchGoalPad = 12,
+    /// Moving over the goal pad's centre.
+    ApproachGoalPad = 13,
+    /// Descending onto the goal pad.
+    LandOnGoalPad = 14,
+    /// Landed on the goal pad, motors off, pausing.
+    OnGoalPad = 15,
+    /// Climbing off the goal pad.
+    TakeOffReturn = 20,
+    /// Mapping and planning back to the start.
+    NavigateHome = 21,
+    /// Sweeping around the start for the home pad.
+    SearchHomePad = 22,
+    /// Moving over the home pad's centre.
+    ApproachHomePad = 23,
+    /// Descending onto the home pad.
+    LandOnHomePad = 24,
+    /// No path: hovering while the map may still change.
+    NoPathHover = 30,
+    /// Landing where it is, because the mission cannot go on (the final code follows on touchdown).
+    EmergencyLanding = 40,
+    /// Landed on both pads, motors off.
+    Completed = 100,
+    /// Aborted by the user (`mission.start = 0`): landed where it was.
+    Aborted = 200,
+    /// No path to the goal (or home): landed where it was.
+    NoPath = 201,
+    /// A pad was not found: landed on the best estimate or the nominal point, round trip finished.
+    PadNotFound = 202,
+    /// Battery low: landed where it was.
+    BatteryLow = 203,
+    /// The state estimate became unusable (flow or height lost): landed or motors cut.
+    EstimatorFault = 204,
+    /// The supervisor cut the motors (tumble or timeout).
+    Crashed = 205,
+    /// The planner could not run (grid or queue capacity).
+    PlannerFault = 206,
+}
+
+impl MissionState {
+    /// The `mission.state` value.
+    pub fn code(self) -> u8 {
+        self as u8
+    }
+
+    /// Whether the mission has ended (completed or not).
+    pub fn is_final(self) -> bool {
+        self.code() >= 100
+    }
+}
+
+/// A sub-config of [`MissionConfig`] is invalid.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum MissionConfigError {
+    /// [`MissionConfig::avoidance`] failed its validation.
+    Avoidance,
+    /// [`MissionConfig::pad`] failed its validation.
+    PadDetector,
+}
+
+/// Why a start request was refused.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum StartRefusal {
+    /// A mission is already running.
+    AlreadyRunning,
+    /// The arena does not fit the grid capacity, or is not finite and positive.
+    BadArena,
+    /// The start or goal lies outside the arena (or too close to its walls).
+    OutsideArena,
+    /// Cruise height below 0.2 m or above the limit.
+    BadHeight,
+    /// Cruise speed not in (0, 1] m/s.
+    BadSpeed,
+}
+
+/// The mission's parameters (the `mission.*` radio parameters and the arena).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct MissionParams {
+    /// Arena size, m (x, y): the grid the drone maps.
+    pub arena_m: (f32, f32),
+    /// Where the drone stands at power-on (the home pad), m.
+    pub start_m: (f32, f32),
+    /// The nominal goal, m.
+    pub goal_m: (f32, f32),
+    /// Cruise height above the arena floor, m (≥ 0.2).
+    pub height_m: f32,
+    /// Cruise speed, m/s.
+    pub speed_m_s: f32,
+}
+
+/// Minimum height in flight phases (interfaces.md §5, the supervisor's floor too).
+pub const MIN_HEIGHT_M: f32 = 0.2;
+/// Highest cruise height accepted, m.
+pub const MAX_HEIGHT_M: f32 = 2.0;
+/// Highest cruise speed accepted, m/s.
+pub const MAX_SPEED_M_S: f32 = 1.0;
+
+impl MissionParams {
+    /// The seed scenario's values.
+    pub const SEED: Self =
+        Self { arena_m: (6.0, 3.0), start_m: (0.6, 1.3), goal_m: (5.0, 1.5), height_m: 0.5, speed_m_s: 0.5 };
+
+    /// Check the parameters against each other and a grid capacity.
+    pub fn validate(&self, capacity_cells: usize) -> Result<GridShape, StartRefusal> {
+        let shape =
+            GridShape::for_arena(self.arena_m.0, self.arena_m.1, capacity_cells).ok_or(StartRefusal::BadArena)?;
+        let inside = |p: (f32, f32)| {
+            p.0.is_finite() && p.1.is_finite() && p.0 > 0.1 && p.1 > 0.1 && p.0 < self.arena_m.0 - 0.1 && p.1 < self.arena_m.1 - 0.1
+        };
+        if !inside(self.start_m) || !inside(self.goal_m) {
+            return Err(StartRefusal::OutsideArena);
+        }
+        if !(self.height_m >= MIN_HEIGHT_M && self.height_m <= MAX_HEIGHT_M) {
+            return Err(StartRefusal::BadHeight);
+        }
+        if !(self.speed_m_s > 0.0 && self.speed_m_s <= MAX_SPEED_M_S) {
+            return Err(StartRefusal::BadSpeed);
+        }
+        Ok(shape)
+    }
+}
+
+/// Tuning of the mission (not radio parameters).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct MissionConfig {
+    /// Obstacles are inflated by the drone's radius (0.06 m) plus a margin, m.
+    pub inflation_radius_m: f32,
+    /// Horizontal ranges beyond this map only free space, m (the VL53L1x gets noisy beyond ~3–4 m).
+    pub max_mapping_range_m: f32,
+    /// Cells around the drone that are its own body and cannot be an obstacle, m.
+    pub body_clearance_m: f32,
+    /// Planner expansions per tick (bounds the tick's cost on the MCU).
+    pub planner_budget: u32,
+    /// Hover this long with no path before giving up, s.
+    pub no_path_wait_s: f32,
+    /// Distance to the goal at which navigation hands over to the pad search, m.
+    pub goal_tolerance_m: f32,
+    /// Speed along sweep lines, m/s.
+    pub search_speed_m_s: f32,
+    /// Climb rate for take-off, m/s.
+    pub climb_speed_m_s: f32,
+    /// Descent rate for landing, m/s (positive number).
+    pub descent_speed_m_s: f32,
+    /// Settle over the pad this long before descending, s.
+    pub settle_s: f32,
+    /// Horizontal error to the pad centre accepted before descending, m.
+    pub settle_tolerance_m: f32,
+    /// Pause on the goal pad, motors off, s.
+    pub pause_s: f32,
+    /// The coarse search pattern.
+    pub sweep: SweepConfig,
+    /// Length of each refinement line, m.
+    pub refine_line_m: f32,
+    /// Offset between parallel refinement lines, m.
+    pub refine_offset_m: f32,
+    /// The pad detector.
+    pub pad: PadConfig,
+    /// Reactive avoidance.
+    pub avoidance: AvoidanceConfig,
+}
+
+impl Default for MissionConfig {
+    fn default() -> Self {
+        Self {
+            inflation_radius_m: 0.2,
+            max_mapping_range_m: 3.0,
+            body_clearance_m: 0.07,
+            planner_budget: 4000,
+            no_path_wait_s: 5.0,
+            goal_tolerance_m: 0.15,
+            search_speed_m_s: 0.25,
+            climb_speed_m_s: 0.4,
+            descent_speed_m_s: 0.2,
+            settle_s: 0.6,
+            settle_tolerance_m: 0.03,
+            pause_s: 2.0,
+            sweep: SweepConfig { size_x_m: 1.0, size_y_m: 1.0, spacing_m: 0.2, crosshatch: true, ..SweepConfig::default() },
+            refine_line_m: 0.7,
+            refine_offset_m: 0.08,
+            pad: PadConfig::default(),
+            avoidance: AvoidanceConfig::default(),
+        }
+    }
+}
+
+/// What the mission needs to know each tick besides the estimate.
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct MissionInputs {
+    /// The supervisor detected a touchdown and stopped the motors.
+    pub landed: bool,
+    /// The supervisor cut the motors for safety (tumble, timeout): the flight is over.
+    pub crashed: bool,
+    /// The battery has been low long enough to land now.
+    pub battery_low: bool,
+}
+
+/// Which way the round trip is going.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+enum Leg {
+    Outbound,
+    Return,
+}
+
+#[derive(Clone, Copy, Debug, PartialEq)]
+enum Phase {
+    Idle,
+    Preflight,
+    TakeOff { x: f32, y: f32, z_target: f32 },
+    Navigate,
+    NoPath { since: Micros, x: f32, y: f32 },
+    Search(Search),
+    Approach { x: f32, y: f32, settled_since: Option<Micros> },
+    Land { x: f32, y: f32 },
+    OnPad { since: Micros },
+    EmergencyLand { x: f32, y: f32, then: MissionState },
+    Ended(MissionState),
+}
+
+/// Where the pad search is.
+#[derive(Clone, Copy, Debug, PartialEq)]
+enum Search {
+    /// Flying the coarse lawnmower, waypoint index.
+    Coarse { index: usize },
+    /// Refinement: stage 0 = lines across the first crossing, stage 1 = lines along it; `line` of 3,
+    /// `end` = 0 going to the line's start, 1 to its end.
+    Refine { stage: u8, line: u8, end: u8, centre: (f32, f32), first_along_x: bool },
+}
+
+const PATH_CAPACITY: usize = 512;
+const WAYPOINT_CAPACITY: usize = 48;
+const CHANGED_CAPACITY: usize = 512;
+const PAD_EDGES: usize = 48;
+const REFINE_LINES: u8 = 3;
+
+/// See the module documentation.
+pub struct Mission<const CELLS: usize, const QUEUE: usize> {
+    config: MissionConfig,
+    params: MissionParams,
+    shape: GridShape,
+    grid: OccupancyGrid<CELLS>,
+    planner: DStarLite<CELLS, QUEUE>,
+    changed: ChangedCells<CHANGED_CAPACITY>,
+    path: Vec<Cell, PATH_CAPACITY>,
+    waypoints: Vec<Cell, WAYPOINT_CAPACITY>,
+    avoidance: ReactiveAvoidance,
+    pad: PadDetector<PAD_EDGES>,
+    sweep: Option<LawnmowerSweep>,
+    phase: Phase,
+    leg: Leg,
+    last_ranges: RangerReadings,
+    last_tick: Option<Micros>,
+    pad_not_found: bool,
+    planner_needs_reset: bool,
+    stats: MissionStats,
+}
+
+/// Counters for logs and the simulator's report.
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct MissionStats {
+    /// Planner repairs after map changes.
+    pub replans: u32,
+    /// Full re-plans (planner resets).
+    pub plans_from_scratch: u32,
+    /// Expansions of the latest repair.
+    pub last_expansions: u32,
+    /// Pad locks: the centre the drone aimed at, per leg (outbound, return).
+    pub pad_centres: [Option<(f32, f32)>; 2],
+}
+
+impl<const CELLS: usize, const QUEUE: usize> Mission<CELLS, QUEUE> {
+    /// An idle mission, if the avoidance and pad-detector configs are valid.
+    pub fn new(config: MissionConfig) -> Result<Self, MissionConfigError> {
+        let avoidance = ReactiveAvoidance::new(config.avoidance).map_err(|_| MissionConfigError::Avoidance)?;
+        let pad = PadDetector::new(config.pad).map_err(|_| MissionConfigError::PadDetector)?;
+        Ok(Self {
+            config,
+            params: MissionParams::SEED,
+            shape: GridShape { width: 1, height: 1 },
+            grid: OccupancyGrid::new(),
+            planner: DStarLite::new(),
+            changed: ChangedCells::new(),
+            path: Vec::new(),
+            waypoints: Vec::new(),
+            avoidance,
+            pad,
+            sweep: None,
+            phase: Phase::Idle,
+            leg: Leg::Outbound,
+            last_ranges: RangerReadings::NONE,
+            last_tick: None,
+            pad_not_found: false,
+            planner_needs_reset: false,
+            stats: MissionStats::default(),
+        })
+    }
+
+    /// The `mission.state` code right now.
+    pub fn state(&self) -> MissionState {
+        match self.phase {
+            Phase::Idle => MissionState::Idle,
+            Phase::Preflight => MissionState::Preflight,
+            Phase::TakeOff { .. } => self.by_leg(MissionState::TakeOffOutbound, MissionState::TakeOffReturn),
+            Phase::Navigate => self.by_leg(MissionState::NavigateToGoal, MissionState::NavigateHome),
+            Phase::NoPath { .. } => MissionState::NoPathHover,
+            Phase::Search(_) => self.by_leg(MissionState::SearchGoalPad, MissionState::SearchHomePad),
+            Phase::Approach { .. } => self.by_leg(MissionState::ApproachGoalPad, MissionState::ApproachHomePad),
+            Phase::Land { .. } => self.by_leg(MissionState::LandOnGoalPad, MissionState::LandOnHomePad),
+            Phase::OnPad { .. } => MissionState::OnGoalPad,
+            Phase::EmergencyLand { .. } => MissionState::EmergencyLanding,
+            Phase::Ended(s) => s,
+        }
+    }
+
+    /// Whether a mission is running (started, not ended).
+    pub fn is_running(&self) -> bool {
+        !matches!(self.phase, Phase::Idle | Phase::Ended(_))
+    }
+
+    /// The parameters of the current (or last) mission.
+    pub fn params(&self) -> MissionParams {
+        self.params
+    }
+
+    /// Counters.
+    pub fn stats(&self) -> MissionStats {
+        self.stats
+    }
+
+    /// The occupancy grid the drone has built.
+    pub fn grid(&self) -> &OccupancyGrid<CELLS> {
+        &self.grid
+    }
+
+    /// The current shortened path (cells), start first.
+    pub fn waypoints(&self) -> &[Cell] {
+        &self.waypoints
+    }
+
+    /// The pad detector (edges and estimate, for logs and plots).
+    pub fn pad_detector(&self) -> &PadDetector<PAD_EDGES> {
+        &self.pad
+    }
+
+    /// Start a mission from idle (or after a previous one ended). Refused while one runs or when the
+    /// parameters make no sense; nothing changes then.
+    pub fn start(&mut self, params: MissionParams) -> Result<(), StartRefusal> {
+        if self.is_running() {
+            return Err(StartRefusal::AlreadyRunning);
+        }
+        let shape = params.validate(CELLS)?;
+        let inflation = libm::ceilf(self.config.inflation_radius_m / CELL_SIZE_M).clamp(0.0, 16.0) as u8;
+        if !self.grid.reset(shape, inflation) {
+            return Err(StartRefusal::BadArena);
+        }
+        self.params = params;
+        self.shape = shape;
+        self.changed.clear();
+        self.path.clear();
+        self.waypoints.clear();
+        self.avoidance.reset();
+        self.pad.reset();
+        self.sweep = None;
+        self.leg = Leg::Outbound;
+        self.pad_not_found = false;
+        self.planner_needs_reset = true;
+        self.stats = MissionStats::default();
+        self.last_tick = None;
+        self.phase = Phase::Preflight;
+        Ok(())
+    }
+
+    /// Abort (`mission.start = 0` during a mission): land where it is, then end with
+    /// [`MissionState::Aborted`]. Does nothing when no mission runs.
+    pub fn abort(&mut self, state: &StateEstimate) {
+        match self.phase {
+            Phase::Idle | Phase::Ended(_) => {}
+            Phase::Preflight | Phase::OnPad { .. } => self.phase = Phase::Ended(MissionState::Aborted),
+            _ => {
+                self.phase = Phase::EmergencyLand {
+                    x: state.position_m[0],
+                    y: state.position_m[1],
+                    then: MissionState::Aborted,
+                }
+            }
+        }
+    }
+
+    /// A Multi-ranger reading (10 Hz): map it while flying, keep it for avoidance.
+    pub fn on_ranges(&mut self, ranges: &MultiRangerSample, state: &StateEstimate) {
+        self.last_ranges = RangerReadings::new(ranges.front_m, ranges.back_m, ranges.left_m, ranges.right_m);
+        let airborne = matches!(
+            self.phase,
+            Phase::TakeOff { .. } | Phase::Navigate | Phase::NoPath { .. } | Phase::Search(_) | Phase::Approach { .. }
+        );
+        // Beams only map the arena once the drone flies above pads and low clutter.
+        if !airborne || state.position_m[2] < 0.8 * self.params.height_m || !state.valid {
+            return;
+        }
+        let (x, y, yaw) = (state.position_m[0], state.position_m[1], state.attitude_rad[2]);
+        self.grid.mark_free_disc((x, y), self.config.body_clearance_m, &mut self.changed);
+        let beams = [
+            (ranges.front_m, 0.0),
+            (ranges.back_m, core::f32::consts::PI),
+            (ranges.left_m, core::f32::consts::FRAC_PI_2),
+            (ranges.right_m, -core::f32::consts::FRAC_PI_2),
+        ];
+        for (range, offset) in beams {
+            let Some(d) = range.filter(|d| d.is_finite() && *d > 0.02) else { continue };
+            let (length, hit) = if d <= self.config.max_mapping_range_m {
+                (d, true)
+            } else {
+                (self.config.max_mapping_range_m, false)
+            };
+            let heading = yaw + offset;
+            let end = (x + length * libm::cosf(heading), y + length * libm::sinf(heading));
+            self.grid.integrate_beam((x, y), end, hit, &mut self.changed);
+        }
+    }
+
+    /// A downward-range reading (40 Hz): the pad detector's input while searching and approaching.
+    pub fn on_zrange(&mut self, range: RangeReading, state: &StateEstimate) {
+        let searching = matches!(self.phase, Phase::Search(_) | Phase::Approach { .. });
+        if let (true, Some(r)) = (searching, range) {
+            self.pad.update(r, state.position_m[0], state.position_m[1]);
+        }
+    }
+
+    /// One mission step (20–50 Hz): returns the setpoint to fly.
+    pub fn tick(&mut self, now: Micros, state: &StateEstimate, inputs: &MissionInputs) -> Setpoint {
+        let dt_s = match self.last_tick {
+            Some(t) if now > t => ((now - t) as f32 * 1e-6).min(0.2),
+            _ => 0.02,
+        };
+        self.last_tick = Some(now);
+        let (x, y, z) = (state.position_m[0], state.position_m[1], state.position_m[2]);
+
+        // Conditions that end or divert any flying phase.
+        if self.is_running() && !matches!(self.phase, Phase::Preflight | Phase::OnPad { .. }) {
+            if inputs.crashed {
+                self.phase = Phase::Ended(MissionState::Crashed);
+                return Setpoint::Stop;
+            }
+            if !state.valid && !matches!(self.phase, Phase::EmergencyLand { .. }) {
+                // Without a usable estimate nothing can be flown safely; descend blind at the last known spot
+                // and let the supervisor's touchdown or timeout stop the motors.
+                self.phase = Phase::EmergencyLand { x, y, then: MissionState::EstimatorFault };
+            } else if inputs.battery_low && !matches!(self.phase, Phase::EmergencyLand { .. } | Phase::Land { .. }) {
+                self.phase = Phase::EmergencyLand { x, y, then: MissionState::BatteryLow };
+            }
+        }
+
+        match self.phase {
+            Phase::Idle | Phase::Ended(_) => Setpoint::Stop,
+            Phase::Preflight => {
+                if inputs.crashed {
+                    self.phase = Phase::Ended(MissionState::Crashed);
+                    return Setpoint::Stop;
+                }
+                if !state.valid {
+                    return Setpoint::Stop;
+                }
+                self.begin_leg(now, state, Leg::Outbound)
+            }
+            Phase::TakeOff { x: tx, y: ty, z_target } => {
+                if z >= self.params.height_m - 0.05 {
+                    self.phase = Phase::Navigate;
+                    self.avoidance.reset();
+                    return self.navigate(now, state, dt_s);
+                }
+                let target = (z_target + self.config.climb_speed_m_s * dt_s).min(self.params.height_m);
+                self.phase = Phase::TakeOff { x: tx, y: ty, z_target: target };
+                Setpoint::Position { x_m: tx, y_m: ty, z_m: target, yaw_rad: 0.0 }
+            }
+            Phase::Navigate => self.navigate(now, state, dt_s),
+            Phase::NoPath { since, x: hx, y: hy } => {
+                match self.plan(state) {
+                    Ok(Some(_)) => {
+                        self.phase = Phase::Navigate;
+                        return self.navigate(now, state, dt_s);
+                    }
+                    Ok(None) => {}
+                    Err(()) => {}
+                }
+                if (now.saturating_sub(since)) as f32 * 1e-6 > self.config.no_path_wait_s {
+                    self.phase = Phase::EmergencyLand { x: hx, y: hy, then: MissionState::NoPath };
+                }
+                Setpoint::Position { x_m: hx, y_m: hy, z_m: self.params.height_m, yaw_rad: 0.0 }
+            }
+            Phase::Search(search) => self.search(search, state, dt_s),
+            Phase::Approach { x: px, y: py, settled_since } => {
+                let err = libm::hypotf(x - px, y - py);
+                let slow = libm::hypotf(state.velocity_m_s[0], state.velocity_m_s[1]) < 0.05;
+                let settled_since = if err < self.config.settle_tolerance_m && slow {
+                    Some(settled_since.unwrap_or(now))
+                } else {
+                    None
+                };
+                if let Some(t0) = settled_since
+                    && (now - t0) as f32 * 1e-6 >= self.config.settle_s
+                {
+                    self.phase = Phase::Land { x: px, y: py };
+                } else {
+                    self.phase = Phase::Approach { x: px, y: py, settled_since };
+                }
+                Setpoint::Position { x_m: px, y_m: py, z_m: self.params.height_m, yaw_rad: 0.0 }
+            }
+            Phase::Land { x: px, y: py } => {
+                if inputs.landed {
+                    return match self.leg {
+                        Leg::Outbound => {
+                            self.phase = Phase::OnPad { since: now };
+                            Setpoint::Stop
+                        }
+                        Leg::Return => {
+                            let end = if self.pad_not_found { MissionState::PadNotFound } else { MissionState::Completed };
+                            self.phase = Phase::Ended(end);
+                            Setpoint::Stop
+                        }
+                    };
+                }
+                Setpoint::Descend { x_m: px, y_m: py, vz_m_s: -self.descent_speed(state), yaw_rad: 0.0 }
+            }
+            Phase::OnPad { since } => {
+                if (now.saturating_sub(since)) as f32 * 1e-6 >= self.config.pause_s {
+                    return self.begin_leg(now, state, Leg::Return);
+                }
+                Setpoint::Stop
+            }
+            Phase::EmergencyLand { x: lx, y: ly, then } => {
+                if inputs.landed {
+                    self.phase = Phase::Ended(then);
+                    return Setpoint::Stop;
+                }
+                Setpoint::Descend { x_m: lx, y_m: ly, vz_m_s: -self.descent_speed(state), yaw_rad: 0.0 }
+            }
+        }
+    }
+
+    fn by_leg(&self, outbound: MissionState, back: MissionState) -> MissionState {
+        match self.leg {
+            Leg::Outbound => outbound,
+            Leg::Return => back,
+        }
+    }
+
+    /// Slower close to the surface below, for a soft touchdown.
+    fn descent_speed(&self, state: &StateEstimate) -> f32 {
+        let above = state.position_m[2] - state.surface_height_m;
+        if above < 0.15 { 0.5 * self.config.descent_speed_m_s } else { self.config.descent_speed_m_s }
+    }
+
+    /// The leg's target: the nominal goal going out, the start coming back.
+    fn leg_target(&self) -> (f32, f32) {
+        match self.leg {
+            Leg::Outbound => self.params.goal_m,
+            Leg::Return => self.params.start_m,
+        }
+    }
+
+    fn begin_leg(&mut self, _now: Micros, state: &StateEstimate, leg: Leg) -> Setpoint {
+        self.leg = leg;
+        self.planner_needs_reset = true;
+        self.pad.reset();
+        self.sweep = None;
+        self.avoidance.reset();
+        let (x, y) = (state.position_m[0], state.position_m[1]);
+        let z_target = state.position_m[2].max(0.0);
+        self.phase = Phase::TakeOff { x, y, z_target };
+        Setpoint::Position { x_m: x, y_m: y, z_m: z_target, yaw_rad: 0.0 }
+    }
+
+    fn cell_of(&self, p: (f32, f32)) -> Cell {
+        let max_x = (self.shape.width.saturating_sub(1)) as f32;
+        let max_y = (self.shape.height.saturating_sub(1)) as f32;
+        let cx = libm::floorf(p.0 / CELL_SIZE_M).clamp(0.0, max_x);
+        let cy = libm::floorf(p.1 / CELL_SIZE_M).clamp(0.0, max_y);
+        // NaN clamps to NaN; `as` turns it into 0, a valid cell.
+        Cell::new(cx as u16, cy as u16)
+    }
+
+    /// Feed map changes and the drone's cell to the planner and run one budgeted slice.
+    /// `Ok(Some(target))`: a path exists, fly towards `target`; `Ok(None)`: no path; `Err(())`: the slice
+    /// did not finish (keep flying the previous target).
+    fn plan(&mut self, state: &StateEstimate) -> Result<Option<(f32, f32)>, ()> {
+        let here = self.cell_of((state.position_m[0], state.position_m[1]));
+        let goal = self.cell_of(self.leg_target());
+        if self.planner_needs_reset || self.changed.overflowed() {
+            if self.planner.reset(self.shape, here, goal).is_err() {
+                return Err(());
+            }
+            self.changed.clear();
+            self.planner_needs_reset = false;
+            self.stats.plans_from_scratch += 1;
+        } else {
+            if self.planner.set_start(here).is_err() {
+                self.planner_needs_reset = true;
+                return Err(());
+            }
+            if !self.changed.is_empty() {
+                if self.planner.cells_changed(&self.grid, self.changed.as_slice()).is_err() {
+                    self.planner_needs_reset = true;
+                    return Err(());
+                }
+                self.changed.clear();
+                self.stats.replans += 1;
+            }
+        }
+        match self.planner.compute(&self.grid, self.config.planner_budget) {
+            Ok(PlanStatus::Found { .. }) => {
+                self.stats.last_expansions = self.planner.expansions();
+                if extract_path(&self.planner, &self.grid, &mut self.path).is_err() {
+                    self.planner_needs_reset = true;
+                    return Err(());
+                }
+                simplify(&self.grid, &self.path, &mut self.waypoints);
+                let target = match self.waypoints.get(1) {
+                    Some(c) => self.shape.center_of(*c),
+                    None => self.leg_target(),
+                };
+                Ok(Some(target))
+            }
+            Ok(PlanStatus::NoPath) => {
+                self.stats.last_expansions = self.planner.expansions();
+                self.waypoints.clear();
+                Ok(None)
+            }
+            Ok(PlanStatus::Incomplete) => Err(()),
+            Err(PlanError::QueueFull) | Err(_) => {
+                self.planner_needs_reset = true;
+                Err(())
+            }
+        }
+    }
+
+    fn navigate(&mut self, now: Micros, state: &StateEstimate, dt_s: f32) -> Setpoint {
+        let (x, y) = (state.position_m[0], state.position_m[1]);
+        let target_leg = self.leg_target();
+        let to_goal = libm::hypotf(target_leg.0 - x, target_leg.1 - y);
+        if to_goal < self.config.goal_tolerance_m {
+            return self.begin_search(state);
+        }
+        let target = match self.plan(state) {
+            Ok(Some(t)) => Some(t),
+            Ok(None) => {
+                self.phase = Phase::NoPath { since: now, x, y };
+                return Setpoint::Position { x_m: x, y_m: y, z_m: self.params.height_m, yaw_rad: 0.0 };
+            }
+            // An unfinished repair: keep heading for the previous waypoint, if any.
+            Err(()) => self.waypoints.get(1).map(|c| self.shape.center_of(*c)),
+        };
+        let (dvx, dvy) = match target {
+            Some((tx, ty)) => {
+                let (dx, dy) = (tx - x, ty - y);
+                let d = libm::hypotf(dx, dy);
+                // Slow into the goal (stop within ~0.5 s at 1 m/s²) and never overshoot a waypoint hard.
+                let speed = self.params.speed_m_s.min(libm::sqrtf(2.0 * 0.8 * to_goal)).min(0.3 + 2.0 * d);
+                if d > 1e-3 { (speed * dx / d, speed * dy / d) } else { (0.0, 0.0) }
+            }
+            None => (0.0, 0.0),
+        };
+        let cmd = self.avoidance.step(&self.last_ranges, state.attitude_rad[2], dvx, dvy, dt_s);
+        Setpoint::Velocity { vx_m_s: cmd.vx, vy_m_s: cmd.vy, z_m: self.params.height_m, yaw_rad: 0.0 }
+    }
+
+    fn begin_search(&mut self, state: &StateEstimate) -> Setpoint {
+        let centre = self.leg_target();
+        let arena = ArenaBounds::new(self.params.arena_m.0, self.params.arena_m.1, 0.15);
+        let here = (state.position_m[0], state.position_m[1]);
+        self.sweep = LawnmowerSweep::new(centre, here, &self.config.sweep, &arena).ok();
+        self.pad.reset();
+        let search = Search::Coarse { index: 0 };
+        self.phase = Phase::Search(search);
+        self.search(search, state, 0.02)
+    }
+
+    /// Fly towards `target` at the search speed; `true` once within 3 cm.
+    fn fly_to(&self, state: &StateEstimate, target: (f32, f32)) -> (Setpoint, bool) {
+        let (x, y) = (state.position_m[0], state.position_m[1]);
+        let (dx, dy) = (target.0 - x, target.1 - y);
+        let d = libm::hypotf(dx, dy);
+        let reached = d < 0.03;
+        let speed = self.config.search_speed_m_s.min(0.05 + 1.5 * d);
+        let (vx, vy) = if d > 1e-3 { (speed * dx / d, speed * dy / d) } else { (0.0, 0.0) };
+        (Setpoint::Velocity { vx_m_s: vx, vy_m_s: vy, z_m: self.params.height_m, yaw_rad: 0.0 }, reached)
+    }
+
+    fn search(&mut self, search: Search, state: &StateEstimate, _dt_s: f32) -> Setpoint {
+        if let Some((px, py)) = self.pad.locked_centre() {
+            self.stats.pad_centres[self.leg_index()] = Some((px, py));
+            self.phase = Phase::Approach { x: px, y: py, settled_since: None };
+            return Setpoint::Position { x_m: px, y_m: py, z_m: self.params.height_m, yaw_rad: 0.0 };
+        }
+        match search {
+            Search::Coarse { index } => {
+                // The first crossing switches to the refinement around it.
+                if let Some(first) = self.pad.crossings().first() {
+                    let (dx, dy) = first.direction();
+                    let centre = first.midpoint();
+                    let refine = Search::Refine {
+                        stage: 0,
+                        line: 0,
+                        end: 0,
+                        centre,
+                        first_along_x: libm::fabsf(dx) >= libm::fabsf(dy),
+                    };
+                    self.phase = Phase::Search(refine);
+                    return self.search(refine, state, _dt_s);
+                }
+                let next = self.sweep.as_ref().and_then(|s| s.waypoint(index));
+                match next {
+                    Some(wp) => {
+                        let (sp, reached) = self.fly_to(state, wp);
+                        self.phase = Phase::Search(Search::Coarse { index: if reached { index + 1 } else { index } });
+                        sp
+                    }
+                    None => self.give_up_search(state),
+                }
+            }
+            Search::Refine { stage, line, end, centre, first_along_x } => {
+                if stage >= 2 {
+                    self.pad.flush();
+                    return self.give_up_search(state);
+                }
+                // Stage 0 flies across the first crossing's direction, stage 1 along it.
+                let along_x = if stage == 0 { !first_along_x } else { first_along_x };
+                let offset = (f32::from(line) - 1.0) * self.config.refine_offset_m;
+                let half = 0.5 * self.config.refine_line_m;
+                let (a, b) = if along_x {
+                    ((centre.0 - half, centre.1 + offset), (centre.0 + half, centre.1 + offset))
+                } else {
+                    ((centre.0 + offset, centre.1 - half), (centre.0 + offset, centre.1 + half))
+                };
+                // Alternate directions so consecutive lines join up like a lawnmower.
+                let (first, second) = if line % 2 == 0 { (a, b) } else { (b, a) };
+                let wp = if end == 0 { first } else { second };
+                let (sp, reached) = self.fly_to(state, wp);
+                let next = if !reached {
+                    Search::Refine { stage, line, end, centre, first_along_x }
+                } else if end == 0 {
+                    Search::Refine { stage, line, end: 1, centre, first_along_x }
+                } else if line + 1 < REFINE_LINES {
+                    Search::Refine { stage, line: line + 1, end: 0, centre, first_along_x }
+                } else {
+                    // Next stage, centred on the detector's best estimate so far.
+                    self.pad.flush();
+                    let c = self.pad.estimate().map(|e| (e.x, e.y)).unwrap_or(centre);
+                    Search::Refine { stage: stage + 1, line: 0, end: 0, centre: c, first_along_x }
+                };
+                self.phase = Phase::Search(next);
+                sp
+            }
+        }
+    }
+
+    /// No lock: land on the best estimate, or the nominal point, and remember it for the final code.
+    fn give_up_search(&mut self, state: &StateEstimate) -> Setpoint {
+        self.pad_not_found = true;
+        let (px, py) = self.pad.estimate().map(|e| (e.x, e.y)).unwrap_or_else(|| self.leg_target());
+        self.stats.pad_centres[self.leg_index()] = None;
+        let _ = state;
+        self.phase = Phase::Approach { x: px, y: py, settled_since: None };
+        Setpoint::Position { x_m: px, y_m: py, z_m: self.params.height_m, yaw_rad: 0.0 }
+    }
+
+    fn leg_index(&self) -> usize {
+        match self.leg {
+            Leg::Outbound => 0,
+            Leg::Return => 1,
+        }
+    }
+}

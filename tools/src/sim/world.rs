@@ -1,1 +1,1054 @@
-//! (being written)
+//! The simulator's world: world files (shared/spec/interfaces.md §3), the built-in default world, random
+//! worlds, and the geometry the simulator needs (ray casts for the rangers, the body's clearance for
+//! collisions, the surface under the drone, the pads).
+//!
+//! # World files
+//!
+//! TOML, in metres, in the arena frame (origin at the arena's lower-left corner on the floor, z up). The
+//! fields are those of interfaces.md §3; unknown fields are errors. Defaults and limits:
+//!
+//! | field | default | accepted |
+//! |---|---|---|
+//! | `name` | the file's stem | 1 to 64 printable characters |
+//! | `arena.size` | required | 0.5 ≤ x ≤ 6.4, 0.5 ≤ y ≤ 3.2, multiples of 0.05 m (whole 5 cm map cells) |
+//! | `arena.ceiling` | 2.5 | 0 < ceiling ≤ 10 |
+//! | `mission.start`, `.goal` | required | strictly inside the arena; the body disc at `start` clears the walls, boxes and cylinders, and it stands either on a pad's top or clear of the pads' sides |
+//! | `mission.height` | 0.5 | 0.2 ≤ height < ceiling |
+//! | `mission.speed` | 0.5 | 0 < speed ≤ 2 |
+//! | `[[pads]]` `center`, `size`, `height` | required | 2 to 16 pads, the first is home, the last the goal pad; footprints inside the arena, not overlapping each other or any obstacle; 0 < height < `mission.height`; home within 0.35 m of `start`, goal pad within 0.35 m of `goal` (centre to centre) |
+//! | `[[boxes]]` `min`, `max` | required | min < max, inside the arena; at most 256 |
+//! | `[[boxes]]`, `[[cylinders]]` `height` | the ceiling | 0 < height ≤ ceiling |
+//! | `[[cylinders]]` `center`, `radius` | required | centre inside the arena, radius > 0; at most 256 |
+//! | `sim.seed` | 0 | any `u64` |
+//! | `sim.time_limit` | 300 | 0 < seconds ≤ 3600 |
+//! | `sim.expect` | `"completed"` | **schema addition**: `"completed"`, `"no_path"` or `"pad_not_found"` |
+//!
+//! `sim.expect` says how a run of the world should end: `"completed"` names the report's `outcome`, any other
+//! value its `reason` (interfaces.md §4). Failure worlds shipped in `worlds/` also carry a `fail-` file-name
+//! prefix so that scripts can tell them apart without parsing them.
+//!
+//! Errors are one line: `FILE: line N: FIELD: what was wrong; what was expected` (the line and field when
+//! known). Nothing here panics on any input.
+//!
+//! # Arena size and the firmware's capacity
+//!
+//! Worlds up to 6.4 × 3.2 m (128 × 64 cells, the largest grid the firmware maps) load. The default firmware
+//! build holds 120 × 60 = 7200 cells; a world with more cells ([`World::needs_large_arena`]) needs the
+//! `large-arena` build of the firmware, and the simulator should say so rather than fly it on a grid too
+//! small.
+//!
+//! # Shipped worlds (`worlds/`)
+//!
+//! `default` (= [`World::default_world`]), `two-walls` (the interfaces.md §3 example), `slalom`, `boxes`,
+//! `corridor`, `cylinders`, `low-box`, `far-pads`; failure worlds `fail-enclosed-goal` and `fail-narrow-gap`
+//! (`expect = "no_path"`). Each file's header comment says what it tests.
+//!
+//! # Random worlds
+//!
+//! [`World::random`] draws a 4.5–6 × 2.4–3 m arena (always within the default firmware build), the take-off
+//! point near one end and the nominal goal near the other (either way round), the home pad under the take-off
+//! point (within 5 cm) and the goal pad 5–30 cm from the nominal goal; one to three walls across the arena,
+//! each with a 0.6–1 m gap, up to four boxes and up to four cylinders, 1 m tall up to the ceiling. Every
+//! obstacle keeps [`KEEP_OUT_M`] from the pads, the take-off point and the nominal goal. A candidate is kept
+//! only if it validates and [`World::is_solvable`] with [`SOLVABILITY_INFLATION_M`]; otherwise the generator
+//! draws again from the same random stream, so a seed always gives the same world.
+//!
+//! # Geometry
+//!
+//! The solid world is everything outside the arena's interior box `(0, W) × (0, H) × (0, ceiling)` (the four
+//! walls, the floor and the ceiling), plus boxes, pads (boxes from the floor to their height) and vertical
+//! cylinders (from the floor to their height). Solids are closed sets: a point on a surface is inside.
+
+use std::collections::HashMap;
+use std::fmt;
+use std::ops::Range;
+use std::path::Path;
+
+use cfnav::map::{GridShape, MAX_HEIGHT_CELLS, MAX_WIDTH_CELLS};
+use serde::Deserialize;
+use toml::Spanned;
+
+mod geometry;
+mod random;
+
+pub use random::{KEEP_OUT_M, SOLVABILITY_INFLATION_M};
+
+/// Radius of the drone's body disc: touching an obstacle with it is a collision (interfaces.md §3).
+pub const BODY_RADIUS_M: f32 = 0.06;
+/// Largest arena the firmware maps (128 × 64 cells of 5 cm), metres.
+pub const MAX_ARENA_M: [f32; 2] = [6.4, 3.2];
+/// Smallest arena side accepted, metres.
+pub const MIN_ARENA_M: f32 = 0.5;
+/// Cells of the default firmware build's grid (120 × 60, a 6 × 3 m arena).
+pub const DEFAULT_FIRMWARE_CELLS: usize = 120 * 60;
+/// Cells of the `large-arena` firmware build's grid (128 × 64, 6.4 × 3.2 m).
+pub const LARGE_ARENA_CELLS: usize = 128 * 64;
+/// Ceiling when `arena.ceiling` is absent, metres.
+pub const DEFAULT_CEILING_M: f32 = 2.5;
+/// Highest ceiling accepted, metres.
+pub const MAX_CEILING_M: f32 = 10.0;
+/// Cruise height when `mission.height` is absent, metres.
+pub const DEFAULT_HEIGHT_M: f32 = 0.5;
+/// Lowest cruise height (the firmware refuses lower ones), metres.
+pub const MIN_HEIGHT_M: f32 = 0.2;
+/// Cruise speed when `mission.speed` is absent, m/s.
+pub const DEFAULT_SPEED_MPS: f32 = 0.5;
+/// Fastest cruise speed accepted, m/s.
+pub const MAX_SPEED_MPS: f32 = 2.0;
+/// Farthest a pad may lie from its nominal point (`mission.start` for home, `mission.goal` for the goal
+/// pad), centre to centre, metres.
+pub const MAX_PAD_OFFSET_M: f32 = 0.35;
+/// Simulated-time limit when `sim.time_limit` is absent, seconds.
+pub const DEFAULT_TIME_LIMIT_S: f32 = 300.0;
+/// Longest simulated-time limit accepted, seconds.
+pub const MAX_TIME_LIMIT_S: f32 = 3600.0;
+/// Most pads a world may have.
+pub const MAX_PADS: usize = 16;
+/// Most boxes, and most cylinders, a world may have.
+pub const MAX_OBSTACLES: usize = 256;
+/// Obstacles taller than this count as occupied in [`World::true_occupancy`], metres.
+pub const OCCUPANCY_MIN_HEIGHT_M: f32 = 0.3;
+
+/// Slack for comparisons against limits written in the file (f32 rounding), metres.
+const EPS: f32 = 1e-4;
+
+/// A world: the arena, the mission, the pads and obstacles, the simulation settings.
+#[derive(Clone, Debug, PartialEq)]
+pub struct World {
+    /// Shown in reports (`world`).
+    pub name: String,
+    /// The walled arena.
+    pub arena: Arena,
+    /// What the drone is told.
+    pub mission: Mission,
+    /// Landing pads; the first is home, the last the goal pad. At least two.
+    pub pads: Vec<Pad>,
+    /// Axis-aligned solid boxes standing on the floor.
+    pub boxes: Vec<BoxObstacle>,
+    /// Vertical solid cylinders standing on the floor.
+    pub cylinders: Vec<Cylinder>,
+    /// Seed, time limit, expected outcome.
+    pub sim: SimSettings,
+}
+
+/// `[arena]`.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Arena {
+    /// Extent along x and y, metres; the arena spans `[0, size[0]] × [0, size[1]]`.
+    pub size: [f32; 2],
+    /// Height of the ceiling, metres.
+    pub ceiling: f32,
+}
+
+/// `[mission]`: the parameters the drone is given (`mission.startX/Y`, `goalX/Y`, `height`, `speed`).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Mission {
+    /// Where the drone stands at power-on, metres.
+    pub start: [f32; 2],
+    /// The nominal goal; the goal pad lies near it, metres.
+    pub goal: [f32; 2],
+    /// Cruise height, metres.
+    pub height: f32,
+    /// Cruise speed, m/s.
+    pub speed: f32,
+}
+
+/// `[[pads]]`: a landing pad, a box standing on the floor.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Pad {
+    /// Centre of its footprint, metres.
+    pub center: [f32; 2],
+    /// Extent along x and y, metres.
+    pub size: [f32; 2],
+    /// Height of its top, metres.
+    pub height: f32,
+}
+
+/// `[[boxes]]`: an axis-aligned solid box from the floor up.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct BoxObstacle {
+    /// Lower-left corner of its footprint, metres.
+    pub min: [f32; 2],
+    /// Upper-right corner of its footprint, metres.
+    pub max: [f32; 2],
+    /// Height of its top, metres.
+    pub height: f32,
+}
+
+/// `[[cylinders]]`: a vertical solid cylinder from the floor up.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Cylinder {
+    /// Centre of its footprint, metres.
+    pub center: [f32; 2],
+    /// Radius, metres.
+    pub radius: f32,
+    /// Height of its top, metres.
+    pub height: f32,
+}
+
+/// `[sim]`.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct SimSettings {
+    /// Seed of the sensor noise, drift and start-up jitter.
+    pub seed: u64,
+    /// Simulated time allowed, seconds.
+    pub time_limit: f32,
+    /// How a run of this world should end.
+    pub expect: Expect,
+}
+
+/// `sim.expect` (a schema addition): how a run of the world should end.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Default, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum Expect {
+    /// The report's `outcome` is `completed`.
+    #[default]
+    Completed,
+    /// The mission ends without completing, `reason` `no_path` (e.g. the goal lies in a closed room).
+    NoPath,
+    /// The mission ends without completing, `reason` `pad_not_found`.
+    PadNotFound,
+}
+
+impl Expect {
+    /// The word as written in world files and reports.
+    pub fn as_str(self) -> &'static str {
+        match self {
+            Expect::Completed => "completed",
+            Expect::NoPath => "no_path",
+            Expect::PadNotFound => "pad_not_found",
+        }
+    }
+}
+
+/// A world that could not be loaded or is not valid: which file, which line and field, what was expected.
+/// Its `Display` is one line.
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub struct WorldError {
+    /// The file (as given), or `world "NAME"` for a world built in code.
+    pub file: String,
+    /// 1-based line of the offending text, when known.
+    pub line: Option<usize>,
+    /// The offending field (`mission.start`, `pads[1].center`, ...), when known.
+    pub field: Option<String>,
+    /// What was wrong and what was expected.
+    pub message: String,
+}
+
+impl fmt::Display for WorldError {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        let mut text = one_line(&self.file);
+        if let Some(line) = self.line {
+            text.push_str(&format!(": line {line}"));
+        }
+        if let Some(field) = &self.field {
+            text.push_str(": ");
+            text.push_str(&one_line(field));
+        }
+        text.push_str(": ");
+        text.push_str(&one_line(&self.message));
+        f.write_str(&text)
+    }
+}
+
+impl std::error::Error for WorldError {}
+
+/// Collapse any line breaks and control characters so that a message stays on one line.
+fn one_line(s: &str) -> String {
+    let mut out = String::with_capacity(s.len());
+    for ch in s.chars() {
+        match ch {
+            '\n' | '\r' | '\t' => {
+                if !out.ends_with(' ') {
+                    out.push(' ');
+                }
+            }
+            c if c.is_control() => out.push_str(&c.escape_default().to_string()),
+            c => out.push(c),
+        }
+    }
+    out.trim_end().to_string()
+}
+
+/// A validation failure before it is placed in a file.
+#[derive(Debug)]
+struct Invalid {
+    field: String,
+    message: String,
+}
+
+fn invalid<T>(field: impl Into<String>, message: impl Into<String>) -> Result<T, Invalid> {
+    Err(Invalid {
+        field: field.into(),
+        message: message.into(),
+    })
+}
+
+// ---------------------------------------------------------------------------------------------------------
+// Parsing
+
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+struct RawWorld {
+    name: Option<Spanned<String>>,
+    arena: Spanned<RawArena>,
+    mission: Spanned<RawMission>,
+    #[serde(default)]
+    pads: Vec<Spanned<RawPad>>,
+    #[serde(default)]
+    boxes: Vec<Spanned<RawBox>>,
+    #[serde(default)]
+    cylinders: Vec<Spanned<RawCylinder>>,
+    sim: Option<Spanned<RawSim>>,
+}
+
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+struct RawArena {
+    size: Spanned<Vec<f32>>,
+    ceiling: Option<Spanned<f32>>,
+}
+
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+struct RawMission {
+    start: Spanned<Vec<f32>>,
+    goal: Spanned<Vec<f32>>,
+    height: Option<Spanned<f32>>,
+    speed: Option<Spanned<f32>>,
+}
+
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+struct RawPad {
+    center: Spanned<Vec<f32>>,
+    size: Spanned<Vec<f32>>,
+    height: Spanned<f32>,
+}
+
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+struct RawBox {
+    min: Spanned<Vec<f32>>,
+    max: Spanned<Vec<f32>>,
+    height: Option<Spanned<f32>>,
+}
+
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+struct RawCylinder {
+    center: Spanned<Vec<f32>>,
+    radius: Spanned<f32>,
+    height: Option<Spanned<f32>>,
+}
+
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+struct RawSim {
+    seed: Option<Spanned<u64>>,
+    time_limit: Option<Spanned<f32>>,
+    expect: Option<Spanned<Expect>>,
+}
+
+/// Where each field of a parsed file was written (byte ranges), by field path.
+#[derive(Default)]
+struct Spans(HashMap<String, Range<usize>>);
+
+impl Spans {
+    fn add(&mut self, field: &str, span: Range<usize>) {
+        self.0.insert(field.to_string(), span);
+    }
+
+    /// The span of `field`, or of the nearest enclosing table that has one.
+    fn find(&self, mut field: &str) -> Option<&Range<usize>> {
+        loop {
+            if let Some(span) = self.0.get(field) {
+                return Some(span);
+            }
+            let cut = field.rfind(['.', '['])?;
+            field = &field[..cut];
+        }
+    }
+
+    fn value<T>(&mut self, field: &str, v: Spanned<T>) -> T {
+        self.add(field, v.span());
+        v.into_inner()
+    }
+
+    fn optional<T>(&mut self, field: &str, v: Option<Spanned<T>>) -> Option<T> {
+        v.map(|v| self.value(field, v))
+    }
+
+    fn pair(&mut self, field: &str, v: Spanned<Vec<f32>>) -> Result<[f32; 2], Invalid> {
+        match self.value(field, v).as_slice() {
+            &[x, y] => Ok([x, y]),
+            other => invalid(
+                field,
+                format!("expected 2 numbers [x, y], found an array of {}", other.len()),
+            ),
+        }
+    }
+}
+
+/// 1-based line of a byte offset.
+fn line_of(text: &str, offset: usize) -> usize {
+    let end = offset.min(text.len());
+    1 + text.as_bytes()[..end].iter().filter(|&&b| b == b'\n').count()
+}
+
+/// The table header (`[arena]`, `[[pads]]`) written on a 1-based line, if that line is one.
+fn header_on(text: &str, line: usize) -> Option<String> {
+    let l = text.lines().nth(line.checked_sub(1)?)?.trim();
+    if !l.starts_with('[') {
+        return None;
+    }
+    let end = l.rfind(']')?;
+    Some(l[..=end].to_string())
+}
+
+/// Turn a TOML/serde error into one line naming the line and what was expected.
+fn toml_error(text: &str, file: &str, e: &toml::de::Error) -> WorldError {
+    let mut message = one_line(e.message())
+        .replace("expected f32", "expected a number")
+        .replace("expected u64", "expected a whole number ≥ 0")
+        .replace("expected a sequence", "expected an array")
+        .replace("expected a string", "expected a quoted string");
+    let mut line = e.span().map(|s| line_of(text, s.start));
+    if let Some(field) = message
+        .strip_prefix("missing field `")
+        .and_then(|rest| rest.strip_suffix('`'))
+        .map(str::to_string)
+    {
+        if field == "arena" || field == "mission" {
+            message = format!("missing table [{field}]; every world needs [arena] and [mission] (interfaces.md §3)");
+            line = None;
+        } else if let Some(header) = line.and_then(|l| header_on(text, l)) {
+            message = format!("missing field `{field}` in {header}");
+        }
+    }
+    WorldError {
+        file: file.to_string(),
+        line,
+        field: None,
+        message,
+    }
+}
+
+fn convert(raw: RawWorld, default_name: &str, spans: &mut Spans) -> Result<World, Invalid> {
+    let name = spans
+        .optional("name", raw.name)
+        .unwrap_or_else(|| default_name.to_string());
+
+    spans.add("arena", raw.arena.span());
+    let a = raw.arena.into_inner();
+    let size = spans.pair("arena.size", a.size)?;
+    let ceiling = spans.optional("arena.ceiling", a.ceiling).unwrap_or(DEFAULT_CEILING_M);
+
+    spans.add("mission", raw.mission.span());
+    let m = raw.mission.into_inner();
+    let mission = Mission {
+        start: spans.pair("mission.start", m.start)?,
+        goal: spans.pair("mission.goal", m.goal)?,
+        height: spans.optional("mission.height", m.height).unwrap_or(DEFAULT_HEIGHT_M),
+        speed: spans.optional("mission.speed", m.speed).unwrap_or(DEFAULT_SPEED_MPS),
+    };
+
+    if let Some(first) = raw.pads.first() {
+        spans.add("pads", first.span());
+    }
+    let mut pads = Vec::with_capacity(raw.pads.len().min(MAX_PADS + 1));
+    for (i, p) in raw.pads.into_iter().enumerate() {
+        let f = format!("pads[{i}]");
+        spans.add(&f, p.span());
+        let p = p.into_inner();
+        pads.push(Pad {
+            center: spans.pair(&format!("{f}.center"), p.center)?,
+            size: spans.pair(&format!("{f}.size"), p.size)?,
+            height: spans.value(&format!("{f}.height"), p.height),
+        });
+    }
+
+    let mut boxes = Vec::with_capacity(raw.boxes.len().min(MAX_OBSTACLES + 1));
+    for (i, b) in raw.boxes.into_iter().enumerate() {
+        let f = format!("boxes[{i}]");
+        spans.add(&f, b.span());
+        let b = b.into_inner();
+        boxes.push(BoxObstacle {
+            min: spans.pair(&format!("{f}.min"), b.min)?,
+            max: spans.pair(&format!("{f}.max"), b.max)?,
+            height: spans.optional(&format!("{f}.height"), b.height).unwrap_or(ceiling),
+        });
+    }
+
+    let mut cylinders = Vec::with_capacity(raw.cylinders.len().min(MAX_OBSTACLES + 1));
+    for (i, c) in raw.cylinders.into_iter().enumerate() {
+        let f = format!("cylinders[{i}]");
+        spans.add(&f, c.span());
+        let c = c.into_inner();
+        cylinders.push(Cylinder {
+            center: spans.pair(&format!("{f}.center"), c.center)?,
+            radius: spans.value(&format!("{f}.radius"), c.radius),
+            height: spans.optional(&format!("{f}.height"), c.height).unwrap_or(ceiling),
+        });
+    }
+
+    let mut sim = SimSettings {
+        seed: 0,
+        time_limit: DEFAULT_TIME_LIMIT_S,
+        expect: Expect::Completed,
+    };
+    if let Some(s) = raw.sim {
+        spans.add("sim", s.span());
+        let s = s.into_inner();
+        sim.seed = spans.optional("sim.seed", s.seed).unwrap_or(0);
+        sim.time_limit = spans
+            .optional("sim.time_limit", s.time_limit)
+            .unwrap_or(DEFAULT_TIME_LIMIT_S);
+        sim.expect = spans.optional("sim.expect", s.expect).unwrap_or_default();
+    }
+
+    Ok(World {
+        name,
+        arena: Arena { size, ceiling },
+        mission,
+        pads,
+        boxes,
+        cylinders,
+        sim,
+    })
+}
+
+// ---------------------------------------------------------------------------------------------------------
+// Validation
+
+fn finite2(v: [f32; 2]) -> bool {
+    v[0].is_finite() && v[1].is_finite()
+}
+
+/// Whether `v` is a whole number of 5 cm cells.
+fn whole_cells(v: f32) -> bool {
+    let cells = f64::from(v) / f64::from(cfnav::map::CELL_SIZE_M);
+    (cells - cells.round()).abs() < 1e-3
+}
+
+/// Distance between two axis-aligned rectangles (0 when they touch or overlap).
+fn rect_rect_distance(a: ([f32; 2], [f32; 2]), b: ([f32; 2], [f32; 2])) -> f32 {
+    let dx = (a.0[0] - b.1[0]).max(b.0[0] - a.1[0]).max(0.0);
+    let dy = (a.0[1] - b.1[1]).max(b.0[1] - a.1[1]).max(0.0);
+    dx.hypot(dy)
+}
+
+/// Whether the interiors of two rectangles overlap.
+fn rects_overlap(a: ([f32; 2], [f32; 2]), b: ([f32; 2], [f32; 2])) -> bool {
+    a.0[0] < b.1[0] - EPS && b.0[0] < a.1[0] - EPS && a.0[1] < b.1[1] - EPS && b.0[1] < a.1[1] - EPS
+}
+
+/// Distance from a point to a rectangle (0 inside).
+fn rect_point_distance(r: ([f32; 2], [f32; 2]), p: [f32; 2]) -> f32 {
+    rect_rect_distance(r, (p, p))
+}
+
+fn dist(a: [f32; 2], b: [f32; 2]) -> f32 {
+    (a[0] - b[0]).hypot(a[1] - b[1])
+}
+
+impl Pad {
+    /// The footprint's lower-left and upper-right corners.
+    pub fn footprint(&self) -> ([f32; 2], [f32; 2]) {
+        let h = [self.size[0] / 2.0, self.size[1] / 2.0];
+        (
+            [self.center[0] - h[0], self.center[1] - h[1]],
+            [self.center[0] + h[0], self.center[1] + h[1]],
+        )
+    }
+}
+
+impl BoxObstacle {
+    /// The footprint's lower-left and upper-right corners.
+    pub fn footprint(&self) -> ([f32; 2], [f32; 2]) {
+        (self.min, self.max)
+    }
+}
+
+impl World {
+    /// Check every rule of the schema (see the module documentation).
+    fn check(&self) -> Result<(), Invalid> {
+        let name_len = self.name.chars().count();
+        if self.name.trim().is_empty() || name_len > 64 || self.name.chars().any(char::is_control) {
+            return invalid("name", "expected 1 to 64 printable characters");
+        }
+
+        let [w, h] = self.arena.size;
+        if !finite2(self.arena.size)
+            || w < MIN_ARENA_M - EPS
+            || h < MIN_ARENA_M - EPS
+            || w > MAX_ARENA_M[0] + EPS
+            || h > MAX_ARENA_M[1] + EPS
+        {
+            return invalid(
+                "arena.size",
+                format!(
+                    "[{w}, {h}] m is out of range; expected {MIN_ARENA_M} ≤ x ≤ {} and {MIN_ARENA_M} ≤ y ≤ {} m (the largest grid the firmware maps: {MAX_WIDTH_CELLS} × {MAX_HEIGHT_CELLS} cells of 5 cm)",
+                    MAX_ARENA_M[0], MAX_ARENA_M[1]
+                ),
+            );
+        }
+        if !whole_cells(w) || !whole_cells(h) {
+            return invalid(
+                "arena.size",
+                format!("[{w}, {h}] m; expected multiples of 0.05 m (whole 5 cm map cells)"),
+            );
+        }
+        let c = self.arena.ceiling;
+        if !(c.is_finite() && c > 0.0 && c <= MAX_CEILING_M + EPS) {
+            return invalid(
+                "arena.ceiling",
+                format!("{c} m; expected 0 < ceiling ≤ {MAX_CEILING_M} m"),
+            );
+        }
+
+        let inside = |p: [f32; 2]| finite2(p) && p[0] > 0.0 && p[0] < w && p[1] > 0.0 && p[1] < h;
+        for (field, p) in [
+            ("mission.start", self.mission.start),
+            ("mission.goal", self.mission.goal),
+        ] {
+            if !inside(p) {
+                return invalid(
+                    field,
+                    format!(
+                        "[{}, {}] is outside the {w} × {h} m arena; expected 0 < x < {w} and 0 < y < {h}",
+                        p[0], p[1]
+                    ),
+                );
+            }
+        }
+        let height = self.mission.height;
+        if !(height.is_finite() && height >= MIN_HEIGHT_M - EPS && height < c) {
+            return invalid(
+                "mission.height",
+                format!("{height} m; expected {MIN_HEIGHT_M} m ≤ height < the ceiling ({c} m)"),
+            );
+        }
+        let speed = self.mission.speed;
+        if !(speed.is_finite() && speed > 0.0 && speed <= MAX_SPEED_MPS + EPS) {
+            return invalid(
+                "mission.speed",
+                format!("{speed} m/s; expected 0 < speed ≤ {MAX_SPEED_MPS} m/s"),
+            );
+        }
+
+        if self.pads.len() < 2 || self.pads.len() > MAX_PADS {
+            return invalid(
+                "pads",
+                format!(
+                    "{} [[pads]]; expected 2 to {MAX_PADS} (the first is home, the last the goal pad)",
+                    self.pads.len()
+                ),
+            );
+        }
+        let in_arena =
+            |r: ([f32; 2], [f32; 2])| r.0[0] >= -EPS && r.0[1] >= -EPS && r.1[0] <= w + EPS && r.1[1] <= h + EPS;
+        for (i, p) in self.pads.iter().enumerate() {
+            if !finite2(p.center) {
+                return invalid(format!("pads[{i}].center"), "expected finite numbers");
+            }
+            if !(finite2(p.size) && p.size[0] > 0.0 && p.size[1] > 0.0) {
+                return invalid(
+                    format!("pads[{i}].size"),
+                    format!("[{}, {}]; expected two sizes > 0 m", p.size[0], p.size[1]),
+                );
+            }
+            if !(p.height.is_finite() && p.height > 0.0 && p.height < height) {
+                return invalid(
+                    format!("pads[{i}].height"),
+                    format!("{} m; expected 0 < height < the cruise height ({height} m)", p.height),
+                );
+            }
+            if !in_arena(p.footprint()) {
+                return invalid(
+                    format!("pads[{i}]"),
+                    format!("the pad's footprint leaves the {w} × {h} m arena; expected it inside"),
+                );
+            }
+            for (j, q) in self.pads.iter().enumerate().take(i) {
+                if rects_overlap(p.footprint(), q.footprint()) {
+                    return invalid(format!("pads[{i}]"), format!("overlaps pads[{j}]; expected pads apart"));
+                }
+            }
+        }
+
+        if self.boxes.len() > MAX_OBSTACLES {
+            return invalid(
+                "boxes",
+                format!("{} boxes; expected at most {MAX_OBSTACLES}", self.boxes.len()),
+            );
+        }
+        for (i, b) in self.boxes.iter().enumerate() {
+            if !finite2(b.min) || !finite2(b.max) || b.min[0] >= b.max[0] || b.min[1] >= b.max[1] {
+                return invalid(
+                    format!("boxes[{i}]"),
+                    format!(
+                        "min [{}, {}], max [{}, {}]; expected min < max in both x and y",
+                        b.min[0], b.min[1], b.max[0], b.max[1]
+                    ),
+                );
+            }
+            if !in_arena(b.footprint()) {
+                return invalid(
+                    format!("boxes[{i}]"),
+                    format!("leaves the {w} × {h} m arena; expected 0 ≤ min, max ≤ [{w}, {h}]"),
+                );
+            }
+            if !(b.height.is_finite() && b.height > 0.0 && b.height <= c + EPS) {
+                return invalid(
+                    format!("boxes[{i}].height"),
+                    format!("{} m; expected 0 < height ≤ the ceiling ({c} m)", b.height),
+                );
+            }
+        }
+
+        if self.cylinders.len() > MAX_OBSTACLES {
+            return invalid(
+                "cylinders",
+                format!("{} cylinders; expected at most {MAX_OBSTACLES}", self.cylinders.len()),
+            );
+        }
+        for (i, cy) in self.cylinders.iter().enumerate() {
+            let p = cy.center;
+            if !(finite2(p) && p[0] >= 0.0 && p[0] <= w && p[1] >= 0.0 && p[1] <= h) {
+                return invalid(
+                    format!("cylinders[{i}].center"),
+                    format!("[{}, {}]; expected a point inside the {w} × {h} m arena", p[0], p[1]),
+                );
+            }
+            if !(cy.radius.is_finite() && cy.radius > 0.0 && cy.radius <= MAX_ARENA_M[0]) {
+                return invalid(
+                    format!("cylinders[{i}].radius"),
+                    format!("{} m; expected 0 < radius ≤ {} m", cy.radius, MAX_ARENA_M[0]),
+                );
+            }
+            if !(cy.height.is_finite() && cy.height > 0.0 && cy.height <= c + EPS) {
+                return invalid(
+                    format!("cylinders[{i}].height"),
+                    format!("{} m; expected 0 < height ≤ the ceiling ({c} m)", cy.height),
+                );
+            }
+        }
+
+        for (i, p) in self.pads.iter().enumerate() {
+            if let Some(j) = self
+                .boxes
+                .iter()
+                .position(|b| rects_overlap(p.footprint(), b.footprint()))
+            {
+                return invalid(
+                    format!("pads[{i}]"),
+                    format!("overlaps boxes[{j}]; expected pads clear of obstacles"),
+                );
+            }
+            if let Some(j) = self
+                .cylinders
+                .iter()
+                .position(|cy| rect_point_distance(p.footprint(), cy.center) < cy.radius - EPS)
+            {
+                return invalid(
+                    format!("pads[{i}]"),
+                    format!("overlaps cylinders[{j}]; expected pads clear of obstacles"),
+                );
+            }
+        }
+
+        let s = self.mission.start;
+        let wall = s[0].min(w - s[0]).min(s[1]).min(h - s[1]);
+        if wall < BODY_RADIUS_M {
+            return invalid(
+                "mission.start",
+                format!(
+                    "the drone's body (radius {BODY_RADIUS_M} m) at [{}, {}] touches the arena wall; expected {BODY_RADIUS_M} m of clearance",
+                    s[0], s[1]
+                ),
+            );
+        }
+        let hits_box = self
+            .boxes
+            .iter()
+            .position(|b| rect_point_distance(b.footprint(), s) < BODY_RADIUS_M);
+        let hits_cylinder = self
+            .cylinders
+            .iter()
+            .position(|cy| dist(cy.center, s) < cy.radius + BODY_RADIUS_M);
+        if let Some(what) = hits_box
+            .map(|j| format!("boxes[{j}]"))
+            .or_else(|| hits_cylinder.map(|j| format!("cylinders[{j}]")))
+        {
+            return invalid(
+                "mission.start",
+                format!(
+                    "the drone's body (radius {BODY_RADIUS_M} m) at [{}, {}] touches {what}; expected {BODY_RADIUS_M} m of clearance",
+                    s[0], s[1]
+                ),
+            );
+        }
+        if self.pad_index_at(s[0], s[1]).is_none()
+            && let Some(j) = self
+                .pads
+                .iter()
+                .position(|p| rect_point_distance(p.footprint(), s) < BODY_RADIUS_M)
+        {
+            return invalid(
+                "mission.start",
+                format!(
+                    "the drone's body at [{}, {}] straddles the side of pads[{j}]; expected it on a pad's top or {BODY_RADIUS_M} m clear of it",
+                    s[0], s[1]
+                ),
+            );
+        }
+
+        let last = self.pads.len() - 1;
+        for (i, nominal, what) in [
+            (0, self.mission.start, "mission.start"),
+            (last, self.mission.goal, "mission.goal"),
+        ] {
+            let d = dist(self.pads[i].center, nominal);
+            if d > MAX_PAD_OFFSET_M + EPS {
+                let role = if i == 0 { "home pad" } else { "goal pad" };
+                return invalid(
+                    format!("pads[{i}].center"),
+                    format!(
+                        "the {role} lies {d:.3} m from {what} [{}, {}]; expected at most {MAX_PAD_OFFSET_M} m (centre to centre)",
+                        nominal[0], nominal[1]
+                    ),
+                );
+            }
+        }
+
+        let t = self.sim.time_limit;
+        if !(t.is_finite() && t > 0.0 && t <= MAX_TIME_LIMIT_S) {
+            return invalid(
+                "sim.time_limit",
+                format!("{t} s; expected 0 < time_limit ≤ {MAX_TIME_LIMIT_S} s"),
+            );
+        }
+        Ok(())
+    }
+
+    /// Check a world built in code (e.g. by a test or a generator) against the rules world files obey.
+    pub fn validate(&self) -> Result<(), WorldError> {
+        self.check().map_err(|e| WorldError {
+            file: format!("world {:?}", self.name),
+            line: None,
+            field: Some(e.field),
+            message: e.message,
+        })
+    }
+
+    /// Parse and validate the text of a world file. `file_name` names the file in errors, and its stem is
+    /// the world's name when the file has no `name`.
+    pub fn from_toml_str(text: &str, file_name: &str) -> Result<World, WorldError> {
+        let error = |line, field, message: String| WorldError {
+            file: file_name.to_string(),
+            line,
+            field,
+            message,
+        };
+        let blank = text.lines().all(|l| {
+            let l = l.trim();
+            l.is_empty() || l.starts_with('#')
+        });
+        if blank {
+            return Err(error(
+                None,
+                None,
+                "the file is empty; expected a TOML world with [arena], [mission] and [[pads]] (interfaces.md §3)"
+                    .into(),
+            ));
+        }
+        // Syntax first, so that a file that is not TOML at all says so.
+        if let Err(e) = text.parse::<toml::Table>() {
+            let mut e = toml_error(text, file_name, &e);
+            e.message = format!("not valid TOML: {}", e.message);
+            return Err(e);
+        }
+        let raw: RawWorld = toml::from_str(text).map_err(|e| toml_error(text, file_name, &e))?;
+        let default_name = Path::new(file_name)
+            .file_stem()
+            .and_then(|s| s.to_str())
+            .filter(|s| !s.is_empty())
+            .unwrap_or("world");
+        let mut spans = Spans::default();
+        let located = |spans: &Spans, e: Invalid| {
+            let line = spans.find(&e.field).map(|s| line_of(text, s.start));
+            error(line, Some(e.field), e.message)
+        };
+        let world = match convert(raw, default_name, &mut spans) {
+            Ok(w) => w,
+            Err(e) => return Err(located(&spans, e)),
+        };
+        match world.check() {
+            Ok(()) => Ok(world),
+            Err(e) => Err(located(&spans, e)),
+        }
+    }
+
+    /// Read, parse and validate a world file.
+    pub fn load(path: impl AsRef<Path>) -> Result<World, WorldError> {
+        let path = path.as_ref();
+        let file = path.display().to_string();
+        let bytes = std::fs::read(path).map_err(|e| WorldError {
+            file: file.clone(),
+            line: None,
+            field: None,
+            message: format!("cannot read: {e}"),
+        })?;
+        let text = String::from_utf8(bytes).map_err(|e| {
+            let at = e.utf8_error().valid_up_to();
+            let line = 1 + e.as_bytes()[..at].iter().filter(|&&b| b == b'\n').count();
+            WorldError {
+                file: file.clone(),
+                line: Some(line),
+                field: None,
+                message: format!("byte {at} is not UTF-8; expected a UTF-8 TOML text"),
+            }
+        })?;
+        Self::from_toml_str(&text, &file)
+    }
+
+    /// The built-in world flown by `cfnav sim` without `--world` (also shipped as `worlds/default.toml`):
+    /// a 6 × 3 m arena, take-off at (0.6, 1.3), nominal goal (5.0, 1.5) with the goal pad at (5.12, 1.41); a
+    /// wall from the floor side at x 2.0–2.2 up to y 2.0, a cylinder, a wall from the far side at x 4.0–4.2
+    /// down to y 1.0, and a 1.2 m box. Every gap is at least 0.6 m wide.
+    pub fn default_world() -> World {
+        let pad = |center| Pad {
+            center,
+            size: [0.3, 0.3],
+            height: 0.1,
+        };
+        World {
+            name: "default".into(),
+            arena: Arena {
+                size: [6.0, 3.0],
+                ceiling: DEFAULT_CEILING_M,
+            },
+            mission: Mission {
+                start: [0.6, 1.3],
+                goal: [5.0, 1.5],
+                height: DEFAULT_HEIGHT_M,
+                speed: DEFAULT_SPEED_MPS,
+            },
+            pads: vec![pad([0.6, 1.3]), pad([5.12, 1.41])],
+            boxes: vec![
+                BoxObstacle {
+                    min: [2.0, 0.0],
+                    max: [2.2, 2.0],
+                    height: DEFAULT_CEILING_M,
+                },
+                BoxObstacle {
+                    min: [4.0, 1.0],
+                    max: [4.2, 3.0],
+                    height: DEFAULT_CEILING_M,
+                },
+                BoxObstacle {
+                    min: [2.8, 0.8],
+                    max: [3.1, 1.2],
+                    height: 1.2,
+                },
+            ],
+            cylinders: vec![Cylinder {
+                center: [3.2, 2.0],
+                radius: 0.15,
+                height: DEFAULT_CEILING_M,
+            }],
+            sim: SimSettings {
+                seed: 7,
+                time_limit: DEFAULT_TIME_LIMIT_S,
+                expect: Expect::Completed,
+            },
+        }
+    }
+
+    /// The home pad (the first).
+    pub fn home_pad(&self) -> Option<&Pad> {
+        self.pads.first()
+    }
+
+    /// The goal pad (the last).
+    pub fn goal_pad(&self) -> Option<&Pad> {
+        self.pads.last()
+    }
+
+    /// Index of the goal pad in [`World::pads`].
+    pub fn goal_pad_index(&self) -> usize {
+        self.pads.len().saturating_sub(1)
+    }
+
+    /// The grid the drone maps this arena on (5 cm cells), or `None` when the arena is beyond the largest
+    /// grid the firmware supports (never for a validated world).
+    pub fn grid_shape(&self) -> Option<GridShape> {
+        GridShape::for_arena(self.arena.size[0], self.arena.size[1], LARGE_ARENA_CELLS)
+            .filter(|s| s.width <= MAX_WIDTH_CELLS && s.height <= MAX_HEIGHT_CELLS)
+    }
+
+    /// Whether the arena has more cells than the default firmware build holds (120 × 60), so that only the
+    /// `large-arena` build can fly it.
+    pub fn needs_large_arena(&self) -> bool {
+        self.grid_shape().is_none_or(|s| s.cells() > DEFAULT_FIRMWARE_CELLS)
+    }
+
+    /// The world as a world file that [`World::from_toml_str`] reads back (every default written out).
+    pub fn to_toml_string(&self) -> String {
+        fn num(v: f32) -> String {
+            format!("{v:?}")
+        }
+        fn pair(v: [f32; 2]) -> String {
+            format!("[{}, {}]", num(v[0]), num(v[1]))
+        }
+        let mut s = String::new();
+        s.push_str(&format!("name = {}\n", toml::Value::String(self.name.clone())));
+        s.push_str(&format!(
+            "\n[arena]\nsize = {}\nceiling = {}\n",
+            pair(self.arena.size),
+            num(self.arena.ceiling)
+        ));
+        let m = &self.mission;
+        s.push_str(&format!(
+            "\n[mission]\nstart = {}\ngoal = {}\nheight = {}\nspeed = {}\n",
+            pair(m.start),
+            pair(m.goal),
+            num(m.height),
+            num(m.speed)
+        ));
+        for p in &self.pads {
+            s.push_str(&format!(
+                "\n[[pads]]\ncenter = {}\nsize = {}\nheight = {}\n",
+                pair(p.center),
+                pair(p.size),
+                num(p.height)
+            ));
+        }
+        for b in &self.boxes {
+            s.push_str(&format!(
+                "\n[[boxes]]\nmin = {}\nmax = {}\nheight = {}\n",
+                pair(b.min),
+                pair(b.max),
+                num(b.height)
+            ));
+        }
+        for c in &self.cylinders {
+            s.push_str(&format!(
+                "\n[[cylinders]]\ncenter = {}\nradius = {}\nheight = {}\n",
+                pair(c.center),
+                num(c.radius),
+                num(c.height)
+            ));
+        }
+        s.push_str(&format!(
+            "\n[sim]\nseed = {}\ntime_limit = {}\n",
+            self.sim.seed,
+            num(self.sim.time_limit)
+        ));
+        if self.sim.expect != Expect::Completed {
+            s.push_str(&format!("expect = \"{}\"\n", self.sim.expect.as_str()));
+        }
+        s
+    }
+}

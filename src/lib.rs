@@ -11,12 +11,16 @@
 #![warn(missing_docs)]
 
 pub mod avoidance;
+pub mod control;
 pub mod dstar;
+pub mod estimator;
+pub mod flight;
 pub mod grid;
 pub mod map;
 pub mod mission;
 pub mod pad;
 pub mod path;
 pub mod queue;
+pub mod supervisor;
 pub mod sweep;
 pub mod types;

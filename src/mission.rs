@@ -237,7 +237,14 @@ impl Default for MissionConfig {
             refine_line_m: 0.7,
             refine_offset_m: 0.08,
             pad: PadConfig::default(),
-            avoidance: AvoidanceConfig::default(),
+            // The planner keeps paths 0.2 m (inflation) from what it has mapped, so avoidance acts only
+            // inside that, and slows the drone only close to an obstacle (the nearest range decides).
+            avoidance: AvoidanceConfig {
+                danger_distance_m: 0.22,
+                slow_down_distance_m: 0.45,
+                min_speed_mps: 0.2,
+                ..AvoidanceConfig::default()
+            },
         }
     }
 }
@@ -411,6 +418,13 @@ impl<const CELLS: usize, const QUEUE: usize> Mission<CELLS, QUEUE> {
         if !self.grid.reset(shape, inflation) {
             return Err(StartRefusal::BadArena);
         }
+        // Avoidance clamps to the cruise speed the user asked for.
+        let avoidance_config = AvoidanceConfig {
+            cruise_speed_mps: params.speed_m_s,
+            min_speed_mps: self.config.avoidance.min_speed_mps.min(params.speed_m_s),
+            ..self.config.avoidance
+        };
+        self.avoidance = ReactiveAvoidance::new(avoidance_config).map_err(|_| StartRefusal::BadSpeed)?;
         self.params = params;
         self.shape = shape;
         self.changed.clear();
@@ -602,10 +616,18 @@ impl<const CELLS: usize, const QUEUE: usize> Mission<CELLS, QUEUE> {
         }
     }
 
-    /// Slower close to the surface below, for a soft touchdown.
+    /// Slower close to the surface below, for a soft touchdown; once (nearly) down, ask for a fast descent,
+    /// which the controller can only answer by dropping the thrust well below hover: that is what the
+    /// supervisor's touchdown detection waits for.
     fn descent_speed(&self, state: &StateEstimate) -> f32 {
         let above = state.position_m[2] - state.surface_height_m;
-        if above < 0.15 { 0.5 * self.config.descent_speed_m_s } else { self.config.descent_speed_m_s }
+        if above < 0.04 {
+            3.0 * self.config.descent_speed_m_s
+        } else if above < 0.15 {
+            0.5 * self.config.descent_speed_m_s
+        } else {
+            self.config.descent_speed_m_s
+        }
     }
 
     /// The leg's target: the nominal goal going out, the start coming back.

@@ -4,3 +4,4 @@
 pub mod firmware;
 pub mod plan;
 pub mod sim;
+pub mod sim_cli;

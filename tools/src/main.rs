@@ -1,7 +1,7 @@
 //! `cfnav`: the host-side tools of the cfnav firmware (simulator, planner replay, firmware image).
 use std::process::ExitCode;
 
-use cfnav_tools::{firmware, plan};
+use cfnav_tools::{firmware, plan, sim_cli};
 use clap::{Parser, Subcommand};
 
 /// cfnav host tools: planner replay, firmware image, simulator.
@@ -14,6 +14,8 @@ struct Cli {
 
 #[derive(Subcommand)]
 enum Command {
+    /// Fly the round-trip mission in the simulator (exit 0 completed, 1 not, 2 bad input).
+    Sim(sim_cli::SimArgs),
     /// Replay the D* Lite planner on a text map (exit 0 goal reached, 1 no path, 2 bad input).
     Plan(plan::PlanArgs),
     /// Build the release firmware and write the raw image for the radio bootloader.
@@ -30,6 +32,7 @@ fn main() -> ExitCode {
         }
     };
     match cli.command {
+        Command::Sim(args) => sim_cli::run_cli(&args),
         Command::Plan(args) => plan::run(&args),
         Command::Firmware(args) => firmware::run(&args),
     }

@@ -7,5 +7,7 @@
 //! - [`sensors`]: the drone's sensors as the drivers deliver them (types in `cfnav::types`).
 
 pub mod physics;
+pub mod plot;
+pub mod runner;
 pub mod sensors;
 pub mod world;

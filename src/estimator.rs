@@ -1,0 +1,1180 @@
+//! The state estimator: an error-state extended Kalman filter in the spirit of the stock one
+//! ([FW] src/modules/src/kalman_core/, crazyflie-hardware.md §9), fusing the IMU (1 kHz), the Flow deck's
+//! optical flow (100 Hz) and downward range (40 Hz), with a surface tracker that keeps elevated objects
+//! under the drone out of the height estimate (the "pad step", anchors-peers-planning-style.md §A.4).
+//!
+//! Sans-IO: the caller passes samples and their time steps; nothing here reads a clock.
+//!
+//! ```text
+//!  on_imu (1 kHz) ──► calibration at rest ──► strapdown: q, v, p ──► every 10 ms: P = F P Fᵀ + Q
+//!                                                                   └─ on the ground: ZUPT + gravity
+//!  on_flow (100 Hz) ─► gates ─► 2 scalar updates (stock mm_flow model, height above the SURFACE)
+//!  on_zrange (40 Hz) ─► gates ─► surface tracker ─► height updates │ surface steps │ re-anchoring
+//!  state() ◄── p, v, Euler(q), filtered rates, surface height, valid
+//! ```
+//!
+//! ## State
+//!
+//! Nominal state: position `p` (arena, m), velocity `v` (**arena** frame, m/s), attitude quaternion `q`
+//! (body → arena). Error state (9, as stock): `δp`, `δv`, `δθ`, with the attitude error in the body frame,
+//! `R_true = R·exp([δθ]×)`, folded into `q` after every update (stock `kalmanCoreFinalize`, including the
+//! covariance rotation `G = I − [δθ/2]×`).
+//!
+//! *Why arena-frame velocity* (stock uses body-frame PX..PZ): the prediction becomes the textbook
+//! strapdown `ṗ = v`, `v̇ = R f − g` with no `ω × v` terms; the controller and the output want arena
+//! velocity; and the flow model still sees body velocity through `v_b = Rᵀv`, whose attitude Jacobian
+//! (`[v_b]×`) is one line. Price: the flow update also touches the yaw error (correctly: a yaw error
+//! rotates `v_b`); yaw stays unobservable, as in stock, and is held by the gyro.
+//!
+//! ## Prediction (IMU)
+//!
+//! Every IMU sample (1 kHz) integrates the bias-corrected gyro into `q` (exact exponential) and the
+//! specific force into `v` and `p`: the state the controller reads is never older than 1 ms and includes
+//! every sample. The covariance is propagated only every 10 ms (stock: 100 Hz prediction,
+//! estimator_kalman.c L119) with the block's mean specific force and accumulated rotation, and before
+//! any measurement update (so `P` is always current when used). Cost of this choice: 1/10 of the
+//! covariance work for a transition matrix that changes little in 10 ms; propagating `P` at 1 kHz would
+//! cost ≈ 1.1 M multiply-adds/s instead of 0.11 M.
+//!
+//! The accelerometer is an *input*, not a gravity measurement: in flight a drag-free quadrotor's
+//! accelerometer points along its thrust whatever its tilt, so it says nothing about the tilt. Roll and
+//! pitch are corrected, as in stock, through the velocity: a tilt error makes `v` drift by `g·δθ` and the
+//! flow sees it. Only on the ground and at rest (not [`Estimator::set_flying`], height above the surface
+//! < `airborne_height_m`, gyro and accelerometer quiet) are a gravity-direction update (roll, pitch) and
+//! a zero-velocity update applied, every 10 ms.
+//!
+//! Process noise follows stock (kalman_core_params_defaults.h: `procNoiseAcc_xy` 0.5, `procNoiseAcc_z`
+//! 1.0, `measNoiseGyro_rollpitch`/`_yaw` 0.1 rad/s): stock adds `(σ·dt)²` per 10 ms step; here the same
+//! amount is added as a density `σ²·0.01 s·dt`, identical at 100 Hz and correct for the shorter steps
+//! before an update. Diagonal bounds 1e-6…100 (stock `MIN_COVARIANCE`/`MAX_COVARIANCE`).
+//!
+//! ## Attitude and gyro bias
+//!
+//! At rest before flight the gyro bias is the mean of a 512-sample window whose variance is below the stock
+//! threshold (100 LSB², sensors_bmi088_bmp3xx.c L83-91); the same window gives the accelerometer scale
+//! (|f| = g, stock `processAccScale`) and the initial roll and pitch; yaw comes from [`Estimator::reset`].
+//! **Calibration therefore takes 0.512 s at rest** ([`Estimator::is_calibrated`]); nothing is estimated
+//! before it. Later rest windows on the ground refine bias and scale (25 % per window); in flight they are
+//! frozen (stock finds the bias once). In flight, the attitude is the strapdown quaternion corrected by
+//! the EKF's attitude-error states (flow through velocity; no Mahony pre-filter: its accelerometer
+//! feedback would pull the attitude towards "thrust axis = vertical", wrong while accelerating).
+//!
+//! ## Flow update (stock mm_flow.c, §9)
+//!
+//! `N_x = dt·(35/0.71674)·(v_bx·R22/h − ω_y)`, `N_y = dt·(35/0.71674)·(v_by·R22/h + ω_x)` against the
+//! measured `0.1·dpixel`, std `0.1·flow_std_counts` (stock 2.0 counts), with `h = max(z − s, 0.1 m)` the
+//! height above the **surface** and `ω` the mean bias-corrected gyro since the previous flow sample (stock
+//! takes the latest sample; the mean is what the sensor integrated). Jacobian: velocity (`R22/h` along the
+//! body axis) and attitude error. Deliberately **not** height: the range measures `z` a hundred times
+//! better than the flow ever could, and the flow camera (42° field of view) sees a pad before the range's
+//! cone does, which would leak the pad into `z`. Gates (counted in [`Diagnostics`]): `motion_valid`
+//! (stock: motion byte 0xB0), `squal ≥ flow_squal_min`, |dpixel| < 100 (stock outlier limit),
+//! `0 < dt ≤ 0.1 s`, tilt (`R22 ≥ 0.5`), airborne, and a joint Mahalanobis gate `νx²/Sx + νy²/Sy ≤
+//! flow_gate_sigma²` that yields after `flow_max_gate_rejections` consecutive rejections (a filter that
+//! drifted must be able to come back).
+//!
+//! ## Range update (stock mm_tof.c / zranger2.c, §9)
+//!
+//! Used when `R22 ≥ tof_min_r22` (stock 0.1, here cos 36.9° by default: a steeper beam hits the ground far
+//! from below the drone). Cone correction as stock: `α = max(acos R22 − 7.5°, 0)`, so the measured height is
+//! `r·cos α`; noise `σ = 0.0025·(1 + exp(2.9214·(r − 2.5)))` m; readings `None`, non-finite, negative or
+//! ≥ 5 m are dropped. Every accepted range goes through the surface tracker ([`surface`](self) module
+//! docs), which turns it into a height update of `z − s`, a surface step, or a re-anchoring of `z`.
+//!
+//! ## The pad step
+//!
+//! A range that jumps (by more than noise, within two samples) while the IMU shows no matching vertical
+//! motion moves the *surface height* `s`, not `z`: the jump is measured in the implied surface
+//! `u = z − r·cos α`, which already contains every movement the IMU saw. Over the floor `s` snaps to exactly
+//! 0. Failure modes, by design:
+//! * a slow ramp (the implied surface changing by less than ≈ 4σ over 50 ms, ≈ 1 cm) is followed as
+//!   height; so is any object lower than `step_min_m` (3 cm);
+//! * a step while `z` itself is uncertain (σ_z > 1 cm, e.g. after ≳ 0.3 s without ranges) is taken as a
+//!   height error (the floor rule below then repairs it when the drone leaves the object);
+//! * a step during a vertical motion the IMU got wrong (thrust transients at take-off) is split between `z`
+//!   and `s` in proportion to the velocity error;
+//! * hovering over an edge (the range flickering between two levels) keeps the tracker in transition: `z`
+//!   coasts on the IMU, with a decision forced every `max_transition` samples;
+//! * an object under the drone when it takes off or after a long range gap is taken as the floor until the
+//!   drone leaves it: leaving then implies a surface below the floor, which re-anchors `z`.
+//!
+//! ## Validity and supervision
+//!
+//! [`StateEstimate::valid`] is true when: calibrated; a range arrived since the last reset; while
+//! airborne, a usable flow sample and a usable range within the last `sensor_timeout_s` (0.5 s; the clock
+//! of each starts at take-off, with `takeoff_grace_s` extra); IMU samples arriving (not more than 30 flow/
+//! range samples in a row without one, not more than 50 bad IMU samples in a row); the state finite and
+//! within the stock kalman_supervisor bounds (|p| ≤ 100 m, |v| ≤ 10 m/s per axis), and after a
+//! divergence reset, a new range (and flow, when airborne) since it. Out of bounds or a non-finite state or
+//! covariance resets the filter: position to the last sane one (checked every 10 ms), velocity 0,
+//! attitude kept if finite, covariance initial; counted in [`Diagnostics::divergence_resets`].
+//!
+//! Inputs are never trusted: non-finite gyro/accelerometer samples are replaced by the last good one
+//! (counted), values beyond the BMI088's ranges are clamped, `dt ≤ 0` or non-finite is ignored and
+//! `dt > 50 ms` is clamped; every division and square root is guarded.
+//!
+//! ## Size and cost (Cortex-M4F, single precision FPU)
+//!
+//! `size_of::<Estimator>()` is 680 bytes (the covariance is 324 of them; the `memory_size` test), no heap,
+//! no stack arrays beyond two 9 × 9 temporaries (648 B) during the prediction. Per call, in flops (+ libm
+//! calls):
+//! * `on_imu`: ≈ 110 flops + 1 sin/cos pair + 1 sqrt (strapdown, filters, accumulators): ≈ 250 cycles;
+//! * covariance prediction every 10 ms: ≈ 1 100 multiply-adds (`F` is sparse) + symmetrise: ≈ 3 000 cycles;
+//! * `on_flow`: two scalar updates, each ≈ 81 (P·h) + 45 (rank-1 downdate) + 9 multiply-adds, plus the model:
+//!   ≈ 500 flops, ≈ 1 500 cycles;
+//! * `on_zrange`: 1–3 scalar updates + acos/cos/exp: ≈ 1 000 cycles.
+//!
+//! Total ≈ 0.25 M + 0.3 M + 0.15 M + 0.04 M ≈ 0.75 M cycles/s, about 0.5 % of the 168 MHz core.
+
+mod calib;
+mod math;
+mod surface;
+
+pub use surface::{SurfaceEvent, SurfaceMode};
+
+use crate::types::{FlowSample, GRAVITY_M_S2, ImuSample, RangeReading, StateEstimate};
+use calib::{Calibrator, RestWindow};
+use math::{
+    M3, Mat9, N, QUAT_IDENTITY, Quat, V3, Vec9, add3, dot3, euler_from_rot, finite3, mul_m3, mul_m3_v3,
+    mul_m3t_v3, mul9, mul9_bt, mul9_v, norm3, quat_from_euler, quat_from_rotvec, quat_mul, quat_normalize,
+    quat_to_rot, scale3, skew, sub3,
+};
+use surface::{Entry, Params, SurfaceTracker};
+
+// Error-state indices (stock order: X, Y, Z, PX, PY, PZ, D0, D1, D2; here the velocity is arena-frame).
+const SZ: usize = 2;
+const SV: usize = 3;
+const SD: usize = 6;
+
+/// Pixels across the PMW3901 (stock `Npix`, mm_flow.c).
+const FLOW_NPIX: f32 = 35.0;
+/// `2·sin(42°/2)`: the PMW3901's aperture (stock `thetapix`).
+const FLOW_THETAPIX: f32 = 0.71674;
+/// Measured counts are ~10× pixels (stock `FLOW_RESOLUTION`).
+const FLOW_RESOLUTION: f32 = 0.1;
+/// Height floor of the flow model, m (stock: z below 0.1 m is replaced by 0.1).
+const FLOW_MIN_HEIGHT_M: f32 = 0.1;
+/// The flow model needs the camera to look roughly down: R22 ≥ 0.5 (tilt ≤ 60°).
+const FLOW_MIN_R22: f32 = 0.5;
+/// Longest flow interval accepted, s (the driver reads every 10 ms).
+const FLOW_MAX_DT_S: f32 = 0.1;
+
+/// The stock covariance is propagated at 100 Hz (estimator_kalman.c L119).
+const PREDICT_PERIOD_S: f32 = 0.01;
+/// Diagonal bounds of the covariance (stock kalman_core.c `MIN_COVARIANCE`, `MAX_COVARIANCE`).
+const COVARIANCE_MIN: f32 = 1e-6;
+const COVARIANCE_MAX: f32 = 100.0;
+/// Stock kalman_supervisor.c bounds: beyond them the filter is reset.
+const MAX_POSITION_M: f32 = 100.0;
+const MAX_VELOCITY_M_S: f32 = 10.0;
+/// Attitude corrections below this are not worth rotating the covariance for (stock kalmanCoreFinalize).
+const ATTITUDE_FOLD_MIN_RAD: f32 = 1e-4;
+
+/// The IMU's nominal rate (stock main loop, §8.3): sets the rate-output filter.
+const IMU_RATE_HZ: f32 = 1000.0;
+/// Gyro low-pass of the rates output (stock `GYRO_LPF_CUTOFF_FREQ`, sensors_bmi088_bmp3xx.c L140).
+const GYRO_LPF_HZ: f32 = 80.0;
+/// Longest IMU step integrated, s; a longer gap is integrated as this (and is a fault upstream).
+const MAX_IMU_DT_S: f32 = 0.05;
+/// Steps up to this are remembered as the IMU's period (a longer one is a gap, not a period), s.
+const NOMINAL_DT_MAX_S: f32 = 0.005;
+/// BMI088 ranges as configured by stock (§8.1): ±2000 °/s, ±24 g. Anything beyond is clamped.
+const GYRO_RANGE_RAD_S: f32 = 34.9;
+const ACCEL_RANGE_M_S2: f32 = 24.0 * GRAVITY_M_S2;
+/// Per-sample rest test on the ground: |ω| and ||f| − g| below these.
+const REST_GYRO_RAD_S: f32 = 0.1;
+const REST_ACCEL_M_S2: f32 = 0.5;
+/// Weight of a new rest window in the bias and scale once calibrated.
+const REFINE_WEIGHT: f32 = 0.25;
+
+/// Standard deviations after a divergence reset: position 1 m / 0.5 m (z), velocity 1 m/s, attitude 0.1 rad.
+const DIVERGENCE_STD: [f32; N] = [1.0, 1.0, 0.5, 1.0, 1.0, 1.0, 0.1, 0.1, 0.1];
+
+/// Validity: this many flow/range samples in a row without an IMU sample means the IMU stopped.
+const MAX_SAMPLES_WITHOUT_IMU: u16 = 30;
+/// Validity: this many non-finite IMU samples in a row means the IMU is broken.
+const MAX_BAD_IMU_STREAK: u32 = 50;
+/// Ranges older than this are not kept in the surface tracker's ring, µs.
+const RING_MAX_AGE_US: u64 = 200_000;
+
+/// Tuning. [`Default`] gives the values documented on each field.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct EstimatorConfig {
+    /// Horizontal acceleration process noise, m/s²: `(σ·0.01 s)²` per 10 ms on each horizontal velocity.
+    /// Default 0.3 (stock `procNoiseAcc_xy` 0.5; see the module docs, "Process noise").
+    pub accel_noise_xy: f32,
+    /// Vertical acceleration process noise, m/s². Default 0.3 (stock `procNoiseAcc_z` 1.0).
+    pub accel_noise_z: f32,
+    /// Roll/pitch process noise, rad/s: `(σ·0.01 s)²` per 10 ms. Default 0.03 (stock
+    /// `measNoiseGyro_rollpitch` 0.1).
+    pub gyro_noise_roll_pitch: f32,
+    /// Yaw process noise, rad/s. Default 0.03 (stock `measNoiseGyro_yaw` 0.1).
+    pub gyro_noise_yaw: f32,
+    /// Flow measurement std, sensor counts (stock `motion.flowStdFixed` 2.0; ×0.1 in pixel units).
+    pub flow_std_counts: f32,
+    /// Flow samples with a lower SQUAL are dropped (stock has no such gate; default 10: PMW3901 surfaces
+    /// with usable texture read tens to ~100).
+    pub flow_squal_min: u8,
+    /// |dpixel| at or above this is an outlier (stock flowdeck_v1v2.c: 100).
+    pub flow_outlier_counts: u16,
+    /// Flow Mahalanobis gate, in standard deviations (joint over both axes). Default 5.
+    pub flow_gate_sigma: f32,
+    /// After this many consecutive gate rejections the next flow sample is fused anyway. Default 10.
+    pub flow_max_gate_rejections: u8,
+    /// Ranges are used only when R22 (the cosine of the tilt) is at least this. Default 0.8 (36.9°);
+    /// stock 0.1.
+    pub tof_min_r22: f32,
+    /// Half-angle of the ranger's cone, rad (stock mm_tof.c: 7.5°).
+    pub tof_cone_half_angle_rad: f32,
+    /// Ranges at or beyond this are dropped, m (stock zranger2.c `RANGE_OUTLIER_LIMIT` 5000 mm).
+    pub tof_max_range_m: f32,
+    /// Smallest range jump taken as a surface step, m. Default 0.03.
+    pub step_min_m: f32,
+    /// A surface within this of the floor is the floor: `surface_height_m` snaps to exactly 0. Default 0.02.
+    pub snap_m: f32,
+    /// An implied surface this far below the floor means the height is wrong, m. Default 0.03.
+    pub below_floor_m: f32,
+    /// Height-update gate, in standard deviations of the innovation. Default 3.
+    pub surface_gate_sigma: f32,
+    /// Smallest height-update gate, m. Default 0.008.
+    pub surface_gate_min_m: f32,
+    /// A window of ranges is flat when its spread is at most this many range std's. Default 4.
+    pub surface_flat_sigma: f32,
+    /// ... or at most this, m. Default 0.01.
+    pub surface_flat_min_m: f32,
+    /// A jump is attributed to the surface only if it is also at least this many standard deviations of
+    /// the height estimate (a height error that large is improbable). Default 3.
+    pub step_sigma: f32,
+    /// A transition without a plateau is decided after this many ranges. Default 16 (0.4 s: before the
+    /// range counts as missing for `valid`).
+    pub max_transition_samples: u16,
+    /// After a step the surface (not the height) follows the new level for this many ranges, so that the
+    /// slow tail of a step blurred by the ranger's cone goes to the surface. Default 20 (0.5 s).
+    pub step_settle_samples: u16,
+    /// The downward ranger's period, s (stock zranger2: 25 ms). Three ranges spanning more than 3.2
+    /// periods are not consecutive and cannot form a plateau.
+    pub tof_period_s: f32,
+    /// While airborne, flow or range missing for longer than this makes the estimate invalid, s.
+    /// Default 0.5.
+    pub sensor_timeout_s: f32,
+    /// Extra time after take-off before missing flow/range count, s. Default 1.0.
+    pub takeoff_grace_s: f32,
+    /// Flow is required for `valid` only above this height over the surface, m: the PMW3901 needs ~8 cm,
+    /// so the last centimetres of a landing (and the first of a take-off) have none. Default 0.15.
+    pub flow_required_height_m: f32,
+    /// Above this height over the surface the drone is airborne even without `set_flying(true)`, m.
+    /// Default 0.05.
+    pub airborne_height_m: f32,
+    /// Zero-velocity update std at rest on the ground, m/s. Default 0.02.
+    pub rest_velocity_std_m_s: f32,
+    /// Gravity-direction update std at rest on the ground, m/s² per axis. Default 0.2.
+    pub rest_accel_std_m_s2: f32,
+    /// Initial std of x and y at a reset, m. Default 0.05 (the start pad's position is known).
+    pub initial_std_xy_m: f32,
+    /// Initial std of z, m. Default 0.02.
+    pub initial_std_z_m: f32,
+    /// Initial std of the velocity, m/s (stock 0.01).
+    pub initial_std_velocity_m_s: f32,
+    /// Initial std of roll and pitch, rad (stock 0.01).
+    pub initial_std_roll_pitch_rad: f32,
+    /// Initial std of yaw, rad (stock 0.01).
+    pub initial_std_yaw_rad: f32,
+}
+
+impl Default for EstimatorConfig {
+    fn default() -> Self {
+        Self {
+            accel_noise_xy: 0.3,
+            accel_noise_z: 0.3,
+            gyro_noise_roll_pitch: 0.03,
+            gyro_noise_yaw: 0.03,
+            flow_std_counts: 2.0,
+            flow_squal_min: 10,
+            flow_outlier_counts: 100,
+            flow_gate_sigma: 5.0,
+            flow_max_gate_rejections: 10,
+            tof_min_r22: 0.8,
+            tof_cone_half_angle_rad: 7.5 * core::f32::consts::PI / 180.0,
+            tof_max_range_m: 5.0,
+            step_min_m: 0.03,
+            snap_m: 0.02,
+            below_floor_m: 0.03,
+            surface_gate_sigma: 3.0,
+            surface_gate_min_m: 0.008,
+            surface_flat_sigma: 4.0,
+            surface_flat_min_m: 0.01,
+            step_sigma: 3.0,
+            max_transition_samples: 16,
+            step_settle_samples: 20,
+            tof_period_s: 0.025,
+            sensor_timeout_s: 0.5,
+            takeoff_grace_s: 1.0,
+            flow_required_height_m: 0.15,
+            airborne_height_m: 0.05,
+            rest_velocity_std_m_s: 0.02,
+            rest_accel_std_m_s2: 0.2,
+            initial_std_xy_m: 0.05,
+            initial_std_z_m: 0.02,
+            initial_std_velocity_m_s: 0.01,
+            initial_std_roll_pitch_rad: 0.01,
+            initial_std_yaw_rad: 0.01,
+        }
+    }
+}
+
+impl EstimatorConfig {
+    /// Every field that is non-finite or out of its sensible range replaced by its default (the
+    /// estimator only ever runs on a sanitised configuration, so no setting can produce a NaN).
+    pub fn sanitized(self) -> Self {
+        let d = Self::default();
+        let pos = |v: f32, def: f32| if v.is_finite() && v > 0.0 { v } else { def };
+        let nonneg = |v: f32, def: f32| if v.is_finite() && v >= 0.0 { v } else { def };
+        Self {
+            accel_noise_xy: nonneg(self.accel_noise_xy, d.accel_noise_xy),
+            accel_noise_z: nonneg(self.accel_noise_z, d.accel_noise_z),
+            gyro_noise_roll_pitch: nonneg(self.gyro_noise_roll_pitch, d.gyro_noise_roll_pitch),
+            gyro_noise_yaw: nonneg(self.gyro_noise_yaw, d.gyro_noise_yaw),
+            flow_std_counts: pos(self.flow_std_counts, d.flow_std_counts),
+            flow_squal_min: self.flow_squal_min,
+            flow_outlier_counts: if self.flow_outlier_counts > 0 { self.flow_outlier_counts } else { d.flow_outlier_counts },
+            flow_gate_sigma: pos(self.flow_gate_sigma, d.flow_gate_sigma),
+            flow_max_gate_rejections: self.flow_max_gate_rejections,
+            tof_min_r22: if self.tof_min_r22.is_finite() { self.tof_min_r22.clamp(0.1, 1.0) } else { d.tof_min_r22 },
+            tof_cone_half_angle_rad: if self.tof_cone_half_angle_rad.is_finite() {
+                self.tof_cone_half_angle_rad.clamp(0.0, 0.5)
+            } else {
+                d.tof_cone_half_angle_rad
+            },
+            tof_max_range_m: pos(self.tof_max_range_m, d.tof_max_range_m).min(d.tof_max_range_m),
+            step_min_m: pos(self.step_min_m, d.step_min_m),
+            snap_m: nonneg(self.snap_m, d.snap_m),
+            below_floor_m: nonneg(self.below_floor_m, d.below_floor_m),
+            surface_gate_sigma: pos(self.surface_gate_sigma, d.surface_gate_sigma),
+            surface_gate_min_m: nonneg(self.surface_gate_min_m, d.surface_gate_min_m),
+            surface_flat_sigma: pos(self.surface_flat_sigma, d.surface_flat_sigma),
+            surface_flat_min_m: nonneg(self.surface_flat_min_m, d.surface_flat_min_m),
+            step_sigma: pos(self.step_sigma, d.step_sigma),
+            max_transition_samples: self.max_transition_samples.max(1),
+            step_settle_samples: self.step_settle_samples,
+            tof_period_s: if self.tof_period_s.is_finite() { self.tof_period_s.clamp(0.005, 0.5) } else { d.tof_period_s },
+            sensor_timeout_s: pos(self.sensor_timeout_s, d.sensor_timeout_s),
+            takeoff_grace_s: nonneg(self.takeoff_grace_s, d.takeoff_grace_s),
+            flow_required_height_m: nonneg(self.flow_required_height_m, d.flow_required_height_m),
+            airborne_height_m: pos(self.airborne_height_m, d.airborne_height_m),
+            rest_velocity_std_m_s: pos(self.rest_velocity_std_m_s, d.rest_velocity_std_m_s),
+            rest_accel_std_m_s2: pos(self.rest_accel_std_m_s2, d.rest_accel_std_m_s2),
+            initial_std_xy_m: pos(self.initial_std_xy_m, d.initial_std_xy_m),
+            initial_std_z_m: pos(self.initial_std_z_m, d.initial_std_z_m),
+            initial_std_velocity_m_s: pos(self.initial_std_velocity_m_s, d.initial_std_velocity_m_s),
+            initial_std_roll_pitch_rad: pos(self.initial_std_roll_pitch_rad, d.initial_std_roll_pitch_rad),
+            initial_std_yaw_rad: pos(self.initial_std_yaw_rad, d.initial_std_yaw_rad),
+        }
+    }
+
+    fn surface_params(&self) -> Params {
+        Params {
+            step_min: self.step_min_m,
+            snap: self.snap_m,
+            floor_tol: self.below_floor_m,
+            gate_sigma: self.surface_gate_sigma,
+            gate_min: self.surface_gate_min_m,
+            flat_sigma: self.surface_flat_sigma,
+            flat_min: self.surface_flat_min_m,
+            step_sigma: self.step_sigma,
+            max_transition: self.max_transition_samples,
+            max_span_ms: (self.tof_period_s * 1000.0 * 3.2) as u32,
+            settle: self.step_settle_samples,
+        }
+    }
+}
+
+/// What the estimator did, for logs. Counters saturate; ages are capped at 1000 s ("never").
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct Diagnostics {
+    /// Estimator time (sum of the IMU steps), s.
+    pub time_s: f32,
+    /// Gyro bias subtracted, rad/s.
+    pub gyro_bias_rad_s: [f32; 3],
+    /// Accelerometer scale applied.
+    pub accel_scale: f32,
+    /// See [`Estimator::is_calibrated`].
+    pub calibrated: bool,
+    /// Flying (`set_flying(true)`) or higher than `airborne_height_m` above the surface.
+    pub airborne: bool,
+    /// Standard deviations from the covariance: position, m.
+    pub position_std_m: [f32; 3],
+    /// Velocity, m/s.
+    pub velocity_std_m_s: [f32; 3],
+    /// Attitude error (body axes), rad.
+    pub attitude_std_rad: [f32; 3],
+    /// Last flow innovation (measured − predicted), pixels (0.1 counts), x and y.
+    pub flow_innovation_px: [f32; 2],
+    /// Its squared Mahalanobis distance (both axes).
+    pub flow_mahalanobis_sq: f32,
+    /// Flow samples fused.
+    pub flow_fused: u32,
+    /// Dropped: `motion_valid` false or SQUAL below the minimum.
+    pub flow_rejected_invalid: u32,
+    /// Dropped: |dpixel| at the outlier limit or a bad `dt_s`.
+    pub flow_rejected_outlier: u32,
+    /// Dropped by the Mahalanobis gate.
+    pub flow_rejected_gate: u32,
+    /// Not used: not calibrated, on the ground, or too tilted.
+    pub flow_unused: u32,
+    /// Time since the last usable flow sample, s.
+    pub flow_age_s: f32,
+    /// Last range's implied surface minus the current surface height, m (the height innovation, sign
+    /// flipped; a step shows here first).
+    pub tof_innovation_m: f32,
+    /// Ranges fused as height updates.
+    pub tof_fused: u32,
+    /// Dropped: `None`, non-finite, negative or beyond the maximum range.
+    pub tof_rejected_range: u32,
+    /// Dropped: too tilted.
+    pub tof_rejected_tilt: u32,
+    /// Ranges inside surface transitions, never fused.
+    pub tof_discarded: u32,
+    /// Time since the last usable range, s.
+    pub tof_age_s: f32,
+    /// Surface tracker mode.
+    pub surface_mode: SurfaceMode,
+    /// Steps attributed to the surface.
+    pub surface_steps: u32,
+    /// The last step (new − old surface height), m.
+    pub last_step_m: f32,
+    /// The last classification of a range plateau.
+    pub last_surface_event: SurfaceEvent,
+    /// IMU samples with a non-finite value (replaced by the last good one).
+    pub imu_rejected: u32,
+    /// IMU calls with a non-finite or non-positive `dt_s` (ignored).
+    pub imu_bad_dt: u32,
+    /// Rest updates applied on the ground (10 ms blocks).
+    pub rest_updates: u32,
+    /// Filter resets by the supervisor (state out of bounds, non-finite).
+    pub divergence_resets: u32,
+}
+
+/// The estimator. See the module documentation.
+#[derive(Clone, Debug)]
+pub struct Estimator {
+    cfg: EstimatorConfig,
+    // Nominal state.
+    pos: V3,
+    vel: V3,
+    quat: Quat,
+    cov: Mat9,
+    // Calibration and IMU processing.
+    calibrated: bool,
+    calib: Calibrator,
+    gyro_bias: V3,
+    accel_scale: f32,
+    last_gyro: V3,
+    last_accel: V3,
+    have_imu: bool,
+    omega: V3,
+    rates_lpf: [math::Lpf2; 3],
+    rates: V3,
+    // The current 10 ms covariance block.
+    blk_dt: f32,
+    blk_f: V3,
+    blk_rot: V3,
+    blk_rest: bool,
+    // Gyro integrated since the previous flow sample.
+    flow_rot: V3,
+    flow_dt: f32,
+    flow_reject_streak: u8,
+    surface: SurfaceTracker,
+    // Time and health.
+    now_us: u64,
+    last_flow_us: Option<u64>,
+    /// The last sane range (for the tracker's ring).
+    last_range_us: Option<u64>,
+    /// The last range that reached a decision (a height update or a classified plateau): "range fresh".
+    last_tof_us: Option<u64>,
+    airborne_since_us: u64,
+    flying_cmd: bool,
+    airborne: bool,
+    samples_without_imu: u16,
+    /// The last sane IMU step, s (used for a sample whose `dt_s` is not).
+    last_dt: f32,
+    bad_imu_streak: u32,
+    last_reset_us: Option<u64>,
+    // The pose of the last reset (used when calibration completes) and the last sane state.
+    home_pos: V3,
+    home_yaw: f32,
+    sane_pos: V3,
+    sane_quat: Quat,
+    diag: Diagnostics,
+}
+
+impl Estimator {
+    /// A new estimator at the origin, yaw 0, not calibrated (call [`Self::reset`] with the start pose).
+    pub fn new(config: EstimatorConfig) -> Self {
+        let cfg = config.sanitized();
+        let lpf = math::Lpf2::new(IMU_RATE_HZ, GYRO_LPF_HZ);
+        let mut e = Self {
+            cfg,
+            pos: [0.0; 3],
+            vel: [0.0; 3],
+            quat: QUAT_IDENTITY,
+            cov: [[0.0; N]; N],
+            calibrated: false,
+            calib: Calibrator::new(),
+            gyro_bias: [0.0; 3],
+            accel_scale: 1.0,
+            last_gyro: [0.0; 3],
+            last_accel: [0.0, 0.0, GRAVITY_M_S2],
+            have_imu: false,
+            omega: [0.0; 3],
+            rates_lpf: [lpf; 3],
+            rates: [0.0; 3],
+            blk_dt: 0.0,
+            blk_f: [0.0; 3],
+            blk_rot: [0.0; 3],
+            blk_rest: true,
+            flow_rot: [0.0; 3],
+            flow_dt: 0.0,
+            flow_reject_streak: 0,
+            surface: SurfaceTracker::new(0.0),
+            now_us: 0,
+            last_flow_us: None,
+            last_range_us: None,
+            last_tof_us: None,
+            airborne_since_us: 0,
+            flying_cmd: false,
+            airborne: false,
+            samples_without_imu: 0,
+            last_dt: 1.0 / IMU_RATE_HZ,
+            bad_imu_streak: 0,
+            last_reset_us: None,
+            home_pos: [0.0; 3],
+            home_yaw: 0.0,
+            sane_pos: [0.0; 3],
+            sane_quat: QUAT_IDENTITY,
+            diag: Diagnostics { accel_scale: 1.0, ..Diagnostics::default() },
+        };
+        e.reset([0.0; 3], 0.0);
+        e
+    }
+
+    /// The configuration in use (sanitised).
+    pub fn config(&self) -> &EstimatorConfig {
+        &self.cfg
+    }
+
+    /// Start over at a known pose: the drone standing on its pad at `position_m` (z = the pad's top, or 0
+    /// on the floor) with heading `yaw_rad`. Velocity 0, roll and pitch kept (from the accelerometer once
+    /// calibrated), covariance initial, surface height = `position_m[2]`; the gyro calibration is kept.
+    /// `valid` needs a new range after this. Non-finite arguments are replaced by 0.
+    pub fn reset(&mut self, position_m: [f32; 3], yaw_rad: f32) {
+        let fin = |v: f32| if v.is_finite() { v } else { 0.0 };
+        self.home_pos = [fin(position_m[0]), fin(position_m[1]), fin(position_m[2])];
+        self.home_yaw = fin(yaw_rad);
+        let (roll, pitch) = if self.calibrated {
+            let e = euler_from_rot(&quat_to_rot(self.quat));
+            (e[0], e[1])
+        } else {
+            (0.0, 0.0)
+        };
+        self.pos = self.home_pos;
+        self.vel = [0.0; 3];
+        self.quat = quat_from_euler(roll, pitch, self.home_yaw);
+        self.cov = self.initial_covariance();
+        self.surface.reset(self.home_pos[2]);
+        self.clear_blocks();
+        self.flow_reject_streak = 0;
+        self.last_flow_us = None;
+        self.last_range_us = None;
+        self.last_tof_us = None;
+        self.last_reset_us = None;
+        self.sane_pos = self.pos;
+        self.sane_quat = self.quat;
+        self.update_airborne();
+    }
+
+    /// Tell the estimator whether the motors are lifting the drone (stock `quadIsFlying`): `true` from the
+    /// moment thrust is applied for take-off, `false` once landed and the motors stop. On the ground and at
+    /// rest the estimator applies zero-velocity and gravity updates and refines the gyro bias; those must
+    /// stop the instant the drone lifts off. (Above `airborne_height_m` it counts as airborne anyway.)
+    pub fn set_flying(&mut self, flying: bool) {
+        self.flying_cmd = flying;
+        self.update_airborne();
+    }
+
+    /// Whether the gyro bias has been measured at rest (≥ 0.512 s still after power-up). Nothing is
+    /// estimated before.
+    pub fn is_calibrated(&self) -> bool {
+        self.calibrated
+    }
+
+    /// One IMU sample (body frame) and the time since the previous one, s (1 kHz).
+    pub fn on_imu(&mut self, sample: &ImuSample, dt_s: f32) {
+        // A nonsensical step still came with a sample (the IMU's data-ready paces the calls): integrate it
+        // over the last sane period rather than lose it.
+        let dt = if dt_s.is_finite() && dt_s > 0.0 {
+            if dt_s <= NOMINAL_DT_MAX_S {
+                self.last_dt = dt_s;
+            }
+            dt_s.min(MAX_IMU_DT_S)
+        } else {
+            self.diag.imu_bad_dt = self.diag.imu_bad_dt.saturating_add(1);
+            self.last_dt
+        };
+        self.now_us = self.now_us.saturating_add((dt * 1e6 + 0.5) as u64);
+        self.samples_without_imu = 0;
+
+        let fresh = finite3(sample.gyro_rad_s) && finite3(sample.accel_m_s2);
+        if fresh {
+            self.last_gyro = sample.gyro_rad_s.map(|g| g.clamp(-GYRO_RANGE_RAD_S, GYRO_RANGE_RAD_S));
+            self.last_accel = sample.accel_m_s2.map(|a| a.clamp(-ACCEL_RANGE_M_S2, ACCEL_RANGE_M_S2));
+            self.have_imu = true;
+            self.bad_imu_streak = 0;
+        } else {
+            self.diag.imu_rejected = self.diag.imu_rejected.saturating_add(1);
+            self.bad_imu_streak = self.bad_imu_streak.saturating_add(1);
+            if !self.have_imu {
+                return;
+            }
+        }
+        let (gyro, accel) = (self.last_gyro, self.last_accel);
+        for ((out, lpf), (&g, &b)) in
+            self.rates.iter_mut().zip(self.rates_lpf.iter_mut()).zip(gyro.iter().zip(self.gyro_bias.iter()))
+        {
+            *out = lpf.apply(g) - b;
+        }
+
+        // Calibration at rest: only on the ground, only on real samples.
+        if self.airborne {
+            self.calib.restart();
+        } else if fresh && let Some(window) = self.calib.push(gyro, accel) {
+            self.on_rest_window(&window);
+        }
+        if !self.calibrated {
+            return;
+        }
+
+        // Strapdown integration of this sample.
+        let w = sub3(gyro, self.gyro_bias);
+        let f = scale3(accel, self.accel_scale);
+        self.omega = w;
+        let rot = scale3(w, dt);
+        self.quat = quat_normalize(quat_mul(self.quat, quat_from_rotvec(rot)));
+        let r = quat_to_rot(self.quat);
+        let mut a = mul_m3_v3(&r, f);
+        a[2] -= GRAVITY_M_S2;
+        self.pos = add3(self.pos, add3(scale3(self.vel, dt), scale3(a, 0.5 * dt * dt)));
+        self.vel = add3(self.vel, scale3(a, dt));
+        self.blk_dt += dt;
+        self.blk_f = add3(self.blk_f, scale3(f, dt));
+        self.blk_rot = add3(self.blk_rot, rot);
+        // |ω| < REST_GYRO and ||f| − g| < REST_ACCEL, compared squared (no square root at 1 kHz).
+        let f2 = dot3(f, f);
+        self.blk_rest &= dot3(w, w) < sq(REST_GYRO_RAD_S)
+            && f2 > sq(GRAVITY_M_S2 - REST_ACCEL_M_S2)
+            && f2 < sq(GRAVITY_M_S2 + REST_ACCEL_M_S2);
+        self.flow_rot = add3(self.flow_rot, rot);
+        self.flow_dt += dt;
+
+        if self.blk_dt >= PREDICT_PERIOD_S {
+            let (f_mean, rest) = (scale3(self.blk_f, 1.0 / self.blk_dt), self.blk_rest);
+            self.predict_covariance();
+            self.update_airborne();
+            if !self.airborne && rest {
+                self.rest_update(f_mean);
+            }
+            self.supervise(true);
+        } else {
+            // The state bounds every sample (cheap), so that no output ever leaves them.
+            self.supervise(false);
+        }
+    }
+
+    /// One optical-flow sample (100 Hz).
+    pub fn on_flow(&mut self, sample: &FlowSample) {
+        self.samples_without_imu = self.samples_without_imu.saturating_add(1);
+        // Mean gyro over the interval the sensor integrated.
+        let omega = if self.flow_dt > 1e-4 { scale3(self.flow_rot, 1.0 / self.flow_dt) } else { self.omega };
+        self.flow_rot = [0.0; 3];
+        self.flow_dt = 0.0;
+
+        let dt = sample.dt_s;
+        let limit = i32::from(self.cfg.flow_outlier_counts);
+        if !(dt.is_finite() && dt > 0.0 && dt <= FLOW_MAX_DT_S)
+            || i32::from(sample.dpixel_x).abs() >= limit
+            || i32::from(sample.dpixel_y).abs() >= limit
+        {
+            self.diag.flow_rejected_outlier = self.diag.flow_rejected_outlier.saturating_add(1);
+            return;
+        }
+        if !sample.motion_valid || sample.squal < self.cfg.flow_squal_min {
+            self.diag.flow_rejected_invalid = self.diag.flow_rejected_invalid.saturating_add(1);
+            return;
+        }
+        self.last_flow_us = Some(self.now_us);
+        if !(self.calibrated && self.airborne) {
+            self.diag.flow_unused = self.diag.flow_unused.saturating_add(1);
+            return;
+        }
+        self.predict_covariance();
+        let r_var = sq(self.cfg.flow_std_counts * FLOW_RESOLUTION);
+        let measured = [f32::from(sample.dpixel_x) * FLOW_RESOLUTION, f32::from(sample.dpixel_y) * FLOW_RESOLUTION];
+
+        // Gate on both axes with the state before either update.
+        let mut d2 = 0.0;
+        let mut innov = [0.0; 2];
+        for axis in 0..2 {
+            let Some((pred, h)) = self.flow_model(axis, dt, omega) else {
+                self.diag.flow_unused = self.diag.flow_unused.saturating_add(1);
+                return;
+            };
+            innov[axis] = measured[axis] - pred;
+            d2 += sq(innov[axis]) / self.innovation_variance(&h, r_var);
+        }
+        self.diag.flow_innovation_px = innov;
+        self.diag.flow_mahalanobis_sq = d2;
+        if (d2.is_nan() || d2 > sq(self.cfg.flow_gate_sigma)) && self.flow_reject_streak < self.cfg.flow_max_gate_rejections {
+            self.flow_reject_streak = self.flow_reject_streak.saturating_add(1);
+            self.diag.flow_rejected_gate = self.diag.flow_rejected_gate.saturating_add(1);
+            return;
+        }
+        self.flow_reject_streak = 0;
+        // Sequential scalar updates, each against the state the previous one left (stock does the same).
+        for (axis, &m) in measured.iter().enumerate() {
+            if let Some((pred, h)) = self.flow_model(axis, dt, omega) {
+                self.scalar_update(&h, m - pred, r_var);
+            }
+        }
+        self.diag.flow_fused = self.diag.flow_fused.saturating_add(1);
+        self.supervise(true);
+    }
+
+    /// One reading of the downward ranger (40 Hz), metres along body −z.
+    pub fn on_zrange(&mut self, range: RangeReading) {
+        self.samples_without_imu = self.samples_without_imu.saturating_add(1);
+        let r = match range {
+            Some(r) if r.is_finite() && r >= 0.0 && r < self.cfg.tof_max_range_m => r,
+            _ => {
+                self.diag.tof_rejected_range = self.diag.tof_rejected_range.saturating_add(1);
+                return;
+            }
+        };
+        if !self.calibrated {
+            return;
+        }
+        let r22 = quat_to_rot(self.quat)[2][2];
+        if r22.is_nan() || r22 < self.cfg.tof_min_r22 {
+            self.diag.tof_rejected_tilt = self.diag.tof_rejected_tilt.saturating_add(1);
+            return;
+        }
+        if let Some(last) = self.last_range_us
+            && self.now_us.saturating_sub(last) > RING_MAX_AGE_US
+        {
+            // The ring's values are too old to be compared with this one.
+            self.surface.clear();
+        }
+        self.last_range_us = Some(self.now_us);
+        self.predict_covariance();
+
+        // Stock mm_tof.c: the cone's nearest edge is 7.5° less tilted than the drone (so below 7.5° of tilt
+        // the range is the height: no trigonometry in the common case).
+        let cos_alpha = if r22 >= libm::cosf(self.cfg.tof_cone_half_angle_rad) {
+            1.0
+        } else {
+            let tilt = libm::acosf(r22.clamp(-1.0, 1.0));
+            libm::cosf((tilt - self.cfg.tof_cone_half_angle_rad).max(0.0))
+        };
+        // zranger2.c: std grows exponentially beyond ~2.5 m (r < 5 m keeps exp() finite).
+        let sigma = 0.0025 * (1.0 + libm::expf(2.9214 * (r - 2.5)));
+        let t_ms = (self.now_us / 1000) as u32;
+        let entry = Entry { u: self.pos[SZ] - r * cos_alpha, var: sq(sigma * cos_alpha), t_ms };
+        self.diag.tof_innovation_m = entry.u - self.surface.surface();
+
+        let plan = self.surface.push(entry, self.cov[SZ][SZ], self.cov[SV + 2][SV + 2], &self.cfg.surface_params());
+        if plan.concluded || plan.n_apply > 0 {
+            self.last_tof_us = Some(self.now_us);
+        }
+        if plan.inflate_var > 0.0 {
+            self.cov[SZ][SZ] = (self.cov[SZ][SZ] + plan.inflate_var).min(COVARIANCE_MAX);
+            self.cov[SV + 2][SV + 2] = (self.cov[SV + 2][SV + 2] + plan.inflate_vz).min(COVARIANCE_MAX);
+        }
+        let z_at_plan = self.pos[SZ];
+        let mut h = [0.0; N];
+        h[SZ] = 1.0;
+        for e in plan.entries() {
+            // The entry's u was referred to z_at_plan; the updates before it moved z since.
+            let u = e.u + (self.pos[SZ] - z_at_plan);
+            // Measurement: height above the surface r·cos α = z − u; prediction z − s.
+            self.scalar_update(&h, self.surface.surface() - u, e.var);
+            self.diag.tof_fused = self.diag.tof_fused.saturating_add(1);
+        }
+        self.diag.tof_discarded = self.surface.discarded;
+        self.supervise(true);
+    }
+
+    /// The current estimate.
+    pub fn state(&self) -> StateEstimate {
+        let att = euler_from_rot(&quat_to_rot(self.quat));
+        StateEstimate {
+            position_m: self.pos,
+            velocity_m_s: self.vel,
+            attitude_rad: att,
+            rates_rad_s: self.rates,
+            surface_height_m: self.surface.surface(),
+            valid: self.is_valid(),
+        }
+    }
+
+    /// Counters, innovations and health for logs.
+    pub fn diagnostics(&self) -> Diagnostics {
+        let mut d = self.diag;
+        d.time_s = self.now_us as f32 * 1e-6;
+        d.gyro_bias_rad_s = self.gyro_bias;
+        d.accel_scale = self.accel_scale;
+        d.calibrated = self.calibrated;
+        d.airborne = self.airborne;
+        for i in 0..3 {
+            d.position_std_m[i] = libm::sqrtf(self.cov[i][i].max(0.0));
+            d.velocity_std_m_s[i] = libm::sqrtf(self.cov[SV + i][SV + i].max(0.0));
+            d.attitude_std_rad[i] = libm::sqrtf(self.cov[SD + i][SD + i].max(0.0));
+        }
+        d.flow_age_s = self.age_s(self.last_flow_us);
+        d.tof_age_s = self.age_s(self.last_tof_us);
+        d.surface_mode = self.surface.mode();
+        d.surface_steps = self.surface.steps;
+        d.last_step_m = self.surface.last_step_m;
+        d.last_surface_event = self.surface.last_event;
+        d
+    }
+
+    fn age_s(&self, t: Option<u64>) -> f32 {
+        match t {
+            Some(t) => (self.now_us.saturating_sub(t) as f32 * 1e-6).min(1000.0),
+            None => 1000.0,
+        }
+    }
+
+    fn is_valid(&self) -> bool {
+        if !(self.calibrated && self.last_tof_us.is_some()) {
+            return false;
+        }
+        if self.samples_without_imu > MAX_SAMPLES_WITHOUT_IMU || self.bad_imu_streak > MAX_BAD_IMU_STREAK {
+            return false;
+        }
+        if !self.state_in_bounds() {
+            return false;
+        }
+        if let Some(reset) = self.last_reset_us {
+            let after = |t: Option<u64>| t.is_some_and(|t| t > reset);
+            if !after(self.last_tof_us) || (self.airborne && !after(self.last_flow_us)) {
+                return false;
+            }
+        }
+        if self.airborne {
+            // Each sensor's clock starts at take-off plus the grace period.
+            let grace_us = (self.cfg.takeoff_grace_s * 1e6) as u64;
+            let start = self.airborne_since_us.saturating_add(grace_us);
+            let timeout_us = (self.cfg.sensor_timeout_s * 1e6) as u64;
+            let fresh = |t: Option<u64>| self.now_us.saturating_sub(t.unwrap_or(0).max(start)) <= timeout_us;
+            let flow_needed = self.pos[SZ] - self.surface.surface() > self.cfg.flow_required_height_m;
+            if !fresh(self.last_tof_us) || (flow_needed && !fresh(self.last_flow_us)) {
+                return false;
+            }
+        }
+        true
+    }
+
+    fn state_in_bounds(&self) -> bool {
+        finite3(self.pos)
+            && finite3(self.vel)
+            && self.quat.iter().all(|q| q.is_finite())
+            && self.pos.iter().all(|p| p.abs() <= MAX_POSITION_M)
+            && self.vel.iter().all(|v| v.abs() <= MAX_VELOCITY_M_S)
+    }
+
+    fn update_airborne(&mut self) {
+        let above = self.calibrated && self.pos[SZ] - self.surface.surface() > self.cfg.airborne_height_m;
+        let airborne = self.flying_cmd || above;
+        if airborne && !self.airborne {
+            self.airborne_since_us = self.now_us;
+            self.calib.restart();
+        }
+        self.airborne = airborne;
+    }
+
+    /// The covariance at a reset on the pad (the configured initial std's).
+    fn initial_covariance(&self) -> Mat9 {
+        let c = &self.cfg;
+        diagonal([
+            c.initial_std_xy_m,
+            c.initial_std_xy_m,
+            c.initial_std_z_m,
+            c.initial_std_velocity_m_s,
+            c.initial_std_velocity_m_s,
+            c.initial_std_velocity_m_s,
+            c.initial_std_roll_pitch_rad,
+            c.initial_std_roll_pitch_rad,
+            c.initial_std_yaw_rad,
+        ])
+    }
+
+    fn clear_blocks(&mut self) {
+        self.blk_dt = 0.0;
+        self.blk_f = [0.0; 3];
+        self.blk_rot = [0.0; 3];
+        self.blk_rest = true;
+        self.flow_rot = [0.0; 3];
+        self.flow_dt = 0.0;
+    }
+
+    /// A rest window completed on the ground: first calibration, or a refinement.
+    fn on_rest_window(&mut self, w: &RestWindow) {
+        if !self.calibrated {
+            self.gyro_bias = w.gyro_mean;
+            self.accel_scale = w.accel_scale();
+            self.calibrated = true;
+            // Level from gravity (at rest f_b = g·(−sin θ, cos θ sin φ, cos θ cos φ)), heading from reset.
+            let a = w.accel_mean;
+            let roll = libm::atan2f(a[1], a[2]);
+            let pitch = libm::atan2f(-a[0], libm::sqrtf(a[1] * a[1] + a[2] * a[2]));
+            self.quat = quat_from_euler(roll, pitch, self.home_yaw);
+            self.pos = self.home_pos;
+            self.vel = [0.0; 3];
+            self.cov = self.initial_covariance();
+            self.surface.reset(self.home_pos[2]);
+            self.clear_blocks();
+            self.sane_pos = self.pos;
+            self.sane_quat = self.quat;
+        } else {
+            let k = REFINE_WEIGHT;
+            self.gyro_bias = add3(self.gyro_bias, scale3(sub3(w.gyro_mean, self.gyro_bias), k));
+            self.accel_scale += k * (w.accel_scale() - self.accel_scale);
+        }
+    }
+
+    /// `P = F P Fᵀ + Q` over the IMU samples since the last call (see the module docs).
+    fn predict_covariance(&mut self) {
+        let dt = self.blk_dt;
+        if dt.is_nan() || dt <= 0.0 {
+            return;
+        }
+        let f_mean = scale3(self.blk_f, 1.0 / dt);
+        let r = quat_to_rot(self.quat);
+        let rf = mul_m3(&r, &skew(f_mean));
+        let phi = skew(self.blk_rot);
+        let phi2 = mul_m3(&phi, &phi);
+        let mut f = [[0.0; N]; N];
+        for (i, row) in f.iter_mut().enumerate() {
+            row[i] = 1.0;
+        }
+        for i in 0..3 {
+            f[i][SV + i] = dt;
+            for j in 0..3 {
+                // δv̇ = −R [f]× δθ; δp gets its integral.
+                f[SV + i][SD + j] = -dt * rf[i][j];
+                f[i][SD + j] = -0.5 * dt * dt * rf[i][j];
+                // δθ̇ = −[ω]× δθ: exp(−[ω dt]×) to second order.
+                f[SD + i][SD + j] = f[SD + i][SD + j] - phi[i][j] + 0.5 * phi2[i][j];
+            }
+        }
+        self.cov = mul9_bt(&mul9(&f, &self.cov), &f);
+        let c = &self.cfg;
+        let q_vel = [sq(c.accel_noise_xy), sq(c.accel_noise_xy), sq(c.accel_noise_z)];
+        let q_att = [sq(c.gyro_noise_roll_pitch), sq(c.gyro_noise_roll_pitch), sq(c.gyro_noise_yaw)];
+        for i in 0..3 {
+            self.cov[SV + i][SV + i] += q_vel[i] * PREDICT_PERIOD_S * dt;
+            self.cov[SD + i][SD + i] += q_att[i] * PREDICT_PERIOD_S * dt;
+        }
+        self.condition_covariance();
+        self.blk_dt = 0.0;
+        self.blk_f = [0.0; 3];
+        self.blk_rot = [0.0; 3];
+        self.blk_rest = true;
+    }
+
+    /// Symmetrise, bound the diagonal (stock), and keep every correlation below 1 so that rounding can
+    /// never make `P` indefinite.
+    fn condition_covariance(&mut self) {
+        for i in 0..N {
+            self.cov[i][i] = self.cov[i][i].clamp(COVARIANCE_MIN, COVARIANCE_MAX);
+        }
+        for i in 0..N {
+            for j in (i + 1)..N {
+                let mut v = 0.5 * (self.cov[i][j] + self.cov[j][i]);
+                // |correlation| ≤ 0.999, compared squared: the square root only when it must clamp (rare).
+                let bound2 = 0.998 * self.cov[i][i] * self.cov[j][j];
+                if v * v > bound2 {
+                    v = libm::sqrtf(bound2).copysign(v);
+                }
+                self.cov[i][j] = v;
+                self.cov[j][i] = v;
+            }
+        }
+    }
+
+    /// `h P hᵀ + r`.
+    fn innovation_variance(&self, h: &Vec9, r_var: f32) -> f32 {
+        dot9(h, &mul9_v(&self.cov, h)) + r_var
+    }
+
+    /// A scalar Kalman update with Jacobian `h`, innovation `innov` and noise variance `r_var`; the
+    /// correction is folded into the nominal state at once. Returns false (and changes nothing) if the
+    /// numbers are not usable.
+    fn scalar_update(&mut self, h: &Vec9, innov: f32, r_var: f32) -> bool {
+        let ph = mul9_v(&self.cov, h);
+        let s = dot9(h, &ph) + r_var;
+        if !(s.is_finite() && s > 0.0 && innov.is_finite()) {
+            return false;
+        }
+        let mut dx = [0.0; N];
+        for (d, &p) in dx.iter_mut().zip(ph.iter()) {
+            *d = p / s * innov;
+        }
+        if !dx.iter().all(|d| d.is_finite()) {
+            return false;
+        }
+        // P − P hᵀ h P / s, computed symmetric (equal to the Joseph form in exact arithmetic for the
+        // optimal gain; the conditioning below keeps it positive).
+        for i in 0..N {
+            for j in i..N {
+                let v = self.cov[i][j] - ph[i] * ph[j] / s;
+                self.cov[i][j] = v;
+                self.cov[j][i] = v;
+            }
+        }
+        for i in 0..N {
+            self.cov[i][i] = self.cov[i][i].clamp(COVARIANCE_MIN, COVARIANCE_MAX);
+        }
+        for i in 0..3 {
+            self.pos[i] += dx[i];
+            self.vel[i] += dx[SV + i];
+        }
+        self.surface.shift(dx[SZ]);
+        let dtheta = [dx[SD], dx[SD + 1], dx[SD + 2]];
+        self.quat = quat_normalize(quat_mul(self.quat, quat_from_rotvec(dtheta)));
+        if dtheta.iter().any(|d| d.abs() > ATTITUDE_FOLD_MIN_RAD) {
+            // (Smaller corrections are still folded into q, just not worth rotating P for.)
+            self.rotate_attitude_covariance(dtheta);
+        }
+        true
+    }
+
+    /// After folding `δθ` into `q` the attitude error is re-expressed about the new reference:
+    /// `P ← G P Gᵀ`, `G = I − [δθ/2]×` on the attitude block (stock kalmanCoreFinalize).
+    fn rotate_attitude_covariance(&mut self, dtheta: V3) {
+        let s = skew(scale3(dtheta, 0.5));
+        let mut g: M3 = [[1.0, 0.0, 0.0], [0.0, 1.0, 0.0], [0.0, 0.0, 1.0]];
+        for i in 0..3 {
+            for j in 0..3 {
+                g[i][j] -= s[i][j];
+            }
+        }
+        // Rows: P[SD.., :] ← G · P[SD.., :].
+        for col in 0..N {
+            let v = [self.cov[SD][col], self.cov[SD + 1][col], self.cov[SD + 2][col]];
+            let nv = mul_m3_v3(&g, v);
+            for (row, &x) in self.cov[SD..SD + 3].iter_mut().zip(nv.iter()) {
+                row[col] = x;
+            }
+        }
+        // Columns: P[:, SD..] ← P[:, SD..] · Gᵀ.
+        for row in self.cov.iter_mut() {
+            let v = [row[SD], row[SD + 1], row[SD + 2]];
+            let nv = mul_m3_v3(&g, v);
+            row[SD..SD + 3].copy_from_slice(&nv);
+        }
+    }
+
+    /// The stock flow model for one axis (0 = x, 1 = y): predicted pixels and the Jacobian row.
+    fn flow_model(&self, axis: usize, dt: f32, omega: V3) -> Option<(f32, Vec9)> {
+        let r = quat_to_rot(self.quat);
+        let r22 = r[2][2];
+        if r22.is_nan() || r22 < FLOW_MIN_R22 {
+            return None;
+        }
+        let h = (self.pos[SZ] - self.surface.flow_surface()).max(FLOW_MIN_HEIGHT_M);
+        let c = dt * FLOW_NPIX / FLOW_THETAPIX;
+        let vb = mul_m3t_v3(&r, self.vel);
+        let k = c * r22 / h;
+        let mut jac = [0.0; N];
+        // d v_b / d δv = Rᵀ (row `axis` of Rᵀ = column `axis` of R).
+        for i in 0..3 {
+            jac[SV + i] = k * r[i][axis];
+        }
+        // d v_b / d δθ = [v_b]×; d R22 / d δθ = (−R21, R20, 0).
+        let vx = skew(vb);
+        let dr22 = [-r[2][1], r[2][0], 0.0];
+        let (v_axis, row) = if axis == 0 { (vb[0], vx[0]) } else { (vb[1], vx[1]) };
+        for j in 0..3 {
+            jac[SD + j] = c / h * (r22 * row[j] + v_axis * dr22[j]);
+        }
+        let pred = if axis == 0 { k * vb[0] - c * omega[1] } else { k * vb[1] + c * omega[0] };
+        if pred.is_finite() && jac.iter().all(|x| x.is_finite()) { Some((pred, jac)) } else { None }
+    }
+
+    /// At rest on the ground: zero velocity, and gravity gives roll and pitch.
+    fn rest_update(&mut self, f_mean: V3) {
+        let vr = sq(self.cfg.rest_velocity_std_m_s);
+        for i in 0..3 {
+            let mut h = [0.0; N];
+            h[SV + i] = 1.0;
+            self.scalar_update(&h, -self.vel[i], vr);
+        }
+        let n = norm3(f_mean);
+        if n > 0.5 * GRAVITY_M_S2 {
+            // Predicted specific force g·Rᵀe_z = g·(R20, R21, R22); its error Jacobian is g·[g_b]×.
+            let f_dir = scale3(f_mean, GRAVITY_M_S2 / n);
+            let ar = sq(self.cfg.rest_accel_std_m_s2);
+            for axis in 0..2 {
+                let r = quat_to_rot(self.quat);
+                let gb = scale3(r[2], GRAVITY_M_S2);
+                let sk = skew(gb);
+                let mut h = [0.0; N];
+                h[SD..SD + 3].copy_from_slice(&sk[axis]);
+                self.scalar_update(&h, f_dir[axis] - gb[axis], ar);
+            }
+        }
+        self.diag.rest_updates = self.diag.rest_updates.saturating_add(1);
+    }
+
+    /// Stock kalman_supervisor: a state out of bounds or anything non-finite resets the filter.
+    fn supervise(&mut self, check_covariance: bool) {
+        let cov_ok = !check_covariance || self.cov.iter().all(|row| row.iter().all(|x| x.is_finite()));
+        if self.state_in_bounds() && cov_ok {
+            self.sane_pos = self.pos;
+            self.sane_quat = self.quat;
+            return;
+        }
+        self.diag.divergence_resets = self.diag.divergence_resets.saturating_add(1);
+        self.last_reset_us = Some(self.now_us);
+        if !self.state_in_bounds() {
+            self.pos = self.sane_pos;
+            self.vel = [0.0; 3];
+            if !self.quat.iter().all(|q| q.is_finite()) {
+                self.quat = self.sane_quat;
+            }
+        }
+        self.quat = quat_normalize(self.quat);
+        // Unlike a reset on the pad, nothing is known well after a divergence: wide enough for the flow and
+        // the range to pull the state back (with the pad's 1 cm/s, a wrong velocity would stay).
+        self.cov = diagonal(DIVERGENCE_STD);
+        self.surface.clear();
+        self.clear_blocks();
+    }
+}
+
+/// A covariance with these standard deviations on the diagonal (bounded as always).
+fn diagonal(std: [f32; N]) -> Mat9 {
+    let mut p = [[0.0; N]; N];
+    for (i, row) in p.iter_mut().enumerate() {
+        row[i] = sq(std[i]).clamp(COVARIANCE_MIN, COVARIANCE_MAX);
+    }
+    p
+}
+
+fn sq(x: f32) -> f32 {
+    x * x
+}
+
+fn dot9(a: &Vec9, b: &Vec9) -> f32 {
+    a.iter().zip(b.iter()).map(|(x, y)| x * y).sum()
+}

@@ -1,0 +1,479 @@
+//! The lockstep loop: the simulated Crazyflie and the firmware's [`FlightCore`] advance together, 1 ms at a
+//! time, each firmware step function called at the rate it runs on the MCU (IMU 1 kHz, flow 100 Hz, battery
+//! 100 Hz, z-ranger 40 Hz, Multi-ranger 10 Hz, mission 50 Hz). Deterministic for a world and seed.
+//!
+//! The loop also keeps the score the report needs (interfaces.md §4): collisions and clearance measured on
+//! the true state against the true world, the landings and their errors, distance flown, the estimator's
+//! error against the truth.
+
+use std::time::Instant;
+
+use cfnav::flight::{FlightConfig, FlightCore};
+use cfnav::mission::{MissionParams, MissionState};
+use cfnav::types::MotorDuty;
+use rand::SeedableRng;
+use rand::rngs::SmallRng;
+use serde::Serialize;
+
+use super::physics::{QuadParams, Quadrotor};
+use super::sensors::{
+    BatterySensor, FlowParams, FlowSensor, Imu, ImuParams, MultiRanger, MultiRangerParams, SensorFault, ZRanger,
+    ZRangerParams,
+};
+use super::world::{BODY_RADIUS_M, World};
+
+/// Grid capacity the simulator flies with: the largest arena the firmware supports (`large-arena`).
+pub const SIM_CELLS: usize = 128 * 64;
+/// Open-list capacity, as on the MCU.
+pub const SIM_QUEUE: usize = cfnav::dstar::ARENA_QUEUE;
+/// The flight stack the simulator flies.
+pub type SimCore = FlightCore<SIM_CELLS, SIM_QUEUE>;
+
+/// Faults and events injected into a run (tests and failure scenarios).
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct Faults {
+    /// The flow deck stops delivering readings at this time, s.
+    pub flow_fails_at_s: Option<f64>,
+    /// The battery drains this many times faster than physics says.
+    pub battery_drain_multiplier: Option<f32>,
+    /// Initial battery state of charge (0..1).
+    pub battery_state_of_charge: Option<f32>,
+    /// Write `mission.start = 0` at this time, s.
+    pub abort_at_s: Option<f64>,
+    /// Report the decks as missing (the start is refused).
+    pub decks_missing: bool,
+}
+
+/// How to run.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct RunOptions {
+    /// Seed of all noise (defaults to the world's `sim.seed`).
+    pub seed: u64,
+    /// When `mission.start` is written, s after power-on.
+    pub trigger_s: f64,
+    /// Simulated time allowed, s.
+    pub time_limit_s: f64,
+    /// Keep a trace for plots (every 20 ms).
+    pub record: bool,
+    /// Injected faults.
+    pub faults: Faults,
+    /// Print every mission state change (time, truth, estimate) to stderr.
+    pub verbose: bool,
+}
+
+impl RunOptions {
+    /// The options a world file asks for: its seed and time limit, the mission triggered 1 s after power-on.
+    pub fn for_world(world: &World) -> Self {
+        Self {
+            seed: world.sim.seed,
+            trigger_s: 1.0,
+            time_limit_s: f64::from(world.sim.time_limit),
+            record: false,
+            faults: Faults::default(),
+            verbose: false,
+        }
+    }
+}
+
+/// One landing: where the drone came to rest.
+#[derive(Clone, Copy, Debug, Serialize, PartialEq)]
+pub struct Landing {
+    /// The pad it landed on, or the nearest pad.
+    pub pad: usize,
+    /// Horizontal distance from where it rests to that pad's centre, m.
+    pub error_m: f32,
+    /// Its centre lies over the pad.
+    pub on_pad: bool,
+}
+
+/// The report of one run (interfaces.md §4), plus a few extra fields.
+#[derive(Clone, Debug, Serialize)]
+pub struct RunReport {
+    pub world: String,
+    pub seed: u64,
+    /// completed | aborted | crashed | timeout
+    pub outcome: &'static str,
+    /// A short word when not completed.
+    pub reason: Option<&'static str>,
+    pub mission_time_s: Option<f64>,
+    pub collisions: u32,
+    pub min_clearance_m: Option<f32>,
+    pub landings: Vec<Landing>,
+    pub replans: u32,
+    pub distance_m: f64,
+    pub sim_time_s: f64,
+    pub wall_time_s: f64,
+    /// The final `mission.state` code.
+    pub mission_state: u8,
+    /// Largest horizontal error of the position estimate while airborne, m.
+    pub max_estimate_error_m: f32,
+    /// RMS horizontal error of the position estimate while airborne, m.
+    pub rms_estimate_error_m: f32,
+    /// Largest height error (estimate − truth, relative to the take-off surface), m.
+    pub max_height_error_m: f32,
+}
+
+/// One traced instant.
+#[derive(Clone, Copy, Debug, Serialize)]
+pub struct TracePoint {
+    pub t_s: f64,
+    pub truth: [f32; 3],
+    pub estimate: [f32; 3],
+    pub state: u8,
+}
+
+/// Everything a run produced.
+pub struct RunResult {
+    pub report: RunReport,
+    /// The trace (empty unless [`RunOptions::record`]).
+    pub trace: Vec<TracePoint>,
+    /// Planned paths as flown: snapshots of the shortened path (arena metres) whenever it changed.
+    pub paths: Vec<Vec<(f32, f32)>>,
+    /// The drone's occupancy grid at the end: (width, height, blocked, occupied).
+    pub believed: Option<(u16, u16, Vec<bool>, Vec<bool>)>,
+    /// Pad centres the drone locked on.
+    pub pad_locks: Vec<(f32, f32)>,
+}
+
+/// The parameters the world gives the drone.
+pub fn mission_params(world: &World) -> MissionParams {
+    MissionParams {
+        arena_m: (world.arena.size[0], world.arena.size[1]),
+        start_m: (world.mission.start[0], world.mission.start[1]),
+        goal_m: (world.mission.goal[0], world.mission.goal[1]),
+        height_m: world.mission.height,
+        speed_m_s: world.mission.speed,
+    }
+}
+
+/// Fly one world. Fails only if the flight stack's configuration is invalid.
+pub fn run(world: &World, options: &RunOptions) -> Result<RunResult, String> {
+    let wall = Instant::now();
+    let seed = options.seed;
+    let mut rng_imu = SmallRng::seed_from_u64(seed.wrapping_mul(0x9E37_79B9_7F4A_7C15) ^ 1);
+    let mut rng_flow = SmallRng::seed_from_u64(seed.wrapping_mul(0x9E37_79B9_7F4A_7C15) ^ 2);
+    let mut rng_z = SmallRng::seed_from_u64(seed.wrapping_mul(0x9E37_79B9_7F4A_7C15) ^ 3);
+    let mut rng_mr = SmallRng::seed_from_u64(seed.wrapping_mul(0x9E37_79B9_7F4A_7C15) ^ 4);
+    let mut rng_bat = SmallRng::seed_from_u64(seed.wrapping_mul(0x9E37_79B9_7F4A_7C15) ^ 5);
+
+    let start = world.mission.start;
+    let mut quad = Quadrotor::new(QuadParams::default(), [start[0], start[1], 0.0], 0.0);
+    quad.place_on_surface(world);
+    if let Some(soc) = options.faults.battery_state_of_charge {
+        quad.battery_mut().set_state_of_charge(soc);
+    }
+    if let Some(k) = options.faults.battery_drain_multiplier {
+        quad.battery_mut().set_drain_multiplier(k);
+    }
+    let mut imu = Imu::new(ImuParams::default(), &mut rng_imu);
+    let mut flow = FlowSensor::new(FlowParams::default());
+    if let Some(t) = options.faults.flow_fails_at_s {
+        flow.inject_fault(Some((t, SensorFault::Stopped)));
+    }
+    let mut zranger = ZRanger::new(ZRangerParams::default());
+    let mut multiranger = MultiRanger::new(MultiRangerParams::default());
+    let battery = BatterySensor::default();
+
+    let mut core: Box<SimCore> = Box::new(
+        FlightCore::new(&FlightConfig::default(), (start[0], start[1]), 0.0)
+            .map_err(|e| format!("the flight configuration is invalid: {e:?}"))?,
+    );
+    core.set_decks_ok(!options.faults.decks_missing);
+    let params = mission_params(world);
+    let take_off_surface = quad.position()[2];
+
+    let total_ticks = (options.time_limit_s * 1000.0).max(0.0) as u64;
+    let trigger_tick = (options.trigger_s * 1000.0) as u64;
+    let abort_tick = options.faults.abort_at_s.map(|t| (t * 1000.0) as u64);
+
+    let mut score = Score::new();
+    let mut trace = Vec::new();
+    let mut paths: Vec<Vec<(f32, f32)>> = Vec::new();
+    let mut duty = MotorDuty::default();
+    let mut started = false;
+    let mut start_refused = false;
+    let mut ended_at: Option<u64> = None;
+    let mut last_motor_stop: Option<u64> = None;
+    let mut was_on_ground = true;
+    let mut tick = 0u64;
+    let mut last_state = core.mission_state();
+
+    while tick < total_ticks {
+        let now_us = tick * 1000;
+        if tick == trigger_tick {
+            match core.start_mission(params) {
+                Ok(()) => started = true,
+                Err(_) => start_refused = true,
+            }
+        }
+        if Some(tick) == abort_tick {
+            core.abort_mission();
+        }
+        if tick % 10 == 0 {
+            if let Some(f) = flow.sample(&quad, world, &mut rng_flow) {
+                core.on_flow(&f);
+            }
+            core.on_battery(battery.sample(&quad, &mut rng_bat));
+        }
+        if tick % 25 == 0 {
+            core.on_zrange(zranger.sample(&quad, world, &mut rng_z));
+        }
+        if tick % 100 == 0 {
+            core.on_multiranger(&multiranger.sample(&quad, world, &mut rng_mr));
+        }
+        if tick % 20 == 0 {
+            core.mission_tick(now_us);
+            if let Some(snapshot) = path_snapshot(&core)
+                && paths.last() != Some(&snapshot)
+            {
+                paths.push(snapshot);
+            }
+        }
+        let sample = imu.sample(&quad, &mut rng_imu);
+        let new_duty = core.on_imu(&sample, now_us);
+        if duty != MotorDuty::default() && new_duty == MotorDuty::default() {
+            last_motor_stop = Some(tick);
+        }
+        duty = new_duty;
+        quad.set_duty(duty);
+        quad.step(0.001, world);
+
+        // Score on the truth.
+        let p = quad.position();
+        let on_ground = quad.on_ground();
+        if !on_ground {
+            let clearance = world.clearance(p[0], p[1], p[2]) - BODY_RADIUS_M;
+            score.airborne(clearance, &core, p, take_off_surface);
+        } else {
+            score.grounded();
+        }
+        if on_ground && !was_on_ground && started {
+            score.pending_landing = Some(tick);
+        }
+        // A landing counts once the drone has come to rest with its motors stopped.
+        if let Some(t0) = score.pending_landing
+            && on_ground
+            && duty == MotorDuty::default()
+            && tick >= t0 + 200
+        {
+            score.land(world, p);
+        }
+        if !on_ground {
+            score.pending_landing = None;
+        }
+        was_on_ground = on_ground;
+        if options.record && tick % 20 == 0 {
+            trace.push(TracePoint {
+                t_s: tick as f64 * 1e-3,
+                truth: p,
+                estimate: core.estimate().position_m,
+                state: core.mission_state().code(),
+            });
+        }
+        let state = core.mission_state();
+        if options.verbose && state != last_state {
+            let e = core.estimate();
+            eprintln!(
+                "{:8.3} s  state {:3} {:?}  truth ({:.2}, {:.2}, {:.2})  estimate ({:.2}, {:.2}, {:.2})  surface {:.2}  supervisor {:?}",
+                tick as f64 * 1e-3,
+                state.code(),
+                state,
+                p[0],
+                p[1],
+                p[2],
+                e.position_m[0],
+                e.position_m[1],
+                e.position_m[2],
+                e.surface_height_m,
+                core.supervisor().state,
+            );
+        }
+        last_state = state;
+        if options.verbose && tick % 1000 == 0 && started && !state.is_final() {
+            let e = core.estimate();
+            let c = core.control();
+            let sup = core.supervisor();
+            eprintln!(
+                "{:8.3} s    xy ({:.2}, {:.2}) v ({:.2}, {:.2}) sp {:?}\n             z {:.3} (truth {:.3}) surface {:.3} vz {:.3} cmd {:?} duty {:?} sup {:?} flags {:?} valid {}",
+                tick as f64 * 1e-3,
+                e.position_m[0],
+                e.position_m[1],
+                e.velocity_m_s[0],
+                e.velocity_m_s[1],
+                core.setpoint(),
+                e.position_m[2],
+                p[2],
+                e.surface_height_m,
+                e.velocity_m_s[2],
+                c.thrust_cmd,
+                duty.0,
+                sup.state,
+                sup.flags,
+                e.valid,
+            );
+        }
+        if (started && state.is_final() && on_ground && duty == MotorDuty::default()) || start_refused {
+            if let Some(t0) = score.pending_landing
+                && tick >= t0 + 200
+            {
+                score.land(world, p);
+            }
+            if score.pending_landing.is_none() || start_refused {
+                ended_at = Some(tick);
+                break;
+            }
+        }
+        tick += 1;
+    }
+
+    let sim_time_s = tick as f64 * 1e-3;
+    let state = core.mission_state();
+    let completed_on_pads = score.landings.len() >= 2
+        && score.landings[0].on_pad
+        && score.landings[0].pad == world.goal_pad_index()
+        && score.landings[score.landings.len() - 1].on_pad
+        && score.landings[score.landings.len() - 1].pad == 0;
+    let (outcome, reason) = if score.collisions > 0 {
+        ("crashed", Some("collision"))
+    } else if start_refused {
+        ("aborted", Some("start_refused"))
+    } else if ended_at.is_none() {
+        ("timeout", Some("time_limit"))
+    } else {
+        match state {
+            MissionState::Completed if completed_on_pads => ("completed", None),
+            MissionState::Completed => ("aborted", Some("missed_pad")),
+            MissionState::Crashed => ("crashed", Some("tumble")),
+            MissionState::Aborted => ("aborted", Some("aborted")),
+            MissionState::NoPath => ("aborted", Some("no_path")),
+            MissionState::PadNotFound => ("aborted", Some("pad_not_found")),
+            MissionState::BatteryLow => ("aborted", Some("battery")),
+            MissionState::EstimatorFault => ("aborted", Some("estimator_fault")),
+            MissionState::PlannerFault => ("aborted", Some("planner_fault")),
+            _ => ("aborted", Some("unknown")),
+        }
+    };
+    let mission_time_s =
+        last_motor_stop.filter(|_| started).map(|t| (t.saturating_sub(trigger_tick)) as f64 * 1e-3);
+    let mission = core.mission();
+    let grid = mission.grid();
+    let shape = grid.shape();
+    let believed = (shape.cells() > 0).then(|| {
+        let cells: Vec<cfnav::map::Cell> = (0..shape.cells()).map(|i| shape.cell(i)).collect();
+        (
+            shape.width,
+            shape.height,
+            cells.iter().map(|c| grid.is_blocked(*c)).collect(),
+            cells.iter().map(|c| grid.is_occupied(*c)).collect(),
+        )
+    });
+    let pad_locks = mission.stats().pad_centres.iter().flatten().copied().collect();
+    let report = RunReport {
+        world: world.name.clone(),
+        seed,
+        outcome,
+        reason,
+        mission_time_s,
+        collisions: score.collisions,
+        min_clearance_m: score.min_clearance.is_finite().then_some(score.min_clearance),
+        landings: score.landings.clone(),
+        replans: mission.stats().replans,
+        distance_m: score.distance,
+        sim_time_s,
+        wall_time_s: wall.elapsed().as_secs_f64(),
+        mission_state: state.code(),
+        max_estimate_error_m: score.max_err,
+        rms_estimate_error_m: if score.err_n > 0 { (score.err_sq / score.err_n as f64).sqrt() as f32 } else { 0.0 },
+        max_height_error_m: score.max_height_err,
+    };
+    Ok(RunResult { report, trace, paths, believed, pad_locks })
+}
+
+fn path_snapshot(core: &SimCore) -> Option<Vec<(f32, f32)>> {
+    let mission = core.mission();
+    let shape = mission.grid().shape();
+    let w = mission.waypoints();
+    (w.len() >= 2).then(|| w.iter().map(|c| shape.center_of(*c)).collect())
+}
+
+struct Score {
+    collisions: u32,
+    in_collision: bool,
+    min_clearance: f32,
+    landings: Vec<Landing>,
+    pending_landing: Option<u64>,
+    distance: f64,
+    last_airborne: Option<[f32; 3]>,
+    max_err: f32,
+    err_sq: f64,
+    err_n: u64,
+    max_height_err: f32,
+}
+
+impl Score {
+    fn new() -> Self {
+        Self {
+            collisions: 0,
+            in_collision: false,
+            min_clearance: f32::INFINITY,
+            landings: Vec::new(),
+            pending_landing: None,
+            distance: 0.0,
+            last_airborne: None,
+            max_err: 0.0,
+            err_sq: 0.0,
+            err_n: 0,
+            max_height_err: 0.0,
+        }
+    }
+
+    fn airborne(&mut self, clearance: f32, core: &SimCore, p: [f32; 3], take_off_surface: f32) {
+        self.min_clearance = self.min_clearance.min(clearance);
+        if clearance < 0.0 {
+            if !self.in_collision {
+                self.collisions += 1;
+            }
+            self.in_collision = true;
+        } else {
+            self.in_collision = false;
+        }
+        if let Some(q) = self.last_airborne {
+            self.distance += f64::from(((p[0] - q[0]).powi(2) + (p[1] - q[1]).powi(2)).sqrt());
+        }
+        self.last_airborne = Some(p);
+        let e = core.estimate();
+        // Only judge the estimate at flying height (on the pads the drone is still sorting out its surface).
+        if p[2] > take_off_surface + 0.15 {
+            let err = ((e.position_m[0] - p[0]).powi(2) + (e.position_m[1] - p[1]).powi(2)).sqrt();
+            self.max_err = self.max_err.max(err);
+            self.err_sq += f64::from(err * err);
+            self.err_n += 1;
+            let h_err = (e.position_m[2] - (p[2] - take_off_surface)).abs();
+            self.max_height_err = self.max_height_err.max(h_err);
+        }
+    }
+
+    fn grounded(&mut self) {
+        self.last_airborne = None;
+        self.in_collision = false;
+    }
+
+    fn land(&mut self, world: &World, p: [f32; 3]) {
+        self.pending_landing = None;
+        let (pad, on_pad) = match world.pad_index_at(p[0], p[1]) {
+            Some(i) => (i, true),
+            None => {
+                let nearest = world
+                    .pads
+                    .iter()
+                    .enumerate()
+                    .map(|(i, pad)| (i, (pad.center[0] - p[0]).hypot(pad.center[1] - p[1])))
+                    .min_by(|a, b| a.1.total_cmp(&b.1))
+                    .map_or(0, |(i, _)| i);
+                (nearest, false)
+            }
+        };
+        let c = world.pads.get(pad).map_or([p[0], p[1]], |pd| pd.center);
+        self.landings.push(Landing { pad, error_m: (c[0] - p[0]).hypot(c[1] - p[1]), on_pad });
+    }
+}

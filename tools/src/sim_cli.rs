@@ -1,0 +1,248 @@
+//! `cfnav sim`: fly the round-trip mission in the simulator (interfaces.md §1, §4).
+
+use std::path::PathBuf;
+use std::process::ExitCode;
+use std::sync::Mutex;
+use std::sync::atomic::{AtomicUsize, Ordering};
+
+use clap::Args;
+use serde::Serialize;
+
+use crate::sim::runner::{RunOptions, RunReport, RunResult, run};
+use crate::sim::world::World;
+
+/// Arguments of `cfnav sim`.
+#[derive(Args, Debug)]
+pub struct SimArgs {
+    /// A world file (TOML, interfaces.md §3); without it the built-in default world flies.
+    #[arg(long)]
+    pub world: Option<PathBuf>,
+    /// Fly N generated worlds instead, with a progress bar and a summary table.
+    #[arg(long, value_name = "N")]
+    pub random: Option<usize>,
+    /// Seed: of the generated worlds with --random, else of the noise (overrides the world's sim.seed).
+    #[arg(long)]
+    pub seed: Option<u64>,
+    /// Write the JSON report here (`-` for stdout).
+    #[arg(long)]
+    pub json: Option<PathBuf>,
+    /// Draw the arena, the believed map, the paths and the track (.svg or .png).
+    #[arg(long)]
+    pub plot: Option<PathBuf>,
+    /// Print every mission state change to stderr.
+    #[arg(long)]
+    pub verbose: bool,
+    /// Serve CRTP over UDP instead of flying at once (not available yet).
+    #[arg(long)]
+    pub serve: bool,
+    /// UDP port for --serve.
+    #[arg(long, default_value_t = 19850)]
+    pub port: u16,
+    /// Speed factor for --serve (1 = real time).
+    #[arg(long, default_value_t = 1.0)]
+    pub speed: f64,
+}
+
+/// The `--random` report's summary (interfaces.md §4).
+#[derive(Serialize, Debug)]
+pub struct Summary {
+    pub runs: usize,
+    pub completed: usize,
+    pub collisions: u32,
+    pub median_mission_time_s: Option<f64>,
+    pub median_landing_error_m: Option<f32>,
+    pub p95_landing_error_m: Option<f32>,
+    pub completed_fraction: f64,
+    pub sim_seconds_per_wall_second: f64,
+}
+
+#[derive(Serialize)]
+struct BatchReport<'a> {
+    runs: &'a [RunReport],
+    summary: &'a Summary,
+}
+
+fn fail(msg: impl std::fmt::Display) -> ExitCode {
+    eprintln!("error: {msg}");
+    ExitCode::from(2)
+}
+
+fn write_json(path: &PathBuf, value: &impl Serialize) -> Result<(), String> {
+    let text = serde_json::to_string_pretty(value).map_err(|e| format!("cannot encode the report: {e}"))?;
+    if path.as_os_str() == "-" {
+        println!("{text}");
+        Ok(())
+    } else {
+        std::fs::write(path, text + "\n").map_err(|e| format!("{}: cannot write: {e}", path.display()))
+    }
+}
+
+fn median<T: Copy + PartialOrd>(mut v: Vec<T>) -> Option<T> {
+    v.sort_by(|a, b| a.partial_cmp(b).unwrap_or(std::cmp::Ordering::Equal));
+    v.get(v.len() / 2).copied()
+}
+
+fn percentile(mut v: Vec<f32>, p: f64) -> Option<f32> {
+    v.sort_by(f32::total_cmp);
+    if v.is_empty() {
+        return None;
+    }
+    let i = ((v.len() - 1) as f64 * p).round() as usize;
+    v.get(i).copied()
+}
+
+/// The batch summary of `--random`.
+pub fn summarise(reports: &[RunReport], wall_s: f64) -> Summary {
+    let completed: Vec<&RunReport> = reports.iter().filter(|r| r.outcome == "completed").collect();
+    let errors: Vec<f32> = completed.iter().flat_map(|r| r.landings.iter().map(|l| l.error_m)).collect();
+    let sim_s: f64 = reports.iter().map(|r| r.sim_time_s).sum();
+    Summary {
+        runs: reports.len(),
+        completed: completed.len(),
+        collisions: reports.iter().map(|r| r.collisions).sum(),
+        median_mission_time_s: median(completed.iter().filter_map(|r| r.mission_time_s).collect()),
+        median_landing_error_m: median(errors.clone()),
+        p95_landing_error_m: percentile(errors, 0.95),
+        completed_fraction: if reports.is_empty() { 0.0 } else { completed.len() as f64 / reports.len() as f64 },
+        sim_seconds_per_wall_second: if wall_s > 0.0 { sim_s / wall_s } else { 0.0 },
+    }
+}
+
+fn one_line(r: &RunReport) -> String {
+    let landings: Vec<String> =
+        r.landings.iter().map(|l| format!("pad {} {:.1} cm{}", l.pad, l.error_m * 100.0, if l.on_pad { "" } else { " OFF" })).collect();
+    format!(
+        "{}: {}{} in {} s (sim {:.1} s, wall {:.2} s), landings [{}], collisions {}, min clearance {}, replans {}, estimate error max {:.1} cm",
+        r.world,
+        r.outcome,
+        r.reason.map(|x| format!(" ({x})")).unwrap_or_default(),
+        r.mission_time_s.map_or("-".into(), |t| format!("{t:.1}")),
+        r.sim_time_s,
+        r.wall_time_s,
+        landings.join(", "),
+        r.collisions,
+        r.min_clearance_m.map_or("-".into(), |c| format!("{:.2} m", c)),
+        r.replans,
+        r.max_estimate_error_m * 100.0,
+    )
+}
+
+/// `cfnav sim`.
+pub fn run_cli(args: &SimArgs) -> ExitCode {
+    if args.serve {
+        return fail("--serve is not available in this build yet (the radio milestone adds it)");
+    }
+    if let Some(n) = args.random {
+        if args.world.is_some() {
+            return fail("--random generates its own worlds; drop --world");
+        }
+        return run_random(n, args.seed.unwrap_or(0), args);
+    }
+    let world = match &args.world {
+        Some(path) => match World::load(path) {
+            Ok(w) => w,
+            Err(e) => return fail(e),
+        },
+        None => World::default_world(),
+    };
+    let mut options = RunOptions::for_world(&world);
+    if let Some(s) = args.seed {
+        options.seed = s;
+    }
+    options.record = args.plot.is_some();
+    options.verbose = args.verbose;
+    let result = match run(&world, &options) {
+        Ok(r) => r,
+        Err(e) => return fail(e),
+    };
+    println!("{}", one_line(&result.report));
+    if let Some(path) = &args.json
+        && let Err(e) = write_json(path, &result.report)
+    {
+        return fail(e);
+    }
+    if let Some(path) = &args.plot
+        && let Err(e) = crate::sim::plot::draw(&world, &result, path)
+    {
+        return fail(e);
+    }
+    ExitCode::from(if result.report.outcome == "completed" { 0 } else { 1 })
+}
+
+fn run_random(n: usize, seed: u64, args: &SimArgs) -> ExitCode {
+    let started = std::time::Instant::now();
+    let bar = indicatif::ProgressBar::new(n as u64);
+    bar.set_style(
+        indicatif::ProgressStyle::with_template("{bar:40} {pos}/{len} worlds, {elapsed} elapsed, {eta} left {msg}")
+            .unwrap_or_else(|_| indicatif::ProgressStyle::default_bar()),
+    );
+    let next = AtomicUsize::new(0);
+    let results: Mutex<Vec<Option<RunReport>>> = Mutex::new((0..n).map(|_| None).collect());
+    let errors: Mutex<Vec<String>> = Mutex::new(Vec::new());
+    let workers = std::thread::available_parallelism().map_or(1, |p| p.get()).min(n.max(1));
+    std::thread::scope(|scope| {
+        for _ in 0..workers {
+            scope.spawn(|| {
+                loop {
+                    let i = next.fetch_add(1, Ordering::Relaxed);
+                    if i >= n {
+                        break;
+                    }
+                    let world_seed = seed.wrapping_mul(1_000_003).wrapping_add(i as u64);
+                    let world = World::random(world_seed);
+                    let mut options = RunOptions::for_world(&world);
+                    options.seed = world_seed;
+                    match run(&world, &options) {
+                        Ok(RunResult { report, .. }) => {
+                            if let Ok(mut r) = results.lock() {
+                                r[i] = Some(report);
+                            }
+                        }
+                        Err(e) => {
+                            if let Ok(mut errs) = errors.lock() {
+                                errs.push(e);
+                            }
+                        }
+                    }
+                    bar.inc(1);
+                }
+            });
+        }
+    });
+    bar.finish_and_clear();
+    if let Some(e) = errors.lock().ok().and_then(|e| e.first().cloned()) {
+        return fail(e);
+    }
+    let reports: Vec<RunReport> = results.into_inner().unwrap_or_default().into_iter().flatten().collect();
+    let summary = summarise(&reports, started.elapsed().as_secs_f64());
+    print_table(&reports, &summary);
+    if let Some(path) = &args.json
+        && let Err(e) = write_json(path, &BatchReport { runs: &reports, summary: &summary })
+    {
+        return fail(e);
+    }
+    ExitCode::SUCCESS
+}
+
+fn print_table(reports: &[RunReport], s: &Summary) {
+    let mut by_outcome: std::collections::BTreeMap<String, usize> = std::collections::BTreeMap::new();
+    for r in reports {
+        let key = match r.reason {
+            Some(reason) => format!("{} ({reason})", r.outcome),
+            None => r.outcome.to_string(),
+        };
+        *by_outcome.entry(key).or_default() += 1;
+    }
+    println!("{:<32} {:>6}", "outcome", "runs");
+    for (k, v) in &by_outcome {
+        println!("{k:<32} {v:>6}");
+    }
+    let fmt_m = |v: Option<f32>| v.map_or("-".to_string(), |x| format!("{:.1} cm", x * 100.0));
+    println!("{:<32} {:>6}", "runs", s.runs);
+    println!("{:<32} {:>5.1} %", "completed", 100.0 * s.completed_fraction);
+    println!("{:<32} {:>6}", "collisions", s.collisions);
+    println!("{:<32} {:>6}", "median mission time", s.median_mission_time_s.map_or("-".into(), |t| format!("{t:.1} s")));
+    println!("{:<32} {:>6}", "median landing error", fmt_m(s.median_landing_error_m));
+    println!("{:<32} {:>6}", "p95 landing error", fmt_m(s.p95_landing_error_m));
+    println!("{:<32} {:>6.0}×", "simulation speed (real time)", s.sim_seconds_per_wall_second);
+}

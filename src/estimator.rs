@@ -28,36 +28,46 @@
 //!
 //! ## Prediction (IMU)
 //!
-//! Every IMU sample (1 kHz) integrates the bias-corrected gyro into `q` (exact exponential) and the
-//! specific force into `v` and `p`: the state the controller reads is never older than 1 ms and includes
-//! every sample. The covariance is propagated only every 10 ms (stock: 100 Hz prediction,
-//! estimator_kalman.c L119) with the block's mean specific force and accumulated rotation, and before
-//! any measurement update (so `P` is always current when used). Cost of this choice: 1/10 of the
-//! covariance work for a transition matrix that changes little in 10 ms; propagating `P` at 1 kHz would
-//! cost ≈ 1.1 M multiply-adds/s instead of 0.11 M.
+//! Every IMU sample (1 kHz) integrates the bias-corrected gyro into `q` (`exp` by its series: no
+//! trigonometry, no square root) and the specific force into `v` and `p`: the state the controller reads is
+//! never older than 1 ms and includes every sample. The covariance is propagated only every 10 ms (stock:
+//! 100 Hz prediction, estimator_kalman.c L119) with the block's mean specific force and accumulated
+//! rotation, and before any measurement update (so `P` is always current when used). Cost of this choice:
+//! one tenth of the covariance work (≈ 0.5 M instead of ≈ 5 M Cortex-M4 instructions per second, see
+//! below) for a transition matrix that barely changes in 10 ms.
 //!
 //! The accelerometer is an *input*, not a gravity measurement: in flight a drag-free quadrotor's
 //! accelerometer points along its thrust whatever its tilt, so it says nothing about the tilt. Roll and
 //! pitch are corrected, as in stock, through the velocity: a tilt error makes `v` drift by `g·δθ` and the
-//! flow sees it. Only on the ground and at rest (not [`Estimator::set_flying`], height above the surface
-//! < `airborne_height_m`, gyro and accelerometer quiet) are a gravity-direction update (roll, pitch) and
-//! a zero-velocity update applied, every 10 ms.
+//! flow sees it. Only on the ground and at rest (not [`Estimator::set_flying`], less than
+//! `airborne_height_m` above the surface, gyro and accelerometer quiet) are a gravity-direction update
+//! (roll, pitch) and a zero-velocity update applied, every 10 ms.
 //!
-//! Process noise follows stock (kalman_core_params_defaults.h: `procNoiseAcc_xy` 0.5, `procNoiseAcc_z`
-//! 1.0, `measNoiseGyro_rollpitch`/`_yaw` 0.1 rad/s): stock adds `(σ·dt)²` per 10 ms step; here the same
-//! amount is added as a density `σ²·0.01 s·dt`, identical at 100 Hz and correct for the shorter steps
-//! before an update. Diagonal bounds 1e-6…100 (stock `MIN_COVARIANCE`/`MAX_COVARIANCE`).
+//! Process noise: stock adds `(σ·dt)²` per 10 ms prediction (kalman_core_params_defaults.h); here the same
+//! amount is added as a density `σ²·0.01 s·dt`, identical at 100 Hz and right for the shorter steps before
+//! an update. The defaults are lower than stock's (acceleration 0.3 xy / 0.15 z instead of 0.5 / 1.0
+//! m/s², attitude 0.03 instead of 0.1 rad/s) because this filter integrates the *measured* accelerometer
+//! in all axes, while stock in flight replaces x and y by a drag-free thrust model whose error its process
+//! noise must cover. With stock's values the range noise drives the vertical velocity (error RMS 18 mm/s,
+//! peaks 50), which ruins the short-term height the pad-step logic relies on (z coasts on the IMU for 50 ms to
+//! ~1 s across a step; a 1 s range gap drifted 64 mm with stock's values). The
+//! `transit_3m_with_motor_vibration` test (1 m/s² and 0.05 rad/s of white IMU noise at 1 kHz, 20× and
+//! 10× the bench noise) checks that these values still hold with a vibrating airframe; on the real drone,
+//! raise `accel_noise_z` if the logged range innovations show the height lagging. Diagonal bounds
+//! 1e-6…100 (stock `MIN_COVARIANCE`/`MAX_COVARIANCE`).
 //!
 //! ## Attitude and gyro bias
 //!
 //! At rest before flight the gyro bias is the mean of a 512-sample window whose variance is below the stock
 //! threshold (100 LSB², sensors_bmi088_bmp3xx.c L83-91); the same window gives the accelerometer scale
 //! (|f| = g, stock `processAccScale`) and the initial roll and pitch; yaw comes from [`Estimator::reset`].
-//! **Calibration therefore takes 0.512 s at rest** ([`Estimator::is_calibrated`]); nothing is estimated
-//! before it. Later rest windows on the ground refine bias and scale (25 % per window); in flight they are
-//! frozen (stock finds the bias once). In flight, the attitude is the strapdown quaternion corrected by
-//! the EKF's attitude-error states (flow through velocity; no Mahony pre-filter: its accelerometer
-//! feedback would pull the attitude towards "thrust axis = vertical", wrong while accelerating).
+//! **Calibration therefore takes 0.512 s at rest** ([`Estimator::is_calibrated`]); a window with motion
+//! is discarded and the next one starts, and nothing is estimated before. Later rest windows on the ground
+//! refine bias and scale (25 % per window); in flight they are frozen (stock finds the bias once). In
+//! flight, the attitude is the strapdown quaternion corrected by the EKF's attitude-error states (flow
+//! through velocity); no Mahony pre-filter: its accelerometer feedback would pull the attitude towards
+//! "thrust axis = vertical", wrong whenever the drone accelerates. The rates output is the bias-corrected
+//! gyro through the stock 80 Hz second-order low-pass.
 //!
 //! ## Flow update (stock mm_flow.c, §9)
 //!
@@ -66,65 +76,95 @@
 //! height above the **surface** and `ω` the mean bias-corrected gyro since the previous flow sample (stock
 //! takes the latest sample; the mean is what the sensor integrated). Jacobian: velocity (`R22/h` along the
 //! body axis) and attitude error. Deliberately **not** height: the range measures `z` a hundred times
-//! better than the flow ever could, and the flow camera (42° field of view) sees a pad before the range's
-//! cone does, which would leak the pad into `z`. Gates (counted in [`Diagnostics`]): `motion_valid`
-//! (stock: motion byte 0xB0), `squal ≥ flow_squal_min`, |dpixel| < 100 (stock outlier limit),
-//! `0 < dt ≤ 0.1 s`, tilt (`R22 ≥ 0.5`), airborne, and a joint Mahalanobis gate `νx²/Sx + νy²/Sy ≤
-//! flow_gate_sigma²` that yields after `flow_max_gate_rejections` consecutive rejections (a filter that
-//! drifted must be able to come back).
+//! better than the flow could, and the flow camera (42° field of view) sees a pad before the range's cone
+//! does, which would leak the pad into `z`. Gates (counted in [`Diagnostics`]): `motion_valid` (stock:
+//! motion byte 0xB0), `squal ≥ flow_squal_min`, |dpixel| < 100 (stock outlier limit), `0 < dt ≤ 0.1 s`,
+//! tilt (`R22 ≥ 0.5`), airborne, and a joint Mahalanobis gate `νx²/Sx + νy²/Sy ≤ flow_gate_sigma²` that
+//! yields after `flow_max_gate_rejections` consecutive rejections (a filter that drifted must be able to
+//! come back).
 //!
 //! ## Range update (stock mm_tof.c / zranger2.c, §9)
 //!
 //! Used when `R22 ≥ tof_min_r22` (stock 0.1, here cos 36.9° by default: a steeper beam hits the ground far
 //! from below the drone). Cone correction as stock: `α = max(acos R22 − 7.5°, 0)`, so the measured height is
 //! `r·cos α`; noise `σ = 0.0025·(1 + exp(2.9214·(r − 2.5)))` m; readings `None`, non-finite, negative or
-//! ≥ 5 m are dropped. Every accepted range goes through the surface tracker ([`surface`](self) module
-//! docs), which turns it into a height update of `z − s`, a surface step, or a re-anchoring of `z`.
+//! ≥ 5 m are dropped. Every accepted range goes through the surface tracker (module `surface`, whose
+//! documentation has the full rules), which turns it into a height update of `z − s`, a surface step, or a
+//! re-anchoring of `z` — with a decision delay of two ranges (50 ms; the height coasts on the IMU
+//! meanwhile, which is why its short-term accuracy matters).
 //!
 //! ## The pad step
 //!
-//! A range that jumps (by more than noise, within two samples) while the IMU shows no matching vertical
-//! motion moves the *surface height* `s`, not `z`: the jump is measured in the implied surface
-//! `u = z − r·cos α`, which already contains every movement the IMU saw. Over the floor `s` snaps to exactly
-//! 0. Failure modes, by design:
-//! * a slow ramp (the implied surface changing by less than ≈ 4σ over 50 ms, ≈ 1 cm) is followed as
-//!   height; so is any object lower than `step_min_m` (3 cm);
-//! * a step while `z` itself is uncertain (σ_z > 1 cm, e.g. after ≳ 0.3 s without ranges) is taken as a
-//!   height error (the floor rule below then repairs it when the drone leaves the object);
-//! * a step during a vertical motion the IMU got wrong (thrust transients at take-off) is split between `z`
-//!   and `s` in proportion to the velocity error;
+//! A range that jumps while the IMU shows no matching vertical motion moves the *surface height* `s`, not
+//! `z`. The jump is measured in the implied surface `u = z − r·cos α`, which already contains every
+//! movement the IMU saw, so a real climb does not move `u`. Three consecutive ranges that agree (spread
+//! within 4σ of the range noise, no trend, no significant slope) form a plateau; a plateau at least
+//! `step_min_m` (1 cm) and `step_sigma` (3) standard deviations of `z` away from `s` is a step — a height
+//! error that large is improbable, so it is the surface: `s` takes its level (exactly 0 within `snap_m`,
+//! 1.5 cm, of the floor), and for up to `step_settle_samples` ranges after it the surface, not `z`,
+//! follows the level while it still moves (the tail of a step blurred by the ranger's cone). Ranges inside
+//! the transition never reach the filter, and a ramp (least-squares slope over 150 ms beyond what noise
+//! and the vertical-velocity uncertainty allow) stops fusion before it can drag `z`. A level below the floor
+//! (`s` cannot be negative) or a jump `z` could explain re-anchors `z` instead (its variance, and the
+//! vertical velocity's, inflated). Failure modes, by design:
+//! * a slow ramp (the implied surface moving slower than ≈ 7 cm/s, e.g. a slope) is followed as height
+//!   (test `slow_ramp_is_followed_as_height`: 10 cm over 1 m at 0.5 m/s → 10 cm in `z`); so is any object
+//!   lower than `snap_m` over the floor (or `step_min_m` over an object);
+//! * a step blurred by the ranger's cone (area-weighted over 7.5°) and crossed slowly is partly followed
+//!   as height: worst over 20 seeds 12 mm at 0.3 m/s, 30 mm at 0.2 m/s (7–8 mm at 0.5 m/s, test
+//!   `pad_steps_over_many_seeds`); sharp steps are not affected;
+//! * a step while `z` itself is uncertain (jump < 3σ_z, e.g. after ≳ 1 s without ranges) is taken as a
+//!   height error; over the floor the floor rule repairs it, over an object `z` is off by the object's
+//!   height until the drone leaves it (leaving then implies a surface below the floor, which re-anchors `z`);
+//!   the same holds for an object under the drone at take-off if `reset` was given the floor's height;
+//! * a step during a vertical motion the IMU got wrong (e.g. thrust transients) is split between `z` and
+//!   `s` in proportion to the velocity error (z coasts ≈ 50 ms–1 s on the IMU across a step);
 //! * hovering over an edge (the range flickering between two levels) keeps the tracker in transition: `z`
-//!   coasts on the IMU, with a decision forced every `max_transition` samples;
-//! * an object under the drone when it takes off or after a long range gap is taken as the floor until the
-//!   drone leaves it: leaving then implies a surface below the floor, which re-anchors `z`.
+//!   coasts on the IMU, a decision on the median is forced after `max_transition_samples` (0.4 s);
+//! * a transition in which the implied surface keeps moving one way, at a rate the vertical-velocity
+//!   uncertainty explains, is an unseen vertical velocity, not a step: `z` and the vertical velocity are
+//!   re-anchored after 0.4 s (after 1.6 s whatever the rate).
 //!
 //! ## Validity and supervision
 //!
-//! [`StateEstimate::valid`] is true when: calibrated; a range arrived since the last reset; while
-//! airborne, a usable flow sample and a usable range within the last `sensor_timeout_s` (0.5 s; the clock
-//! of each starts at take-off, with `takeoff_grace_s` extra); IMU samples arriving (not more than 30 flow/
-//! range samples in a row without one, not more than 50 bad IMU samples in a row); the state finite and
-//! within the stock kalman_supervisor bounds (|p| ≤ 100 m, |v| ≤ 10 m/s per axis), and after a
-//! divergence reset, a new range (and flow, when airborne) since it. Out of bounds or a non-finite state or
-//! covariance resets the filter: position to the last sane one (checked every 10 ms), velocity 0,
-//! attitude kept if finite, covariance initial; counted in [`Diagnostics::divergence_resets`].
+//! [`StateEstimate::valid`] is true when: calibrated; a range reached a decision since the last reset; IMU
+//! samples arriving (not more than 30 flow/range samples in a row without one, not more than 50 non-finite
+//! IMU samples in a row); the state finite and within the stock kalman_supervisor bounds (|p| ≤ 100 m,
+//! |v| ≤ 10 m/s per axis); after a divergence reset, a range (and flow, when airborne) since it; and, while
+//! airborne: a sane range within `sensor_timeout_s` (0.5 s), a range *decision* (a height update or a
+//! classified plateau) within twice that (a slowly crossed edge keeps the tracker undecided up to ~1 s),
+//! and, higher than `flow_required_height_m` (0.15 m) above the surface, a usable flow sample within
+//! `sensor_timeout_s`. All clocks start at take-off plus `takeoff_grace_s` (1 s). (The PMW3901 needs ~8 cm,
+//! so the last centimetres of a landing have no flow.) The bounds are checked every IMU sample, the covariance every
+//! 10 ms and after every update; a violation or anything non-finite resets the filter: position to the last
+//! sane one, velocity 0, attitude kept if finite, covariance wide (σ 1 m, 1 m/s, 0.1 rad) so the sensors
+//! pull it back; counted in [`Diagnostics::divergence_resets`].
 //!
 //! Inputs are never trusted: non-finite gyro/accelerometer samples are replaced by the last good one
-//! (counted), values beyond the BMI088's ranges are clamped, `dt ≤ 0` or non-finite is ignored and
-//! `dt > 50 ms` is clamped; every division and square root is guarded.
+//! (counted), values beyond the BMI088's ranges (±2000 °/s, ±24 g) are clamped, a non-finite or
+//! non-positive `dt_s` is replaced by the last sane IMU period (the sample itself is still used: the IMU's
+//! data-ready paces the calls) and `dt_s > 50 ms` is clamped; a bad configuration value falls back to its
+//! default; every division and square root is guarded.
 //!
-//! ## Size and cost (Cortex-M4F, single precision FPU)
+//! ## Size and cost
 //!
-//! `size_of::<Estimator>()` is 680 bytes (the covariance is 324 of them; the `memory_size` test), no heap,
-//! no stack arrays beyond two 9 × 9 temporaries (648 B) during the prediction. Per call, in flops (+ libm
-//! calls):
-//! * `on_imu`: ≈ 110 flops + 1 sin/cos pair + 1 sqrt (strapdown, filters, accumulators): ≈ 250 cycles;
-//! * covariance prediction every 10 ms: ≈ 1 100 multiply-adds (`F` is sparse) + symmetrise: ≈ 3 000 cycles;
-//! * `on_flow`: two scalar updates, each ≈ 81 (P·h) + 45 (rank-1 downdate) + 9 multiply-adds, plus the model:
-//!   ≈ 500 flops, ≈ 1 500 cycles;
-//! * `on_zrange`: 1–3 scalar updates + acos/cos/exp: ≈ 1 000 cycles.
+//! `size_of::<Estimator>()` is 1080 bytes on the MCU (1088 on a 64-bit host; the covariance is 324 of them;
+//! the `memory_size` test), no heap; the prediction's stack frame holds two 9 × 9 matrices (648 B).
+//! Cortex-M4F instructions per call, measured under QEMU (mps2-an386, `-icount`, release profile with
+//! `opt-level = "s"` as the firmware), hovering:
 //!
-//! Total ≈ 0.25 M + 0.3 M + 0.15 M + 0.04 M ≈ 0.75 M cycles/s, about 0.5 % of the 168 MHz core.
+//! | call | instructions | per second |
+//! |---|---|---|
+//! | `on_imu` | 935 | 0.84 M (900 calls) |
+//! | `on_imu` with the 10 ms covariance prediction | ≈ 6 000 | 0.60 M (100 calls) |
+//! | `on_flow` (2 gated scalar updates) | ≈ 9 500 (max 15 000) | 0.95 M |
+//! | `on_zrange` (tracker, 0–3 updates; incl. a partial prediction) | ≈ 8 100 (max 15 300) | 0.33 M |
+//! | `state()` | ≈ 500 | |
+//!
+//! About 2.7 M instructions per second, ≈ 2 % of the 168 MHz core. `libm`'s `sqrtf`, `sinf` and `cosf` are
+//! software routines on this target (the latter two through double precision), so none is on the 1 kHz
+//! path: the rotation uses series, the quaternion a first-order renormalisation, the rest tests squared
+//! norms, and the range's cone correction is skipped below 7.5° of tilt.
 
 mod calib;
 mod math;
@@ -135,9 +175,8 @@ pub use surface::{SurfaceEvent, SurfaceMode};
 use crate::types::{FlowSample, GRAVITY_M_S2, ImuSample, RangeReading, StateEstimate};
 use calib::{Calibrator, RestWindow};
 use math::{
-    M3, Mat9, N, QUAT_IDENTITY, Quat, V3, Vec9, add3, dot3, euler_from_rot, finite3, mul_m3, mul_m3_v3,
-    mul_m3t_v3, mul9, mul9_bt, mul9_v, norm3, quat_from_euler, quat_from_rotvec, quat_mul, quat_normalize,
-    quat_to_rot, scale3, skew, sub3,
+    M3, Mat9, N, QUAT_IDENTITY, Quat, V3, Vec9, add3, dot3, euler_from_rot, finite3, mul_m3, mul_m3_v3, mul_m3t_v3,
+    mul9_v, norm3, quat_from_euler, quat_from_rotvec, quat_mul, quat_normalize, quat_to_rot, scale3, skew, sub3,
 };
 use surface::{Entry, Params, SurfaceTracker};
 
@@ -203,7 +242,7 @@ pub struct EstimatorConfig {
     /// Horizontal acceleration process noise, m/s²: `(σ·0.01 s)²` per 10 ms on each horizontal velocity.
     /// Default 0.3 (stock `procNoiseAcc_xy` 0.5; see the module docs, "Process noise").
     pub accel_noise_xy: f32,
-    /// Vertical acceleration process noise, m/s². Default 0.3 (stock `procNoiseAcc_z` 1.0).
+    /// Vertical acceleration process noise, m/s². Default 0.15 (stock `procNoiseAcc_z` 1.0).
     pub accel_noise_z: f32,
     /// Roll/pitch process noise, rad/s: `(σ·0.01 s)²` per 10 ms. Default 0.03 (stock
     /// `measNoiseGyro_rollpitch` 0.1).
@@ -228,9 +267,10 @@ pub struct EstimatorConfig {
     pub tof_cone_half_angle_rad: f32,
     /// Ranges at or beyond this are dropped, m (stock zranger2.c `RANGE_OUTLIER_LIMIT` 5000 mm).
     pub tof_max_range_m: f32,
-    /// Smallest range jump taken as a surface step, m. Default 0.03.
+    /// Smallest range jump taken as a surface step (if also ≥ `step_sigma`·σ_z), m. Default 0.01.
     pub step_min_m: f32,
-    /// A surface within this of the floor is the floor: `surface_height_m` snaps to exactly 0. Default 0.02.
+    /// A surface within this of the floor is the floor: `surface_height_m` snaps to exactly 0 (and the
+    /// difference goes to the height). Default 0.015.
     pub snap_m: f32,
     /// An implied surface this far below the floor means the height is wrong, m. Default 0.03.
     pub below_floor_m: f32,
@@ -285,7 +325,7 @@ impl Default for EstimatorConfig {
     fn default() -> Self {
         Self {
             accel_noise_xy: 0.3,
-            accel_noise_z: 0.3,
+            accel_noise_z: 0.15,
             gyro_noise_roll_pitch: 0.03,
             gyro_noise_yaw: 0.03,
             flow_std_counts: 2.0,
@@ -296,8 +336,8 @@ impl Default for EstimatorConfig {
             tof_min_r22: 0.8,
             tof_cone_half_angle_rad: 7.5 * core::f32::consts::PI / 180.0,
             tof_max_range_m: 5.0,
-            step_min_m: 0.03,
-            snap_m: 0.02,
+            step_min_m: 0.01,
+            snap_m: 0.015,
             below_floor_m: 0.03,
             surface_gate_sigma: 3.0,
             surface_gate_min_m: 0.008,
@@ -336,10 +376,18 @@ impl EstimatorConfig {
             gyro_noise_yaw: nonneg(self.gyro_noise_yaw, d.gyro_noise_yaw),
             flow_std_counts: pos(self.flow_std_counts, d.flow_std_counts),
             flow_squal_min: self.flow_squal_min,
-            flow_outlier_counts: if self.flow_outlier_counts > 0 { self.flow_outlier_counts } else { d.flow_outlier_counts },
+            flow_outlier_counts: if self.flow_outlier_counts > 0 {
+                self.flow_outlier_counts
+            } else {
+                d.flow_outlier_counts
+            },
             flow_gate_sigma: pos(self.flow_gate_sigma, d.flow_gate_sigma),
             flow_max_gate_rejections: self.flow_max_gate_rejections,
-            tof_min_r22: if self.tof_min_r22.is_finite() { self.tof_min_r22.clamp(0.1, 1.0) } else { d.tof_min_r22 },
+            tof_min_r22: if self.tof_min_r22.is_finite() {
+                self.tof_min_r22.clamp(0.1, 1.0)
+            } else {
+                d.tof_min_r22
+            },
             tof_cone_half_angle_rad: if self.tof_cone_half_angle_rad.is_finite() {
                 self.tof_cone_half_angle_rad.clamp(0.0, 0.5)
             } else {
@@ -356,7 +404,11 @@ impl EstimatorConfig {
             step_sigma: pos(self.step_sigma, d.step_sigma),
             max_transition_samples: self.max_transition_samples.max(1),
             step_settle_samples: self.step_settle_samples,
-            tof_period_s: if self.tof_period_s.is_finite() { self.tof_period_s.clamp(0.005, 0.5) } else { d.tof_period_s },
+            tof_period_s: if self.tof_period_s.is_finite() {
+                self.tof_period_s.clamp(0.005, 0.5)
+            } else {
+                d.tof_period_s
+            },
             sensor_timeout_s: pos(self.sensor_timeout_s, d.sensor_timeout_s),
             takeoff_grace_s: nonneg(self.takeoff_grace_s, d.takeoff_grace_s),
             flow_required_height_m: nonneg(self.flow_required_height_m, d.flow_required_height_m),
@@ -382,7 +434,7 @@ impl EstimatorConfig {
             flat_min: self.surface_flat_min_m,
             step_sigma: self.step_sigma,
             max_transition: self.max_transition_samples,
-            max_span_ms: (self.tof_period_s * 1000.0 * 3.2) as u32,
+            max_span_us: (self.tof_period_s * 1e6 * 3.2) as u32,
             settle: self.step_settle_samples,
         }
     }
@@ -434,7 +486,7 @@ pub struct Diagnostics {
     pub tof_rejected_tilt: u32,
     /// Ranges inside surface transitions, never fused.
     pub tof_discarded: u32,
-    /// Time since the last usable range, s.
+    /// Time since the last range that reached a decision (a height update or a classified plateau), s.
     pub tof_age_s: f32,
     /// Surface tracker mode.
     pub surface_mode: SurfaceMode,
@@ -551,7 +603,10 @@ impl Estimator {
             home_yaw: 0.0,
             sane_pos: [0.0; 3],
             sane_quat: QUAT_IDENTITY,
-            diag: Diagnostics { accel_scale: 1.0, ..Diagnostics::default() },
+            diag: Diagnostics {
+                accel_scale: 1.0,
+                ..Diagnostics::default()
+            },
         };
         e.reset([0.0; 3], 0.0);
         e
@@ -620,7 +675,8 @@ impl Estimator {
             self.diag.imu_bad_dt = self.diag.imu_bad_dt.saturating_add(1);
             self.last_dt
         };
-        self.now_us = self.now_us.saturating_add((dt * 1e6 + 0.5) as u64);
+        // Through u32: the FPU converts to 32 bits; a float → u64 conversion is a software routine.
+        self.now_us = self.now_us.saturating_add(u64::from((dt * 1e6 + 0.5) as u32));
         self.samples_without_imu = 0;
 
         let fresh = finite3(sample.gyro_rad_s) && finite3(sample.accel_m_s2);
@@ -637,8 +693,11 @@ impl Estimator {
             }
         }
         let (gyro, accel) = (self.last_gyro, self.last_accel);
-        for ((out, lpf), (&g, &b)) in
-            self.rates.iter_mut().zip(self.rates_lpf.iter_mut()).zip(gyro.iter().zip(self.gyro_bias.iter()))
+        for ((out, lpf), (&g, &b)) in self
+            .rates
+            .iter_mut()
+            .zip(self.rates_lpf.iter_mut())
+            .zip(gyro.iter().zip(self.gyro_bias.iter()))
         {
             *out = lpf.apply(g) - b;
         }
@@ -693,7 +752,11 @@ impl Estimator {
     pub fn on_flow(&mut self, sample: &FlowSample) {
         self.samples_without_imu = self.samples_without_imu.saturating_add(1);
         // Mean gyro over the interval the sensor integrated.
-        let omega = if self.flow_dt > 1e-4 { scale3(self.flow_rot, 1.0 / self.flow_dt) } else { self.omega };
+        let omega = if self.flow_dt > 1e-4 {
+            scale3(self.flow_rot, 1.0 / self.flow_dt)
+        } else {
+            self.omega
+        };
         self.flow_rot = [0.0; 3];
         self.flow_dt = 0.0;
 
@@ -717,7 +780,10 @@ impl Estimator {
         }
         self.predict_covariance();
         let r_var = sq(self.cfg.flow_std_counts * FLOW_RESOLUTION);
-        let measured = [f32::from(sample.dpixel_x) * FLOW_RESOLUTION, f32::from(sample.dpixel_y) * FLOW_RESOLUTION];
+        let measured = [
+            f32::from(sample.dpixel_x) * FLOW_RESOLUTION,
+            f32::from(sample.dpixel_y) * FLOW_RESOLUTION,
+        ];
 
         // Gate on both axes with the state before either update.
         let mut d2 = 0.0;
@@ -732,7 +798,9 @@ impl Estimator {
         }
         self.diag.flow_innovation_px = innov;
         self.diag.flow_mahalanobis_sq = d2;
-        if (d2.is_nan() || d2 > sq(self.cfg.flow_gate_sigma)) && self.flow_reject_streak < self.cfg.flow_max_gate_rejections {
+        if (d2.is_nan() || d2 > sq(self.cfg.flow_gate_sigma))
+            && self.flow_reject_streak < self.cfg.flow_max_gate_rejections
+        {
             self.flow_reject_streak = self.flow_reject_streak.saturating_add(1);
             self.diag.flow_rejected_gate = self.diag.flow_rejected_gate.saturating_add(1);
             return;
@@ -785,13 +853,39 @@ impl Estimator {
         };
         // zranger2.c: std grows exponentially beyond ~2.5 m (r < 5 m keeps exp() finite).
         let sigma = 0.0025 * (1.0 + libm::expf(2.9214 * (r - 2.5)));
-        let t_ms = (self.now_us / 1000) as u32;
-        let entry = Entry { u: self.pos[SZ] - r * cos_alpha, var: sq(sigma * cos_alpha), t_ms };
+        // Truncated to 32 bits on purpose: the tracker only compares nearby times (wrapping_sub).
+        let t_us = self.now_us as u32;
+        let u = self.pos[SZ] - r * cos_alpha;
+        let entry = Entry {
+            u,
+            var: sq(sigma * cos_alpha),
+            t_us,
+        };
         self.diag.tof_innovation_m = entry.u - self.surface.surface();
 
-        let plan = self.surface.push(entry, self.cov[SZ][SZ], self.cov[SV + 2][SV + 2], &self.cfg.surface_params());
+        let plan = self.surface.push(
+            entry,
+            self.cov[SZ][SZ],
+            self.cov[SV + 2][SV + 2],
+            &self.cfg.surface_params(),
+        );
         if plan.concluded || plan.n_apply > 0 {
             self.last_tof_us = Some(self.now_us);
+        }
+        if let Some((err, var)) = plan.vz_error
+            && err.is_finite()
+            && var.is_finite()
+        {
+            // A measured vertical-velocity error: correct it and restart its covariance row (no longer
+            // correlated with anything; a diagonal-only row keeps P positive definite).
+            self.vel[2] -= err;
+            for (i, row) in self.cov.iter_mut().enumerate() {
+                if i != SV + 2 {
+                    row[SV + 2] = 0.0;
+                }
+            }
+            self.cov[SV + 2] = [0.0; N];
+            self.cov[SV + 2][SV + 2] = var.clamp(COVARIANCE_MIN, COVARIANCE_MAX);
         }
         if plan.inflate_var > 0.0 {
             self.cov[SZ][SZ] = (self.cov[SZ][SZ] + plan.inflate_var).min(COVARIANCE_MAX);
@@ -875,8 +969,11 @@ impl Estimator {
             let start = self.airborne_since_us.saturating_add(grace_us);
             let timeout_us = (self.cfg.sensor_timeout_s * 1e6) as u64;
             let fresh = |t: Option<u64>| self.now_us.saturating_sub(t.unwrap_or(0).max(start)) <= timeout_us;
+            // Ranges arriving, and the height not coasting on the IMU alone for more than twice as long (a
+            // slowly crossed edge keeps the surface tracker undecided for up to ~1 s).
+            let decided = self.now_us.saturating_sub(self.last_tof_us.unwrap_or(0).max(start)) <= 2 * timeout_us;
             let flow_needed = self.pos[SZ] - self.surface.surface() > self.cfg.flow_required_height_m;
-            if !fresh(self.last_tof_us) || (flow_needed && !fresh(self.last_flow_us)) {
+            if !fresh(self.last_range_us) || !decided || (flow_needed && !fresh(self.last_flow_us)) {
                 return false;
             }
         }
@@ -952,6 +1049,10 @@ impl Estimator {
     }
 
     /// `P = F P Fᵀ + Q` over the IMU samples since the last call (see the module docs).
+    ///
+    /// `F = [[I, I·dt, A], [0, I, B], [0, 0, Θ]]` with `B = −dt·R[f]×` (δv̇ = −R[f]×δθ), `A = dt/2·B` (its
+    /// integral into δp) and `Θ = exp(−[ω dt]×)` to second order. Applied by blocks, `F·P` and then `(F·P)·Fᵀ`
+    /// cost 297 multiply-adds each instead of 729 for a dense product.
     fn predict_covariance(&mut self) {
         let dt = self.blk_dt;
         if dt.is_nan() || dt <= 0.0 {
@@ -962,24 +1063,46 @@ impl Estimator {
         let rf = mul_m3(&r, &skew(f_mean));
         let phi = skew(self.blk_rot);
         let phi2 = mul_m3(&phi, &phi);
-        let mut f = [[0.0; N]; N];
-        for (i, row) in f.iter_mut().enumerate() {
-            row[i] = 1.0;
-        }
+        let mut b: M3 = [[0.0; 3]; 3];
+        let mut a: M3 = [[0.0; 3]; 3];
+        let mut th: M3 = [[1.0, 0.0, 0.0], [0.0, 1.0, 0.0], [0.0, 0.0, 1.0]];
         for i in 0..3 {
-            f[i][SV + i] = dt;
             for j in 0..3 {
-                // δv̇ = −R [f]× δθ; δp gets its integral.
-                f[SV + i][SD + j] = -dt * rf[i][j];
-                f[i][SD + j] = -0.5 * dt * dt * rf[i][j];
-                // δθ̇ = −[ω]× δθ: exp(−[ω dt]×) to second order.
-                f[SD + i][SD + j] = f[SD + i][SD + j] - phi[i][j] + 0.5 * phi2[i][j];
+                b[i][j] = -dt * rf[i][j];
+                a[i][j] = 0.5 * dt * b[i][j];
+                th[i][j] += -phi[i][j] + 0.5 * phi2[i][j];
             }
         }
-        self.cov = mul9_bt(&mul9(&f, &self.cov), &f);
+        // x ↦ F·x for one 9-vector x (a column of P, then a row of F·P).
+        let apply = |x: &Vec9| -> Vec9 {
+            let (v, t) = ([x[SV], x[SV + 1], x[SV + 2]], [x[SD], x[SD + 1], x[SD + 2]]);
+            let mut y = [0.0; N];
+            for i in 0..3 {
+                y[i] = x[i] + dt * v[i] + dot3(a[i], t);
+                y[SV + i] = v[i] + dot3(b[i], t);
+                y[SD + i] = dot3(th[i], t);
+            }
+            y
+        };
+        // F·P, column by column (P is symmetric, so its rows are its columns).
+        let mut fp = [[0.0; N]; N];
+        for (c, col) in self.cov.iter().enumerate() {
+            let y = apply(col);
+            for (row, &v) in fp.iter_mut().zip(y.iter()) {
+                row[c] = v;
+            }
+        }
+        // (F·P)·Fᵀ: row r is F applied to row r of F·P.
+        for (out, row) in self.cov.iter_mut().zip(fp.iter()) {
+            *out = apply(row);
+        }
         let c = &self.cfg;
         let q_vel = [sq(c.accel_noise_xy), sq(c.accel_noise_xy), sq(c.accel_noise_z)];
-        let q_att = [sq(c.gyro_noise_roll_pitch), sq(c.gyro_noise_roll_pitch), sq(c.gyro_noise_yaw)];
+        let q_att = [
+            sq(c.gyro_noise_roll_pitch),
+            sq(c.gyro_noise_roll_pitch),
+            sq(c.gyro_noise_yaw),
+        ];
         for i in 0..3 {
             self.cov[SV + i][SV + i] += q_vel[i] * PREDICT_PERIOD_S * dt;
             self.cov[SD + i][SD + i] += q_att[i] * PREDICT_PERIOD_S * dt;
@@ -1107,8 +1230,16 @@ impl Estimator {
         for j in 0..3 {
             jac[SD + j] = c / h * (r22 * row[j] + v_axis * dr22[j]);
         }
-        let pred = if axis == 0 { k * vb[0] - c * omega[1] } else { k * vb[1] + c * omega[0] };
-        if pred.is_finite() && jac.iter().all(|x| x.is_finite()) { Some((pred, jac)) } else { None }
+        let pred = if axis == 0 {
+            k * vb[0] - c * omega[1]
+        } else {
+            k * vb[1] + c * omega[0]
+        };
+        if pred.is_finite() && jac.iter().all(|x| x.is_finite()) {
+            Some((pred, jac))
+        } else {
+            None
+        }
     }
 
     /// At rest on the ground: zero velocity, and gravity gives roll and pitch.

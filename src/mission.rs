@@ -21,8 +21,9 @@
 //! - **No path**: hover and keep mapping (false obstacles clear, the plan repairs itself) for
 //!   [`MissionConfig::no_path_wait_s`]; then land where it is and end with [`MissionState::NoPath`].
 //! - **Search**: a coarse lawnmower pass around the nominal goal until the [`PadDetector`] has a first
-//!   crossing; then two short refinement stages centred on the estimate — three lines across the first
-//!   crossing (which fixes the other coordinate), then three along it — until the detector locks. If the
+//!   crossing; then short refinement stages centred on the latest estimate — three lines across the first
+//!   crossing (which fixes the other coordinate), then three along it, then once more each way — until the
+//!   detector locks. If the
 //!   pattern ends without a lock the drone lands on the best estimate (or the nominal point) and the
 //!   mission ends with [`MissionState::PadNotFound`] after flying the rest of the round trip.
 //! - **Land**: hover over the pad centre until settled, descend at a controlled rate; the supervisor
@@ -41,7 +42,7 @@ use crate::map::{CELL_SIZE_M, Cell, GridShape};
 use crate::pad::{PadConfig, PadDetector};
 use crate::path::{extract_path, simplify};
 use crate::sweep::{ArenaBounds, LawnmowerSweep, SweepConfig};
-use crate::types::{Micros, MultiRangerSample, RangeReading, Setpoint, StateEstimate};
+use crate::types::{Micros, MultiRangerSample, RangeReading, Setpoint, StateEstimate, body_to_arena};
 
 /// The `mission.state` codes (interfaces.md §5): 0 idle, 1..99 phases, 100 completed, ≥ 200 ended without
 /// completing (the value says why).
@@ -227,14 +228,14 @@ impl Default for MissionConfig {
             planner_budget: 4000,
             no_path_wait_s: 5.0,
             goal_tolerance_m: 0.15,
-            search_speed_m_s: 0.25,
+            search_speed_m_s: 0.3,
             climb_speed_m_s: 0.4,
             descent_speed_m_s: 0.2,
             settle_s: 0.6,
             settle_tolerance_m: 0.03,
             pause_s: 2.0,
             sweep: SweepConfig { size_x_m: 1.0, size_y_m: 1.0, spacing_m: 0.2, crosshatch: true, ..SweepConfig::default() },
-            refine_line_m: 0.7,
+            refine_line_m: 0.5,
             refine_offset_m: 0.08,
             pad: PadConfig::default(),
             // The planner keeps paths 0.2 m (inflation) from what it has mapped, so avoidance acts only
@@ -285,8 +286,9 @@ enum Phase {
 /// Where the pad search is.
 #[derive(Clone, Copy, Debug, PartialEq)]
 enum Search {
-    /// Flying the coarse lawnmower, waypoint index.
-    Coarse { index: usize },
+    /// Flying the coarse lawnmower's lines centre-out: `step` counts line ends flown (two per line),
+    /// `reverse` flies the current line from its second waypoint.
+    Coarse { step: usize, reverse: bool },
     /// Refinement: stage 0 = lines across the first crossing, stage 1 = lines along it; `line` of 3,
     /// `end` = 0 going to the line's start, 1 to its end.
     Refine { stage: u8, line: u8, end: u8, centre: (f32, f32), first_along_x: bool },
@@ -297,6 +299,7 @@ const WAYPOINT_CAPACITY: usize = 48;
 const CHANGED_CAPACITY: usize = 512;
 const PAD_EDGES: usize = 48;
 const REFINE_LINES: u8 = 3;
+const REFINE_STAGES: u8 = 4;
 
 /// See the module documentation.
 pub struct Mission<const CELLS: usize, const QUEUE: usize> {
@@ -491,10 +494,18 @@ impl<const CELLS: usize, const QUEUE: usize> Mission<CELLS, QUEUE> {
     }
 
     /// A downward-range reading (40 Hz): the pad detector's input while searching and approaching.
+    ///
+    /// The ranger looks along body −z, so a tilted drone measures a spot beside itself (at 0.4 m and 4° of
+    /// pitch, 3 cm away); the detector is given that spot, computed from the attitude estimate, so edges
+    /// land where the step really is.
     pub fn on_zrange(&mut self, range: RangeReading, state: &StateEstimate) {
         let searching = matches!(self.phase, Phase::Search(_) | Phase::Approach { .. });
         if let (true, Some(r)) = (searching, range) {
-            self.pad.update(r, state.position_m[0], state.position_m[1]);
+            let down = body_to_arena([0.0, 0.0, -1.0], state.attitude_rad);
+            let (sx, sy) = (state.position_m[0] + r * down[0], state.position_m[1] + r * down[1]);
+            if sx.is_finite() && sy.is_finite() {
+                self.pad.update(r, sx, sy);
+            }
         }
     }
 
@@ -659,11 +670,43 @@ impl<const CELLS: usize, const QUEUE: usize> Mission<CELLS, QUEUE> {
         Cell::new(cx as u16, cy as u16)
     }
 
+    /// The drone's cell for planning: itself, or, when inflation has swallowed it (it flew a little close to
+    /// a wall), the nearest free cell within 0.3 m, so the plan leads out instead of reporting no path.
+    fn escape_cell(&self, here: Cell) -> Cell {
+        if !self.grid.is_blocked(here) {
+            return here;
+        }
+        let (hx, hy) = (i32::from(here.x), i32::from(here.y));
+        for radius in 1..=6i32 {
+            let mut best: Option<(i32, Cell)> = None;
+            for dy in -radius..=radius {
+                for dx in -radius..=radius {
+                    if dx.abs() != radius && dy.abs() != radius {
+                        continue;
+                    }
+                    let (x, y) = (hx + dx, hy + dy);
+                    if !self.shape.contains(x, y) {
+                        continue;
+                    }
+                    let c = Cell::new(x as u16, y as u16);
+                    let d = dx * dx + dy * dy;
+                    if !self.grid.is_blocked(c) && best.is_none_or(|(bd, _)| d < bd) {
+                        best = Some((d, c));
+                    }
+                }
+            }
+            if let Some((_, c)) = best {
+                return c;
+            }
+        }
+        here
+    }
+
     /// Feed map changes and the drone's cell to the planner and run one budgeted slice.
     /// `Ok(Some(target))`: a path exists, fly towards `target`; `Ok(None)`: no path; `Err(())`: the slice
     /// did not finish (keep flying the previous target).
     fn plan(&mut self, state: &StateEstimate) -> Result<Option<(f32, f32)>, ()> {
-        let here = self.cell_of((state.position_m[0], state.position_m[1]));
+        let here = self.escape_cell(self.cell_of((state.position_m[0], state.position_m[1])));
         let goal = self.cell_of(self.leg_target());
         if self.planner_needs_reset || self.changed.overflowed() {
             if self.planner.reset(self.shape, here, goal).is_err() {
@@ -694,9 +737,14 @@ impl<const CELLS: usize, const QUEUE: usize> Mission<CELLS, QUEUE> {
                     return Err(());
                 }
                 simplify(&self.grid, &self.path, &mut self.waypoints);
-                let target = match self.waypoints.get(1) {
-                    Some(c) => self.shape.center_of(*c),
-                    None => self.leg_target(),
+                // From an escape cell, first fly to it.
+                let target = if here != self.cell_of((state.position_m[0], state.position_m[1])) {
+                    self.shape.center_of(here)
+                } else {
+                    match self.waypoints.get(1) {
+                        Some(c) => self.shape.center_of(*c),
+                        None => self.leg_target(),
+                    }
                 };
                 Ok(Some(target))
             }
@@ -749,7 +797,7 @@ impl<const CELLS: usize, const QUEUE: usize> Mission<CELLS, QUEUE> {
         let here = (state.position_m[0], state.position_m[1]);
         self.sweep = LawnmowerSweep::new(centre, here, &self.config.sweep, &arena).ok();
         self.pad.reset();
-        let search = Search::Coarse { index: 0 };
+        let search = Search::Coarse { step: 0, reverse: false };
         self.phase = Phase::Search(search);
         self.search(search, state, 0.02)
     }
@@ -772,7 +820,7 @@ impl<const CELLS: usize, const QUEUE: usize> Mission<CELLS, QUEUE> {
             return Setpoint::Position { x_m: px, y_m: py, z_m: self.params.height_m, yaw_rad: 0.0 };
         }
         match search {
-            Search::Coarse { index } => {
+            Search::Coarse { step, reverse } => {
                 // The first crossing switches to the refinement around it.
                 if let Some(first) = self.pad.crossings().first() {
                     let (dx, dy) = first.direction();
@@ -787,23 +835,28 @@ impl<const CELLS: usize, const QUEUE: usize> Mission<CELLS, QUEUE> {
                     self.phase = Phase::Search(refine);
                     return self.search(refine, state, _dt_s);
                 }
-                let next = self.sweep.as_ref().and_then(|s| s.waypoint(index));
-                match next {
-                    Some(wp) => {
-                        let (sp, reached) = self.fly_to(state, wp);
-                        self.phase = Phase::Search(Search::Coarse { index: if reached { index + 1 } else { index } });
-                        sp
-                    }
-                    None => self.give_up_search(state),
-                }
+                let Some((a, b)) = self.coarse_line(step / 2) else { return self.give_up_search(state) };
+                // Enter each line at the end nearer the drone.
+                let reverse = if step % 2 == 0 {
+                    let here = (state.position_m[0], state.position_m[1]);
+                    libm::hypotf(b.0 - here.0, b.1 - here.1) < libm::hypotf(a.0 - here.0, a.1 - here.1)
+                } else {
+                    reverse
+                };
+                let (first, second) = if reverse { (b, a) } else { (a, b) };
+                let wp = if step % 2 == 0 { first } else { second };
+                let (sp, reached) = self.fly_to(state, wp);
+                self.phase = Phase::Search(Search::Coarse { step: if reached { step + 1 } else { step }, reverse });
+                sp
             }
             Search::Refine { stage, line, end, centre, first_along_x } => {
-                if stage >= 2 {
+                if stage >= REFINE_STAGES {
                     self.pad.flush();
                     return self.give_up_search(state);
                 }
-                // Stage 0 flies across the first crossing's direction, stage 1 along it.
-                let along_x = if stage == 0 { !first_along_x } else { first_along_x };
+                // Even stages fly across the first crossing's direction, odd stages along it; after the first
+                // two, more passes re-centred on the latest estimate give the detector more crossings.
+                let along_x = if stage % 2 == 0 { !first_along_x } else { first_along_x };
                 let offset = (f32::from(line) - 1.0) * self.config.refine_offset_m;
                 let half = 0.5 * self.config.refine_line_m;
                 let (a, b) = if along_x {
@@ -831,6 +884,25 @@ impl<const CELLS: usize, const QUEUE: usize> Mission<CELLS, QUEUE> {
                 sp
             }
         }
+    }
+
+    /// The `k`-th line of the coarse pattern, lines taken centre-out within each pass of the lawnmower
+    /// (the pad lies near the nominal point, so the middle lines are the likeliest to cross it).
+    fn coarse_line(&self, k: usize) -> Option<((f32, f32), (f32, f32))> {
+        let sweep = self.sweep.as_ref()?;
+        let [first, second] = sweep.lines_per_pass();
+        let (pass_start, lines, j) = if k < first { (0, first, k) } else { (2 * first, second, k.checked_sub(first)?) };
+        if j >= lines {
+            return None;
+        }
+        // Centre-out: mid, mid+1, mid−1, mid+2, …
+        let mid = (lines - 1) / 2;
+        let offset = j.div_ceil(2);
+        let line = if j % 2 == 1 { mid + offset } else { mid.checked_sub(offset)? };
+        let line = if line < lines { line } else { mid.checked_sub(offset + 1)? };
+        let a = sweep.waypoint(pass_start + 2 * line)?;
+        let b = sweep.waypoint(pass_start + 2 * line + 1)?;
+        Some((a, b))
     }
 
     /// No lock: land on the best estimate, or the nominal point, and remember it for the final code.

@@ -41,7 +41,11 @@ impl RestWindow {
     /// that is a fault, not a calibration).
     pub(crate) fn accel_scale(&self) -> f32 {
         let n = norm3(self.accel_mean);
-        if n > 1e-3 { (GRAVITY_M_S2 / n).clamp(0.9, 1.1) } else { 1.0 }
+        if n > 1e-3 {
+            (GRAVITY_M_S2 / n).clamp(0.9, 1.1)
+        } else {
+            1.0
+        }
     }
 }
 
@@ -106,10 +110,17 @@ impl Calibrator {
             let a_var = self.accel_sq[i] / n - a_mean[i] * a_mean[i];
             still &= g_var < GYRO_VARIANCE_MAX && a_var < ACCEL_VARIANCE_MAX;
         }
-        let result = RestWindow { gyro_mean: add3(self.gyro_ref, g_mean), accel_mean: add3(self.accel_ref, a_mean) };
+        let result = RestWindow {
+            gyro_mean: add3(self.gyro_ref, g_mean),
+            accel_mean: add3(self.accel_ref, a_mean),
+        };
         let norm = norm3(result.accel_mean);
         still &= (norm - GRAVITY_M_S2).abs() < ACCEL_NORM_TOLERANCE * GRAVITY_M_S2;
         self.restart();
-        if still && finite3(result.gyro_mean) && finite3(result.accel_mean) { Some(result) } else { None }
+        if still && finite3(result.gyro_mean) && finite3(result.accel_mean) {
+            Some(result)
+        } else {
+            None
+        }
     }
 }

@@ -96,7 +96,11 @@ pub(crate) fn quat_normalize(q: Quat) -> Quat {
     if !(n2.is_finite() && n2 > 1e-12) {
         return QUAT_IDENTITY;
     }
-    let inv = if (n2 - 1.0).abs() < 1e-3 { 0.5 * (3.0 - n2) } else { 1.0 / libm::sqrtf(n2) };
+    let inv = if (n2 - 1.0).abs() < 1e-3 {
+        0.5 * (3.0 - n2)
+    } else {
+        1.0 / libm::sqrtf(n2)
+    };
     // Keep w ≥ 0 (the same rotation) so that consecutive quaternions stay in one hemisphere.
     let s = if q[0] < 0.0 { -inv } else { inv };
     [q[0] * s, q[1] * s, q[2] * s, q[3] * s]
@@ -139,9 +143,21 @@ pub(crate) fn quat_from_euler(roll: f32, pitch: f32, yaw: f32) -> Quat {
 pub(crate) fn quat_to_rot(q: Quat) -> M3 {
     let [w, x, y, z] = q;
     [
-        [1.0 - 2.0 * (y * y + z * z), 2.0 * (x * y - w * z), 2.0 * (x * z + w * y)],
-        [2.0 * (x * y + w * z), 1.0 - 2.0 * (x * x + z * z), 2.0 * (y * z - w * x)],
-        [2.0 * (x * z - w * y), 2.0 * (y * z + w * x), 1.0 - 2.0 * (x * x + y * y)],
+        [
+            1.0 - 2.0 * (y * y + z * z),
+            2.0 * (x * y - w * z),
+            2.0 * (x * z + w * y),
+        ],
+        [
+            2.0 * (x * y + w * z),
+            1.0 - 2.0 * (x * x + z * z),
+            2.0 * (y * z - w * x),
+        ],
+        [
+            2.0 * (x * z - w * y),
+            2.0 * (y * z + w * x),
+            1.0 - 2.0 * (x * x + y * y),
+        ],
     ]
 }
 
@@ -151,34 +167,6 @@ pub(crate) fn euler_from_rot(r: &M3) -> V3 {
     let pitch = libm::asinf((-r[2][0]).clamp(-1.0, 1.0));
     let yaw = libm::atan2f(r[1][0], r[0][0]);
     [roll, pitch, yaw]
-}
-
-/// `a · b` for 9 × 9 matrices.
-pub(crate) fn mul9(a: &Mat9, b: &Mat9) -> Mat9 {
-    let mut out = [[0.0; N]; N];
-    for (out_row, a_row) in out.iter_mut().zip(a.iter()) {
-        for (k, &a_ik) in a_row.iter().enumerate() {
-            if a_ik == 0.0 {
-                // F is mostly identity and zeros: skipping them makes F·P about 3× cheaper.
-                continue;
-            }
-            for (cell, &b_kj) in out_row.iter_mut().zip(b[k].iter()) {
-                *cell += a_ik * b_kj;
-            }
-        }
-    }
-    out
-}
-
-/// `a · bᵀ` for 9 × 9 matrices.
-pub(crate) fn mul9_bt(a: &Mat9, b: &Mat9) -> Mat9 {
-    let mut out = [[0.0; N]; N];
-    for (out_row, a_row) in out.iter_mut().zip(a.iter()) {
-        for (cell, b_row) in out_row.iter_mut().zip(b.iter()) {
-            *cell = a_row.iter().zip(b_row.iter()).map(|(x, y)| x * y).sum();
-        }
-    }
-    out
 }
 
 /// `m · v` for a 9 × 9 matrix.
@@ -204,7 +192,13 @@ impl Lpf2 {
     /// Cut-off `cutoff_hz` at `sample_hz` (cut-off ≥ Nyquist or nonsense → pass-through).
     pub(crate) fn new(sample_hz: f32, cutoff_hz: f32) -> Self {
         if !(cutoff_hz > 0.0 && sample_hz > 2.0 * cutoff_hz) {
-            return Self { b0: 1.0, a1: 0.0, a2: 0.0, d1: 0.0, d2: 0.0 };
+            return Self {
+                b0: 1.0,
+                a1: 0.0,
+                a2: 0.0,
+                d1: 0.0,
+                d2: 0.0,
+            };
         }
         let ohm = libm::tanf(core::f32::consts::PI * cutoff_hz / sample_hz);
         let cos_pi_4 = core::f32::consts::FRAC_1_SQRT_2;

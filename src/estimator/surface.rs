@@ -4,39 +4,67 @@
 //! Each range becomes an *implied surface height* `u = z − r·cos α` (the height of whatever the beam hits,
 //! given the current height estimate `z`). `u` is computed with the IMU-propagated `z`, so a real climb or
 //! descent moves `z` and `r` together and leaves `u` unchanged; only what the IMU did not see moves `u`: a
-//! height error (slowly, the drift the range is there to correct) or the surface itself (in a step, as
-//! the drone flies onto or off an object). Every later correction of `z` shifts the stored `u`s by the same
+//! height error (slowly: the drift the range is there to correct) or the surface itself (in a step, as the
+//! drone flies onto or off an object). Every later correction of `z` shifts the stored `u`s by the same
 //! amount ([`SurfaceTracker::shift`]), so they stay referred to the current estimate.
 //!
-//! The last [`RING`] values are kept (a 50 ms decision delay at 40 Hz). In the `Settled` mode:
+//! The last [`RING`] values are kept: each value is judged together with the two after it (a 50 ms delay at
+//! 40 Hz). The ring is *flat* when its spread is within `flat_sigma` standard deviations of the range noise
+//! plus the drift the vertical-velocity uncertainty allows over its time span (at least `flat_min`) and it
+//! does not *trend* (monotonic, end to end more than two standard deviations of a difference); a *plateau*
+//! is a flat ring of consecutive ranges (a span of at most 3.2 periods: values separated by rejected
+//! readings can agree by accident).
 //!
-//! * the ring is *flat* (spread ≤ `max(flat_sigma·σ, flat_min)`) and its oldest value agrees with the
-//!   current surface `s` (|u − s| ≤ `max(gate_sigma·√(P_zz + σ²), gate_min)`): that value is an ordinary
-//!   height measurement and goes to the Kalman filter (so a slow ramp *is* followed as height);
-//! * the ring is not flat: something moved faster than noise allows → `Transition`. Nothing from the
-//!   transition reaches the filter; the height coasts on the IMU;
-//! * the ring is flat but away from `s` (only after a gap in the ranges): classified as below.
+//! `Settled` mode:
+//! * the ring is flat and every value agrees with the current surface `s` (|u − s| within
+//!   `max(gate_sigma·√(P_zz + σ²), gate_min)`): its oldest value is an ordinary height measurement and goes
+//!   to the Kalman filter (so a slow ramp *is* followed as height);
+//! * right after a step (`settle` ranges), a plateau within `step_min` of `s` that still moves moves `s`
+//!   (the tail of a step blurred by the ranger's cone) and nothing reaches the filter; a plateau that stopped
+//!   moving ends the settling at once (a sharp step has no tail); any other plateau while settling is the
+//!   rest of the step too (the height coasted meanwhile, so its grown σ_z proves nothing);
+//! * the implied surface's least-squares slope over the last 6 ranges (150 ms) beyond 3σ of its noise and
+//!   the vertical-velocity uncertainty (a ramp: a blurred step crossed slowly) also stops fusion;
+//! * a plateau away from `s` (after a gap in the ranges) is classified at once, as below;
+//! * anything else: `Transition`. Nothing from a transition reaches the filter; the height coasts on the IMU.
 //!
-//! In `Transition` the ring slides until it is flat again (a plateau); the plateau's mean `level` is then
-//! classified ([`SurfaceEvent`]):
+//! In `Transition` the ring slides until it forms a plateau, whose mean `level` is then classified
+//! ([`SurfaceEvent`]), and its values that agree with the outcome go to the filter:
 //!
 //! | condition | verdict |
 //! |---|---|
 //! | \|level − s\| within the gate | a glitch (single wild readings end here): back to normal |
 //! | level < −`floor_tol` | the floor is the lowest surface there is, so `z` is wrong: `s = 0`, re-anchor `z` |
-//! | \|level − s\| ≥ `step_min` and ≥ `step_sigma`·σ_z | a surface step: `s = level`, snapped to exactly 0 when \|level\| ≤ `snap` |
-//! | otherwise (a small jump, or `z` itself uncertain) | a height error: re-anchor `z` |
+//! | \|level − s\| ≥ `step_min` and ≥ `step_sigma`·σ_z (`z` cannot be that wrong), or settling | a surface step: `s = level`, snapped to exactly 0 when \|level\| ≤ `snap` |
+//! | otherwise (a jump `z` could explain) | a height error: re-anchor `z` |
 //!
-//! "Re-anchor" inflates `P_zz` by the jump², so that the plateau's values pull `z` onto the new level at
-//! once instead of dragging it there over many samples. A transition that finds no plateau within
-//! `max_transition` samples is classified on its median.
+//! "Re-anchor" inflates `P_zz` by the jump² and the vertical-velocity variance by (jump / 1 s)², so that
+//! the plateau's values pull `z` onto the new level at once, and a velocity error behind the jump is
+//! corrected too. A plateau also needs no significant slope over its last 4 ranges. A transition without a
+//! plateau after `max_transition` ranges is decided: values still moving one way at a rate the filter's
+//! vertical-velocity uncertainty explains are an unseen vertical motion (re-anchor `z` and its velocity on
+//! the newest value: what saves the filter after a divergence reset with a wrong velocity); moving faster
+//! than that (a healthy filter under a slowly crossed blurred edge) the tracker waits for the plateau up to
+//! 4 × `max_transition`; flickering values (hovering over an edge) are classified on their median, nothing
+//! fused.
 //!
-//! The same mean surface is what the flow model needs (the camera sees the surface, not the floor); during a
-//! transition [`SurfaceTracker::flow_surface`] gives the median of the ring, the best guess of what is
-//! below right now.
+//! The flow model needs the same surface (the camera sees the surface, not the floor); during a transition
+//! [`SurfaceTracker::flow_surface`] gives the median of the ring, the best guess of what is below now.
 
 /// Ranges kept for a decision: the newest value is judged together with the two after it (50 ms at 40 Hz).
 pub(crate) const RING: usize = 3;
+
+/// Ranges kept (fused or not) for the slope test: 150 ms at 40 Hz.
+const HISTORY: usize = 6;
+
+/// A plateau's own slope is tested over this many of the latest ranges.
+const PLATEAU_SLOPE_N: usize = 4;
+
+const EMPTY: Entry = Entry {
+    u: 0.0,
+    var: 0.0,
+    t_us: 0,
+};
 
 /// One range, as the surface it implies.
 #[derive(Clone, Copy, Debug, Default, PartialEq)]
@@ -45,8 +73,9 @@ pub(crate) struct Entry {
     pub u: f32,
     /// Variance of the range's height component `(σ_r·cos α)²`, m².
     pub var: f32,
-    /// Arrival time, ms (wrapping): a plateau must be made of consecutive ranges.
-    pub t_ms: u32,
+    /// Arrival time, µs, wrapping every 71 min (only differences are used): a plateau must be made of
+    /// consecutive ranges.
+    pub t_us: u32,
 }
 
 /// Whether the tracker is following the surface or waiting for a step to settle.
@@ -89,8 +118,8 @@ pub(crate) struct Params {
     pub flat_min: f32,
     pub step_sigma: f32,
     pub max_transition: u16,
-    /// Longest time span of a ring that counts as consecutive ranges, ms.
-    pub max_span_ms: u32,
+    /// Longest time span of a ring that counts as consecutive ranges, µs.
+    pub max_span_us: u32,
     /// Ranges after a step during which the surface, not the height, follows the plateau.
     pub settle: u16,
 }
@@ -103,6 +132,9 @@ pub(crate) struct Plan {
     pub inflate_var: f32,
     /// Add to the vertical-velocity variance: a sudden height error means an unseen vertical velocity.
     pub inflate_vz: f32,
+    /// The vertical velocity is off by this (m/s, estimate − truth) with this variance: subtract it and
+    /// restart its covariance row.
+    pub vz_error: Option<(f32, f32)>,
     pub apply: [Entry; RING],
     pub n_apply: usize,
     /// A plateau was classified (the ranges said something about the height or the surface).
@@ -121,6 +153,9 @@ pub(crate) struct SurfaceTracker {
     s: f32,
     ring: [Entry; RING],
     len: usize,
+    /// The latest ranges, newest last, whatever became of them (the slope test).
+    history: [Entry; HISTORY],
+    hist_len: usize,
     mode: SurfaceMode,
     transition_len: u16,
     /// Ranges left in the settling period after a step (module docs).
@@ -138,8 +173,10 @@ impl SurfaceTracker {
     pub(crate) const fn new(s: f32) -> Self {
         Self {
             s,
-            ring: [Entry { u: 0.0, var: 0.0, t_ms: 0 }; RING],
+            ring: [EMPTY; RING],
             len: 0,
+            history: [EMPTY; HISTORY],
+            hist_len: 0,
             mode: SurfaceMode::Settled,
             transition_len: 0,
             settle_left: 0,
@@ -159,6 +196,7 @@ impl SurfaceTracker {
     /// Forget the ring (after a gap in the ranges or a filter reset); the surface is kept.
     pub(crate) fn clear(&mut self) {
         self.len = 0;
+        self.hist_len = 0;
         self.mode = SurfaceMode::Settled;
         self.transition_len = 0;
         self.settle_left = 0;
@@ -175,7 +213,7 @@ impl SurfaceTracker {
     /// The height estimate was corrected by `dz`: the stored implied surfaces move with it.
     pub(crate) fn shift(&mut self, dz: f32) {
         if dz.is_finite() {
-            for e in self.ring.iter_mut() {
+            for e in self.ring.iter_mut().chain(self.history.iter_mut()) {
                 e.u += dz;
             }
         }
@@ -196,13 +234,15 @@ impl SurfaceTracker {
             return Plan::default();
         }
         self.push_ring(e);
+        self.push_history(e);
         if self.len < RING {
             return Plan::default();
         }
         let flat = self.is_flat(p, p_vz) && !self.is_trending(p_vz);
         // A plateau is three *consecutive* ranges: values spread out in time by rejected readings between
         // them (garbage, dropouts) can agree by accident and must not move the surface.
-        let consecutive = self.ring[RING - 1].t_ms.wrapping_sub(self.ring[0].t_ms) <= p.max_span_ms;
+        let consecutive = self.ring[RING - 1].t_us.wrapping_sub(self.ring[0].t_us) <= p.max_span_us;
+        let plateau = flat && consecutive && !self.slope_significant(PLATEAU_SLOPE_N, p_vz, p);
         let settling = self.settle_left > 0;
         self.settle_left = self.settle_left.saturating_sub(1);
         match self.mode {
@@ -210,10 +250,10 @@ impl SurfaceTracker {
                 let level = self.mean();
                 // Two standard deviations of a mean of three: the level has stopped moving.
                 let still = (level - self.s).abs() <= (2.0 * libm::sqrtf(self.mean_var() / 3.0)).max(SETTLED_M);
-                if settling && flat && consecutive && still {
+                if settling && plateau && still {
                     // The step is complete (at once for a sharp one): back to height updates.
                     self.settle_left = 0;
-                } else if settling && flat && consecutive && (level - self.s).abs() < p.step_min {
+                } else if settling && plateau && (level - self.s).abs() < p.step_min {
                     // The tail of a blurred step: the surface follows, the height is left alone (it coasts on
                     // the IMU, so this must not last long).
                     self.s = level.max(0.0);
@@ -223,18 +263,24 @@ impl SurfaceTracker {
                     }
                     self.pop_oldest();
                     self.discarded = self.discarded.saturating_add(1);
-                    return Plan { concluded: true, ..Plan::default() };
+                    return Plan {
+                        concluded: true,
+                        ..Plan::default()
+                    };
                 }
                 let settling = self.settle_left > 0;
                 let agree = self.ring.iter().all(|e| (e.u - self.s).abs() <= gate(p, p_zz, e.var));
-                if flat && agree && !settling {
+                // The implied surface moving faster than noise and the vertical-velocity uncertainty allow over
+                // the last 150 ms: a ramp (a blurred step crossed slowly) whose start still looks flat.
+                let moving = self.slope_significant(HISTORY, p_vz, p);
+                if flat && agree && !settling && !moving {
                     let mut plan = Plan::default();
                     plan.apply[0] = self.ring[0];
                     plan.n_apply = 1;
                     self.pop_oldest();
                     return plan;
                 }
-                if flat && consecutive {
+                if plateau && !agree {
                     let level = self.mean();
                     return self.conclude(level, p_zz, p, Conclusion::Plateau);
                 }
@@ -244,15 +290,23 @@ impl SurfaceTracker {
             }
             SurfaceMode::Transition => {
                 self.transition_len = self.transition_len.saturating_add(1);
-                if flat && consecutive {
+                if plateau {
                     let level = self.mean();
                     self.conclude(level, p_zz, p, Conclusion::Plateau)
                 } else if self.transition_len >= p.max_transition && consecutive {
                     let (a, b, c) = (self.ring[0].u, self.ring[1].u, self.ring[2].u);
                     if (a <= b && b <= c) || (a >= b && b >= c) {
-                        // Still moving the same way after max_transition ranges: not a step but a vertical
-                        // motion the IMU did not see (or a slope): the height follows the newest value.
-                        self.conclude(c, p_zz, p, Conclusion::Drift)
+                        // Still moving the same way after max_transition ranges. If the filter's own
+                        // vertical-velocity uncertainty explains the rate (after a reset it is wide), it is a
+                        // vertical motion the IMU did not see: the height follows the newest value. If not (a
+                        // healthy filter), it is the surface moving (a blurred step crossed slowly): wait for
+                        // its plateau, up to four times as long.
+                        let plausible = !self.slope_significant(HISTORY, p_vz, p);
+                        if plausible || self.transition_len >= p.max_transition.saturating_mul(4) {
+                            self.conclude(c, p_zz, p, Conclusion::Drift)
+                        } else {
+                            Plan::default()
+                        }
                     } else {
                         // Flickering (hovering over an edge): decide on the median, fuse nothing.
                         let level = median3(&self.ring);
@@ -263,6 +317,54 @@ impl SurfaceTracker {
                 }
             }
         }
+    }
+
+    fn push_history(&mut self, e: Entry) {
+        if let Some(slot) = self.history.get_mut(self.hist_len) {
+            *slot = e;
+            self.hist_len += 1;
+        } else {
+            self.history.copy_within(1.., 0);
+            self.history[HISTORY - 1] = e;
+        }
+    }
+
+    /// Least-squares slope of the latest `n` ranges (at least 3, consecutive) beyond three standard
+    /// deviations of its noise combined with the vertical-velocity uncertainty: the implied surface is moving
+    /// faster than an unseen vertical velocity would explain.
+    fn slope_significant(&self, n: usize, p_vz: f32, p: &Params) -> bool {
+        match self.history_slope(n, p) {
+            Some((slope, var)) => slope * slope > 9.0 * (var + p_vz.max(0.0)),
+            None => false,
+        }
+    }
+
+    /// Least-squares slope of the latest `n` ranges' implied surface, m/s, and its variance (from the range
+    /// noise), when there are at least 3 consecutive ones. The implied surface's slope is the filter's
+    /// vertical-velocity error (or the surface moving).
+    fn history_slope(&self, n: usize, p: &Params) -> Option<(f32, f32)> {
+        let n = n.min(self.hist_len);
+        let w = self.history.get(self.hist_len - n..self.hist_len)?;
+        let (first, last) = (w.first()?, w.last()?);
+        // Consecutive: at most 1.6 periods per interval, as for the ring (max_span covers two intervals).
+        if n < 3 || last.t_us.wrapping_sub(first.t_us) > p.max_span_us / 2 * (n as u32 - 1) {
+            return None;
+        }
+        let t = |e: &Entry| e.t_us.wrapping_sub(first.t_us) as f32 * 1e-6;
+        let nf = n as f32;
+        let t_mean = w.iter().map(t).sum::<f32>() / nf;
+        let u_mean = w.iter().map(|e| e.u).sum::<f32>() / nf;
+        let (mut sxx, mut sxy, mut var) = (0.0f32, 0.0f32, 0.0f32);
+        for e in w {
+            let dt = t(e) - t_mean;
+            sxx += dt * dt;
+            sxy += dt * (e.u - u_mean);
+            var = var.max(e.var);
+        }
+        if sxx <= 0.0 {
+            return None;
+        }
+        Some((sxy / sxx, var / sxx))
     }
 
     fn pop_oldest(&mut self) {
@@ -291,7 +393,10 @@ impl SurfaceTracker {
             hi = hi.max(e.u);
             var = var.max(e.var);
         }
-        let span_s = self.ring[self.len.clamp(1, RING) - 1].t_ms.wrapping_sub(self.ring[0].t_ms) as f32 * 1e-3;
+        let span_s = self.ring[self.len.clamp(1, RING) - 1]
+            .t_us
+            .wrapping_sub(self.ring[0].t_us) as f32
+            * 1e-6;
         let drift_var = p_vz.max(0.0) * span_s * span_s;
         hi - lo <= (p.flat_sigma * libm::sqrtf(var + drift_var)).max(p.flat_min)
     }
@@ -301,7 +406,7 @@ impl SurfaceTracker {
     fn is_trending(&self, p_vz: f32) -> bool {
         let (a, b, c) = (self.ring[0], self.ring[1], self.ring[2]);
         let monotonic = (a.u <= b.u && b.u <= c.u) || (a.u >= b.u && b.u >= c.u);
-        let span_s = c.t_ms.wrapping_sub(a.t_ms) as f32 * 1e-3;
+        let span_s = c.t_us.wrapping_sub(a.t_us) as f32 * 1e-6;
         let diff_var = a.var + c.var + p_vz.max(0.0) * span_s * span_s;
         monotonic && (c.u - a.u).abs() > (2.0 * libm::sqrtf(diff_var)).max(TREND_MIN_M)
     }
@@ -323,14 +428,21 @@ impl SurfaceTracker {
         let settling = self.settle_left > 0;
         // A height error of this size would be improbable (≥ step_sigma·σ_z): it is the surface.
         let z_known = jump.abs() >= p.step_sigma * libm::sqrtf(p_zz.max(0.0));
-        let mut plan = Plan { concluded: true, ..Plan::default() };
+        let mut plan = Plan {
+            concluded: true,
+            ..Plan::default()
+        };
         if how == Conclusion::Drift {
             self.last_event = SurfaceEvent::HeightError;
             let floor_jump = if level < 0.0 { level } else { 0.0 };
             self.s = if level < 0.0 { 0.0 } else { self.s };
             let e = if floor_jump != 0.0 { floor_jump } else { jump };
             plan.inflate_var = e * e;
-            plan.inflate_vz = e * e / (REANCHOR_TIME_S * REANCHOR_TIME_S);
+            // The drift rate is the vertical-velocity error: measure it instead of hoping that values
+            // replayed at one instant (which carry no rate) would.
+            if let Some((slope, var)) = self.history_slope(HISTORY, p) {
+                plan.vz_error = Some((slope, var + VZ_RESET_FLOOR_VAR));
+            }
         } else if jump.abs() <= gate(p, p_zz, var) && !settling {
             self.last_event = SurfaceEvent::Glitch;
         } else if level < -p.floor_tol {
@@ -338,10 +450,15 @@ impl SurfaceTracker {
             self.s = 0.0;
             plan.inflate_var = level * level;
             plan.inflate_vz = level * level / (REANCHOR_TIME_S * REANCHOR_TIME_S);
-        } else if z_known && (jump.abs() >= p.step_min || settling) {
-            // A step, or (while settling) the rest of the last one.
+        } else if (z_known && jump.abs() >= p.step_min) || settling {
+            // A step; or, right after one, the rest of it (the height coasted meanwhile, so its grown
+            // uncertainty says nothing about this jump).
             let new_s = if level.abs() <= p.snap { 0.0 } else { level.max(0.0) };
-            self.last_event = if new_s == 0.0 { SurfaceEvent::StepToFloor } else { SurfaceEvent::Step };
+            self.last_event = if new_s == 0.0 {
+                SurfaceEvent::StepToFloor
+            } else {
+                SurfaceEvent::Step
+            };
             if !settling {
                 self.steps = self.steps.saturating_add(1);
                 self.last_step_m = new_s - self.s;
@@ -354,8 +471,21 @@ impl SurfaceTracker {
             plan.inflate_var = jump * jump;
             plan.inflate_vz = jump * jump / (REANCHOR_TIME_S * REANCHOR_TIME_S);
         }
-        let settle = if self.last_event == SurfaceEvent::Step { p.settle } else { 0 };
-        if how != Conclusion::Undecided && settle == 0 {
+        let settle = if self.last_event == SurfaceEvent::Step {
+            p.settle
+        } else {
+            0
+        };
+        // A glitch's values are not fused either: a transition means something was off, and fusing a ramp's
+        // first values would bend the vertical velocity; fresh values follow within 75 ms.
+        let fuse = how != Conclusion::Undecided && settle == 0;
+        if how == Conclusion::Drift {
+            // Only the newest value: the older ones describe where the drift was, not where it is.
+            let newest = self.ring[self.len.clamp(1, RING) - 1];
+            plan.apply[0] = newest;
+            plan.n_apply = 1;
+            self.discarded = self.discarded.saturating_add(self.len.saturating_sub(1) as u32);
+        } else if fuse {
             // Only the values that agree with the surface now reach the filter (a ramp's first values do
             // not).
             let g = gate(p, p_zz + plan.inflate_var, var);
@@ -372,7 +502,13 @@ impl SurfaceTracker {
         } else {
             self.discarded = self.discarded.saturating_add(self.len as u32);
         }
+        // The plateau is the new reference of the slope test (the jump before it is not a slope).
+        let (ring, n) = (self.ring, self.len);
         self.clear();
+        if let (Some(dst), Some(src)) = (self.history.get_mut(..n), ring.get(..n)) {
+            dst.copy_from_slice(src);
+            self.hist_len = n;
+        }
         self.settle_left = settle;
         plan
     }
@@ -394,6 +530,10 @@ const SETTLED_M: f32 = 0.002;
 
 /// Smallest end-to-end change of a monotonic ring that counts as a trend, m.
 const TREND_MIN_M: f32 = 0.004;
+
+/// Variance added to a measured vertical-velocity error, (m/s)² (its estimate ignores the IMU's own noise
+/// over the window).
+const VZ_RESET_FLOOR_VAR: f32 = 1e-4;
 
 /// A sudden height error is taken to have built up over about this long when the vertical-velocity
 /// variance is inflated with it, s.

@@ -209,19 +209,19 @@ pub fn run(world: &World, options: &RunOptions) -> Result<RunResult, String> {
         if Some(tick) == abort_tick {
             core.abort_mission();
         }
-        if tick % 10 == 0 {
+        if tick.is_multiple_of(10) {
             if let Some(f) = flow.sample(&quad, world, &mut rng_flow) {
                 core.on_flow(&f);
             }
             core.on_battery(battery.sample(&quad, &mut rng_bat));
         }
-        if tick % 25 == 0 {
+        if tick.is_multiple_of(25) {
             core.on_zrange(zranger.sample(&quad, world, &mut rng_z));
         }
-        if tick % 100 == 0 {
+        if tick.is_multiple_of(100) {
             core.on_multiranger(&multiranger.sample(&quad, world, &mut rng_mr));
         }
-        if tick % 20 == 0 {
+        if tick.is_multiple_of(20) {
             core.mission_tick(now_us);
             if let Some(snapshot) = path_snapshot(&core)
                 && paths.last() != Some(&snapshot)
@@ -262,7 +262,7 @@ pub fn run(world: &World, options: &RunOptions) -> Result<RunResult, String> {
             score.pending_landing = None;
         }
         was_on_ground = on_ground;
-        if options.record && tick % 20 == 0 {
+        if options.record && tick.is_multiple_of(20) {
             trace.push(TracePoint {
                 t_s: tick as f64 * 1e-3,
                 truth: p,
@@ -288,18 +288,31 @@ pub fn run(world: &World, options: &RunOptions) -> Result<RunResult, String> {
                 core.supervisor().state,
             );
         }
+        if options.verbose && state != last_state && matches!(state, MissionState::ApproachGoalPad | MissionState::ApproachHomePad) {
+            for e in core.mission().pad_detector().edges() {
+                eprintln!("             edge {:?} at ({:.3}, {:.3}) step {:.3}", e.kind, e.x, e.y, e.step_m);
+            }
+            for c in core.mission().pad_detector().crossings() {
+                eprintln!("             crossing mid ({:.3}, {:.3}) len {:.3}", c.midpoint().0, c.midpoint().1, c.length());
+            }
+        }
         last_state = state;
-        if options.verbose && tick % 1000 == 0 && started && !state.is_final() {
+        if options.verbose && tick.is_multiple_of(1000) && started && !state.is_final() {
             let e = core.estimate();
             let c = core.control();
             let sup = core.supervisor();
             eprintln!(
-                "{:8.3} s    xy ({:.2}, {:.2}) v ({:.2}, {:.2}) sp {:?}\n             z {:.3} (truth {:.3}) surface {:.3} vz {:.3} cmd {:?} duty {:?} sup {:?} flags {:?} valid {}",
+                "{:8.3} s    err ({:+.3}, {:+.3}) xy ({:.2}, {:.2}) v ({:.2}, {:.2}) pad edges {} crossings {} est {:?} sp {:?}\n             z {:.3} (truth {:.3}) surface {:.3} vz {:.3} cmd {:?} duty {:?} sup {:?} flags {:?} valid {}",
                 tick as f64 * 1e-3,
+                e.position_m[0] - p[0],
+                e.position_m[1] - p[1],
                 e.position_m[0],
                 e.position_m[1],
                 e.velocity_m_s[0],
                 e.velocity_m_s[1],
+                core.mission().pad_detector().edges().len(),
+                core.mission().pad_detector().crossings().len(),
+                core.mission().pad_detector().estimate().map(|e| (e.x, e.y, e.confidence, e.inliers)),
                 core.setpoint(),
                 e.position_m[2],
                 p[2],

@@ -1,5 +1,5 @@
 //! The state estimator: an error-state extended Kalman filter in the spirit of the stock one
-//! ([FW] src/modules/src/kalman_core/, crazyflie-hardware.md §9), fusing the IMU (1 kHz), the Flow deck's
+//! (\[FW\] src/modules/src/kalman_core/, crazyflie-hardware.md §9), fusing the IMU (1 kHz), the Flow deck's
 //! optical flow (100 Hz) and downward range (40 Hz), with a surface tracker that keeps elevated objects
 //! under the drone out of the height estimate (the "pad step", anchors-peers-planning-style.md §A.4).
 //!
@@ -122,8 +122,8 @@
 //! * hovering over an edge (the range flickering between two levels) keeps the tracker in transition: `z`
 //!   coasts on the IMU, a decision on the median is forced after `max_transition_samples` (0.4 s);
 //! * a transition in which the implied surface keeps moving one way, at a rate the vertical-velocity
-//!   uncertainty explains, is an unseen vertical velocity, not a step: `z` and the vertical velocity are
-//!   re-anchored after 0.4 s (after 1.6 s whatever the rate).
+//!   uncertainty explains, is an unseen vertical velocity, not a step: after 0.4 s (1.6 s whatever the
+//!   rate) the velocity error is measured from the slope and removed, and `z` re-anchored.
 //!
 //! ## Validity and supervision
 //!
@@ -135,10 +135,12 @@
 //! classified plateau) within twice that (a slowly crossed edge keeps the tracker undecided up to ~1 s),
 //! and, higher than `flow_required_height_m` (0.15 m) above the surface, a usable flow sample within
 //! `sensor_timeout_s`. All clocks start at take-off plus `takeoff_grace_s` (1 s). (The PMW3901 needs ~8 cm,
-//! so the last centimetres of a landing have no flow.) The bounds are checked every IMU sample, the covariance every
-//! 10 ms and after every update; a violation or anything non-finite resets the filter: position to the last
-//! sane one, velocity 0, attitude kept if finite, covariance wide (σ 1 m, 1 m/s, 0.1 rad) so the sensors
-//! pull it back; counted in [`Diagnostics::divergence_resets`].
+//! so the last centimetres of a landing have no flow.) The bounds are checked every IMU sample, the
+//! covariance every 10 ms and after every update; a violation or anything non-finite resets the filter:
+//! position to the last sane one, velocity 0, attitude kept if finite, covariance wide (σ 1 m, 1 m/s,
+//! 0.1 rad) so the sensors pull it back; counted in [`Diagnostics::divergence_resets`]. Height, velocity and
+//! attitude recover from the sensors; x and y keep whatever the fault did to them (nothing measures them
+//! absolutely), so a new divergence reset means "position lost" to the mission.
 //!
 //! Inputs are never trusted: non-finite gyro/accelerometer samples are replaced by the last good one
 //! (counted), values beyond the BMI088's ranges (±2000 °/s, ±24 g) are clamped, a non-finite or
@@ -148,20 +150,20 @@
 //!
 //! ## Size and cost
 //!
-//! `size_of::<Estimator>()` is 1080 bytes on the MCU (1088 on a 64-bit host; the covariance is 324 of them;
-//! the `memory_size` test), no heap; the prediction's stack frame holds two 9 × 9 matrices (648 B).
-//! Cortex-M4F instructions per call, measured under QEMU (mps2-an386, `-icount`, release profile with
-//! `opt-level = "s"` as the firmware), hovering:
+//! `size_of::<Estimator>()` is 1160 bytes on the MCU (1168 on a 64-bit host; the covariance is 324 of
+//! them, the surface tracker's ranges 108; the `memory_size` test), no heap; the prediction's stack frame
+//! holds one 9 × 9 temporary (324 B). Cortex-M4F instructions per call, measured under QEMU (mps2-an386,
+//! `-icount`, release profile with `opt-level = "s"` as the firmware), hovering:
 //!
 //! | call | instructions | per second |
 //! |---|---|---|
-//! | `on_imu` | 935 | 0.84 M (900 calls) |
+//! | `on_imu` | 933 | 0.84 M (900 calls) |
 //! | `on_imu` with the 10 ms covariance prediction | ≈ 6 000 | 0.60 M (100 calls) |
-//! | `on_flow` (2 gated scalar updates) | ≈ 9 500 (max 15 000) | 0.95 M |
-//! | `on_zrange` (tracker, 0–3 updates; incl. a partial prediction) | ≈ 8 100 (max 15 300) | 0.33 M |
-//! | `state()` | ≈ 500 | |
+//! | `on_flow` (2 gated scalar updates) | ≈ 9 700 (max 15 000) | 0.97 M |
+//! | `on_zrange` (tracker, 0–3 updates; incl. a partial prediction) | ≈ 8 900 (max 11 900) | 0.36 M |
+//! | `state()` | ≈ 510 | |
 //!
-//! About 2.7 M instructions per second, ≈ 2 % of the 168 MHz core. `libm`'s `sqrtf`, `sinf` and `cosf` are
+//! About 2.8 M instructions per second, ≈ 2 % of the 168 MHz core. `libm`'s `sqrtf`, `sinf` and `cosf` are
 //! software routines on this target (the latter two through double precision), so none is on the 1 kHz
 //! path: the rotation uses series, the quaternion a first-order renormalisation, the rest tests squared
 //! norms, and the range's cone correction is skipped below 7.5° of tilt.
@@ -1050,9 +1052,9 @@ impl Estimator {
 
     /// `P = F P Fᵀ + Q` over the IMU samples since the last call (see the module docs).
     ///
-    /// `F = [[I, I·dt, A], [0, I, B], [0, 0, Θ]]` with `B = −dt·R[f]×` (δv̇ = −R[f]×δθ), `A = dt/2·B` (its
-    /// integral into δp) and `Θ = exp(−[ω dt]×)` to second order. Applied by blocks, `F·P` and then `(F·P)·Fᵀ`
-    /// cost 297 multiply-adds each instead of 729 for a dense product.
+    /// `F = [[I, I·dt, A], [0, I, B], [0, 0, Θ]]` with `B = −dt·R[f]×` (`δv̇ = −R[f]×δθ`), `A = dt/2·B`
+    /// (its integral into δp) and `Θ = exp(−[ω dt]×)` to second order. Applied by blocks, `F·P` and then
+    /// `(F·P)·Fᵀ` cost 297 multiply-adds each instead of 729 for a dense product.
     fn predict_covariance(&mut self) {
         let dt = self.blk_dt;
         if dt.is_nan() || dt <= 0.0 {

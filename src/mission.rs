@@ -228,7 +228,7 @@ impl Default for MissionConfig {
             planner_budget: 4000,
             no_path_wait_s: 5.0,
             goal_tolerance_m: 0.15,
-            search_speed_m_s: 0.3,
+            search_speed_m_s: 0.35,
             climb_speed_m_s: 0.4,
             descent_speed_m_s: 0.2,
             settle_s: 0.6,
@@ -241,9 +241,9 @@ impl Default for MissionConfig {
             // The planner keeps paths 0.2 m (inflation) from what it has mapped, so avoidance acts only
             // inside that, and slows the drone only close to an obstacle (the nearest range decides).
             avoidance: AvoidanceConfig {
-                danger_distance_m: 0.22,
-                slow_down_distance_m: 0.45,
-                min_speed_mps: 0.2,
+                danger_distance_m: 0.15,
+                slow_down_distance_m: 0.3,
+                min_speed_mps: 0.25,
                 ..AvoidanceConfig::default()
             },
         }

@@ -178,7 +178,7 @@ pub(crate) fn mul9_v(m: &Mat9, v: &Vec9) -> Vec9 {
     out
 }
 
-/// A second-order Butterworth low-pass (the stock `lpf2p`, [FW] src/utils/src/filter.c), one axis.
+/// A second-order Butterworth low-pass (the stock `lpf2p`, \[FW\] src/utils/src/filter.c), one axis.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub(crate) struct Lpf2 {
     b0: f32,

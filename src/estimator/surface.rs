@@ -35,15 +35,20 @@
 //! |---|---|
 //! | \|level − s\| within the gate | a glitch (single wild readings end here): back to normal |
 //! | level < −`floor_tol` | the floor is the lowest surface there is, so `z` is wrong: `s = 0`, re-anchor `z` |
-//! | \|level − s\| ≥ `step_min` and ≥ `step_sigma`·σ_z (`z` cannot be that wrong), or settling | a surface step: `s = level`, snapped to exactly 0 when \|level\| ≤ `snap` |
+//! | \|level − s\| ≥ `step_min` and ≥ `step_sigma`·σ_z, or settling | a step: `s = level` (0 within `snap`) |
 //! | otherwise (a jump `z` could explain) | a height error: re-anchor `z` |
+//!
+//! (`step_sigma`·σ_z: a height error that large is improbable, so the jump is the surface; right after a
+//! step the height has coasted and its grown σ_z proves nothing, so any plateau continues the step.)
 //!
 //! "Re-anchor" inflates `P_zz` by the jump² and the vertical-velocity variance by (jump / 1 s)², so that
 //! the plateau's values pull `z` onto the new level at once, and a velocity error behind the jump is
 //! corrected too. A plateau also needs no significant slope over its last 4 ranges. A transition without a
 //! plateau after `max_transition` ranges is decided: values still moving one way at a rate the filter's
-//! vertical-velocity uncertainty explains are an unseen vertical motion (re-anchor `z` and its velocity on
-//! the newest value: what saves the filter after a divergence reset with a wrong velocity); moving faster
+//! vertical-velocity uncertainty explains are an unseen vertical motion — the slope of the implied surface
+//! *is* the vertical-velocity error, so it is measured (least squares over 150 ms) and subtracted, and `z`
+//! re-anchored on the newest value (what saves the filter after a divergence reset with a wrong velocity;
+//! replaying values taken at different times as if simultaneous carries no rate); moving faster
 //! than that (a healthy filter under a slowly crossed blurred edge) the tracker waits for the plateau up to
 //! 4 × `max_transition`; flickering values (hovering over an edge) are classified on their median, nothing
 //! fused.

@@ -20,6 +20,10 @@ pub struct SimArgs {
     /// Fly N generated worlds instead, with a progress bar and a summary table.
     #[arg(long, value_name = "N")]
     pub random: Option<usize>,
+    /// Fly the single generated world of this seed (as listed in a --random report's `seed`), e.g. to
+    /// look at one run of a batch with --plot or --verbose.
+    #[arg(long, value_name = "SEED")]
+    pub random_world: Option<u64>,
     /// Seed: of the generated worlds with --random, else of the noise (overrides the world's sim.seed).
     #[arg(long)]
     pub seed: Option<u64>,
@@ -138,14 +142,19 @@ pub fn run_cli(args: &SimArgs) -> ExitCode {
         }
         return run_random(n, args.seed.unwrap_or(0), args);
     }
-    let world = match &args.world {
-        Some(path) => match World::load(path) {
+    let world = match (&args.world, args.random_world) {
+        (Some(_), Some(_)) => return fail("--world and --random-world exclude each other"),
+        (Some(path), None) => match World::load(path) {
             Ok(w) => w,
             Err(e) => return fail(e),
         },
-        None => World::default_world(),
+        (None, Some(seed)) => World::random(seed),
+        (None, None) => World::default_world(),
     };
     let mut options = RunOptions::for_world(&world);
+    if let Some(s) = args.random_world {
+        options.seed = s;
+    }
     if let Some(s) = args.seed {
         options.seed = s;
     }

@@ -39,7 +39,7 @@ use heapless::Vec;
 use crate::avoidance::{AvoidanceConfig, ReactiveAvoidance, RangerReadings};
 use crate::dstar::{DStarLite, PlanError, PlanStatus};
 use crate::grid::{ChangedCells, OccupancyGrid};
-use crate::map::{CELL_SIZE_M, Cell, GridShape};
+use crate::map::{CELL_SIZE_M, Cell, GridShape, Traversability};
 use crate::pad::{PadConfig, PadDetector};
 use crate::path::{extract_path, simplify};
 use crate::sweep::{ArenaBounds, LawnmowerSweep, SweepConfig};
@@ -223,7 +223,7 @@ pub struct MissionConfig {
 impl Default for MissionConfig {
     fn default() -> Self {
         Self {
-            inflation_radius_m: 0.25,
+            inflation_radius_m: 0.2,
             max_mapping_range_m: 3.0,
             body_clearance_m: 0.07,
             planner_budget: 4000,
@@ -263,6 +263,19 @@ pub struct MissionInputs {
     pub crashed: bool,
     /// The battery has been low long enough to land now.
     pub battery_low: bool,
+}
+
+/// A map whose blocked cells grow by one cell (8-neighbourhood): the margin shortcuts keep.
+struct Dilated<'a, M: Traversability>(&'a M);
+
+impl<M: Traversability> Traversability for Dilated<'_, M> {
+    fn shape(&self) -> GridShape {
+        self.0.shape()
+    }
+
+    fn is_blocked(&self, x: i32, y: i32) -> bool {
+        (-1..=1).any(|dy| (-1..=1).any(|dx| self.0.is_blocked(x + dx, y + dy)))
+    }
 }
 
 /// Which way the round trip is going.
@@ -745,7 +758,9 @@ impl<const CELLS: usize, const QUEUE: usize> Mission<CELLS, QUEUE> {
                     self.planner_needs_reset = true;
                     return Err(());
                 }
-                simplify(&self.grid, &self.path, &mut self.waypoints);
+                // Shortcuts must keep one more cell from the inflated obstacles than the path itself: a
+                // straight leg hugging an inflated corner leaves no room for tracking and estimate errors.
+                simplify(&Dilated(&self.grid), &self.path, &mut self.waypoints);
                 // From an escape cell, first fly to it.
                 let target = if here != self.cell_of((state.position_m[0], state.position_m[1])) {
                     self.shape.center_of(here)

@@ -111,6 +111,8 @@ pub struct RunReport {
     pub rms_estimate_error_m: f32,
     /// Largest height error (estimate − truth, relative to the take-off surface), m.
     pub max_height_error_m: f32,
+    /// The `mission.state` at each collision's start (where to look).
+    pub collision_states: Vec<u8>,
 }
 
 /// One traced instant.
@@ -401,6 +403,7 @@ pub fn run(world: &World, options: &RunOptions) -> Result<RunResult, String> {
         max_estimate_error_m: score.max_err,
         rms_estimate_error_m: if score.err_n > 0 { (score.err_sq / score.err_n as f64).sqrt() as f32 } else { 0.0 },
         max_height_error_m: score.max_height_err,
+        collision_states: score.collision_states.clone(),
     };
     Ok(RunResult { report, trace, paths, believed, pad_locks })
 }
@@ -414,6 +417,7 @@ fn path_snapshot(core: &SimCore) -> Option<Vec<(f32, f32)>> {
 
 struct Score {
     collisions: u32,
+    collision_states: Vec<u8>,
     in_collision: bool,
     min_clearance: f32,
     landings: Vec<Landing>,
@@ -430,6 +434,7 @@ impl Score {
     fn new() -> Self {
         Self {
             collisions: 0,
+            collision_states: Vec::new(),
             in_collision: false,
             min_clearance: f32::INFINITY,
             landings: Vec::new(),
@@ -448,6 +453,7 @@ impl Score {
         if clearance < 0.0 {
             if !self.in_collision {
                 self.collisions += 1;
+                self.collision_states.push(core.mission_state().code());
             }
             self.in_collision = true;
         } else {

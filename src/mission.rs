@@ -317,6 +317,9 @@ const CHANGED_CAPACITY: usize = 512;
 const PAD_EDGES: usize = 48;
 const REFINE_LINES: u8 = 3;
 const REFINE_STAGES: u8 = 4;
+/// Heading sweep while navigating: amplitude, rad, and period, s.
+const SCAN_AMPLITUDE_RAD: f32 = 0.6;
+const SCAN_PERIOD_S: f32 = 2.0;
 
 /// See the module documentation.
 pub struct Mission<const CELLS: usize, const QUEUE: usize> {
@@ -808,9 +811,13 @@ impl<const CELLS: usize, const QUEUE: usize> Mission<CELLS, QUEUE> {
                 // Slow into the goal (stop within ~0.5 s at 1 m/s²) and never overshoot a waypoint hard.
                 let mut speed = self.params.speed_m_s.min(libm::sqrtf(2.0 * 0.8 * to_goal)).min(0.3 + 2.0 * d);
                 if d > 0.05 {
-                    // Face the direction of travel; fly only as fast as the front ranger looks that way.
-                    self.heading = libm::atan2f(dy, dx);
-                    let misalignment = wrap_angle(self.heading - state.attitude_rad[2]);
+                    // Face the direction of travel, sweeping the heading ±SCAN_AMPLITUDE so the front ranger also
+                    // sees obstacles diagonally ahead (a wall's end beside the path is otherwise invisible to
+                    // four beams until the drone is abeam of it); fly only as fast as the ranger looks ahead.
+                    let phase = 2.0 * core::f32::consts::PI * (now as f32 * 1e-6) / SCAN_PERIOD_S;
+                    let travel = libm::atan2f(dy, dx);
+                    self.heading = wrap_angle(travel + SCAN_AMPLITUDE_RAD * libm::sinf(phase));
+                    let misalignment = wrap_angle(travel - state.attitude_rad[2]);
                     speed *= libm::cosf(misalignment).max(0.0);
                 }
                 if d > 1e-3 { (speed * dx / d, speed * dy / d) } else { (0.0, 0.0) }

@@ -366,6 +366,8 @@ pub struct ControlOutput {
 #[derive(Clone, Debug)]
 pub struct Controller {
     cfg: ControllerConfig,
+    /// Since when the estimate has been invalid.
+    invalid_since: Option<Micros>,
     roll_rate: Pid,
     pitch_rate: Pid,
     yaw_rate: Pid,
@@ -419,7 +421,12 @@ struct Sane {
     gyro_deg: [f32; 3],
     on_ground: bool,
     garbage: bool,
+    /// The estimate is not valid: its horizontal position and velocity cannot be trusted.
+    blind: bool,
 }
+
+/// How long an invalid estimate is still flown on (its IMU-propagated velocity), µs.
+const BLIND_AFTER_US: u64 = 1_500_000;
 
 /// `target − measured`, or 0 if either is not finite.
 fn err(target: f32, measured: f32) -> f32 {
@@ -497,6 +504,7 @@ impl Controller {
             rate_sat: [0; 3],
             vbat: None,
             last_now: None,
+            invalid_since: None,
             garbage_setpoint: false,
         })
     }
@@ -598,7 +606,17 @@ impl Controller {
             };
         }
 
-        let s = self.sanitize(state, gyro_rad_s);
+        let mut s = self.sanitize(state, gyro_rad_s);
+        // The IMU carries the velocity estimate for a while after the flow deck stops helping: brake on it
+        // first, and hold the attitude level only once it is too old to trust.
+        if state.valid {
+            self.invalid_since = None;
+        } else if self.invalid_since.is_none() {
+            self.invalid_since = Some(now);
+        }
+        s.blind = self
+            .invalid_since
+            .is_some_and(|t| now.saturating_sub(t) > BLIND_AFTER_US);
         let tick = self.tick;
         self.tick = (self.tick + 1) % POS_DIV;
         if tick.is_multiple_of(POS_DIV) {
@@ -699,6 +717,7 @@ impl Controller {
             gyro_deg,
             on_ground,
             garbage,
+            blind: false,
         }
     }
 
@@ -751,8 +770,20 @@ impl Controller {
         let ey = err(vyt, s.vel[1]);
         let ehx = cy * ex + sy * ey;
         let ehy = -sy * ex + cy * ey;
-        let ax = self.vx.update(ehx, 0.0, POS_DT, ground.block(self.tilt_sat[0]));
-        let ay = self.vy.update(ehy, 0.0, POS_DT, ground.block(self.tilt_sat[1]));
+        let (ax, ay) = if s.blind {
+            // Without a valid estimate the horizontal loops would chase a drifting integral of the
+            // accelerometer: hold the attitude level instead (an emergency descent drifts only with the air).
+            self.vx.reset();
+            self.vy.reset();
+            self.x.reset();
+            self.y.reset();
+            (pid::PidStep::default(), pid::PidStep::default())
+        } else {
+            (
+                self.vx.update(ehx, 0.0, POS_DT, ground.block(self.tilt_sat[0])),
+                self.vy.update(ehy, 0.0, POS_DT, ground.block(self.tilt_sat[1])),
+            )
+        };
         // Our convention: nose down (+pitch) accelerates forward, right side down (+roll) accelerates to −y.
         let mut pitch = ax.output;
         let mut roll = -ay.output;

@@ -20,8 +20,12 @@
 use crate::control::{ControlOutput, Controller, ControllerConfig};
 use crate::estimator::{Estimator, EstimatorConfig};
 use crate::mission::{Mission, MissionConfig, MissionInputs, MissionParams, MissionState, StartRefusal};
-use crate::supervisor::{Supervisor, SupervisorConfig, SupervisorInput, SupervisorOutput, SupervisorState, clamp_min_height};
-use crate::types::{FlowSample, ImuSample, Micros, MotorDuty, MultiRangerSample, RangeReading, Setpoint, StateEstimate};
+use crate::supervisor::{
+    Supervisor, SupervisorConfig, SupervisorInput, SupervisorOutput, SupervisorState, clamp_min_height,
+};
+use crate::types::{
+    FlowSample, ImuSample, Micros, MotorDuty, MultiRangerSample, RangeReading, Setpoint, StateEstimate,
+};
 
 /// Why the flight core could not be built.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -71,6 +75,8 @@ pub struct FlightCore<const CELLS: usize, const QUEUE: usize> {
     last_supervisor: SupervisorOutput,
     duty: MotorDuty,
     decks_ok: bool,
+    /// When the commander last sent a setpoint.
+    commander_time: Option<Micros>,
 }
 
 impl<const CELLS: usize, const QUEUE: usize> FlightCore<CELLS, QUEUE> {
@@ -92,6 +98,7 @@ impl<const CELLS: usize, const QUEUE: usize> FlightCore<CELLS, QUEUE> {
             last_supervisor: SupervisorOutput::default(),
             duty: MotorDuty::default(),
             decks_ok: true,
+            commander_time: None,
         })
     }
 
@@ -110,6 +117,7 @@ impl<const CELLS: usize, const QUEUE: usize> FlightCore<CELLS, QUEUE> {
             return Err(StartError::DeckMissing);
         }
         self.mission.start(params).map_err(StartError::Params)?;
+        self.commander_time = None;
         // The drone stands where the parameters say: that is the arena frame's anchor for the flight.
         let yaw = self.estimator.state().attitude_rad[2];
         self.estimator.reset([params.start_m.0, params.start_m.1, 0.0], yaw);
@@ -147,12 +155,22 @@ impl<const CELLS: usize, const QUEUE: usize> FlightCore<CELLS, QUEUE> {
         self.estimator.set_flying(verdict.flying);
         let setpoint = if verdict.motors_allowed {
             let guarded = self.supervisor.guard_setpoint(self.mission_setpoint);
-            if verdict.flying { clamp_min_height(guarded, crate::mission::MIN_HEIGHT_M) } else { guarded }
+            if verdict.flying {
+                clamp_min_height(guarded, crate::mission::MIN_HEIGHT_M)
+            } else {
+                guarded
+            }
         } else {
             Setpoint::Stop
         };
-        let output = self.controller.update(&setpoint, &state, sample.gyro_rad_s, self.battery_v, now);
-        self.duty = if verdict.motors_allowed && setpoint != Setpoint::Stop { output.duty } else { MotorDuty::default() };
+        let output = self
+            .controller
+            .update(&setpoint, &state, sample.gyro_rad_s, self.battery_v, now);
+        self.duty = if verdict.motors_allowed && setpoint != Setpoint::Stop {
+            output.duty
+        } else {
+            MotorDuty::default()
+        };
         self.last_control = output;
         self.last_supervisor = verdict;
         self.duty
@@ -183,12 +201,30 @@ impl<const CELLS: usize, const QUEUE: usize> FlightCore<CELLS, QUEUE> {
         }
     }
 
-    /// 50 Hz: one mission step; its setpoint is flown by the next [`FlightCore::on_imu`] calls.
+    /// A setpoint from outside the mission (the radio commander, or a test script). Flown only while no
+    /// mission runs; like the stock commander it must keep coming, or the supervisor's setpoint timeout
+    /// levels out and then stops the motors.
+    pub fn commander_setpoint(&mut self, setpoint: Setpoint, now: Micros) {
+        if !self.mission.is_running() {
+            self.mission_setpoint = setpoint;
+            self.mission_setpoint_time = Some(now);
+            self.commander_time = Some(now);
+        }
+    }
+
+    /// 50 Hz: one mission step; its setpoint is flown by the next [`FlightCore::on_imu`] calls. Does
+    /// nothing while no mission runs (the commander's setpoint stays in force).
     pub fn mission_tick(&mut self, now: Micros) {
+        // While the commander flies (setpoints within the supervisor's 2 s shutdown timeout) the idle
+        // mission must not overwrite its setpoint with Stop.
+        if !self.mission.is_running() && self.commander_time.is_some_and(|t| now.saturating_sub(t) < 2_000_000) {
+            return;
+        }
         let state = self.estimator.state();
         let sup = self.last_supervisor.state;
         let inputs = MissionInputs {
-            landed: matches!(sup, SupervisorState::Landed) || (!self.last_supervisor.flying && self.duty == MotorDuty::default()),
+            landed: matches!(sup, SupervisorState::Landed)
+                || (!self.last_supervisor.flying && self.duty == MotorDuty::default()),
             crashed: matches!(sup, SupervisorState::Crashed | SupervisorState::Locked),
             battery_low: self.last_supervisor.battery_low,
         };

@@ -36,7 +36,7 @@
 
 use heapless::Vec;
 
-use crate::avoidance::{AvoidanceConfig, ReactiveAvoidance, RangerReadings};
+use crate::avoidance::{AvoidanceConfig, RangerReadings, ReactiveAvoidance};
 use crate::dstar::{DStarLite, PlanError, PlanStatus};
 use crate::grid::{ChangedCells, OccupancyGrid};
 use crate::map::{CELL_SIZE_M, Cell, GridShape, Traversability};
@@ -158,15 +158,25 @@ pub const MAX_SPEED_M_S: f32 = 1.0;
 
 impl MissionParams {
     /// The seed scenario's values.
-    pub const SEED: Self =
-        Self { arena_m: (6.0, 3.0), start_m: (0.6, 1.3), goal_m: (5.0, 1.5), height_m: 0.5, speed_m_s: 0.5 };
+    pub const SEED: Self = Self {
+        arena_m: (6.0, 3.0),
+        start_m: (0.6, 1.3),
+        goal_m: (5.0, 1.5),
+        height_m: 0.5,
+        speed_m_s: 0.5,
+    };
 
     /// Check the parameters against each other and a grid capacity.
     pub fn validate(&self, capacity_cells: usize) -> Result<GridShape, StartRefusal> {
         let shape =
             GridShape::for_arena(self.arena_m.0, self.arena_m.1, capacity_cells).ok_or(StartRefusal::BadArena)?;
         let inside = |p: (f32, f32)| {
-            p.0.is_finite() && p.1.is_finite() && p.0 > 0.1 && p.1 > 0.1 && p.0 < self.arena_m.0 - 0.1 && p.1 < self.arena_m.1 - 0.1
+            p.0.is_finite()
+                && p.1.is_finite()
+                && p.0 > 0.1
+                && p.1 > 0.1
+                && p.0 < self.arena_m.0 - 0.1
+                && p.1 < self.arena_m.1 - 0.1
         };
         if !inside(self.start_m) || !inside(self.goal_m) {
             return Err(StartRefusal::OutsideArena);
@@ -235,13 +245,23 @@ impl Default for MissionConfig {
             settle_s: 0.6,
             settle_tolerance_m: 0.03,
             pause_s: 2.0,
-            sweep: SweepConfig { size_x_m: 1.0, size_y_m: 1.0, spacing_m: 0.2, crosshatch: true, ..SweepConfig::default() },
+            sweep: SweepConfig {
+                size_x_m: 1.0,
+                size_y_m: 1.0,
+                spacing_m: 0.2,
+                crosshatch: true,
+                ..SweepConfig::default()
+            },
             refine_line_m: 0.5,
             refine_offset_m: 0.08,
             // Two inlier crossings per direction (8 edges) lock: the refinement flies three lines each way,
             // and on the simulator's drifting estimate waiting for six inliers (the detector's default 12
             // edges) mostly ran the pattern out; locks at 8 land as accurately (see BENCHMARKS.md).
-            pad: PadConfig { min_edges: 8, fit_tolerance_m: 0.08, ..PadConfig::default() },
+            pad: PadConfig {
+                min_edges: 8,
+                fit_tolerance_m: 0.08,
+                ..PadConfig::default()
+            },
             // The planner keeps paths 0.2 m (inflation) from what it has mapped, so avoidance acts only
             // inside that, and slows the drone only close to an obstacle (the nearest range decides).
             avoidance: AvoidanceConfig {
@@ -289,14 +309,35 @@ enum Leg {
 enum Phase {
     Idle,
     Preflight,
-    TakeOff { x: f32, y: f32, z_target: f32 },
+    TakeOff {
+        x: f32,
+        y: f32,
+        z_target: f32,
+    },
     Navigate,
-    NoPath { since: Micros, x: f32, y: f32 },
+    NoPath {
+        since: Micros,
+        x: f32,
+        y: f32,
+    },
     Search(Search),
-    Approach { x: f32, y: f32, settled_since: Option<Micros> },
-    Land { x: f32, y: f32 },
-    OnPad { since: Micros },
-    EmergencyLand { x: f32, y: f32, then: MissionState },
+    Approach {
+        x: f32,
+        y: f32,
+        settled_since: Option<Micros>,
+    },
+    Land {
+        x: f32,
+        y: f32,
+    },
+    OnPad {
+        since: Micros,
+    },
+    EmergencyLand {
+        x: f32,
+        y: f32,
+        then: MissionState,
+    },
     Ended(MissionState),
 }
 
@@ -308,7 +349,13 @@ enum Search {
     Coarse { step: usize, reverse: bool },
     /// Refinement: stage 0 = lines across the first crossing, stage 1 = lines along it; `line` of 3,
     /// `end` = 0 going to the line's start, 1 to its end.
-    Refine { stage: u8, line: u8, end: u8, centre: (f32, f32), first_along_x: bool },
+    Refine {
+        stage: u8,
+        line: u8,
+        end: u8,
+        centre: (f32, f32),
+        first_along_x: bool,
+    },
 }
 
 const PATH_CAPACITY: usize = 512;
@@ -498,7 +545,8 @@ impl<const CELLS: usize, const QUEUE: usize> Mission<CELLS, QUEUE> {
             return;
         }
         let (x, y, yaw) = (state.position_m[0], state.position_m[1], state.attitude_rad[2]);
-        self.grid.mark_free_disc((x, y), self.config.body_clearance_m, &mut self.changed);
+        self.grid
+            .mark_free_disc((x, y), self.config.body_clearance_m, &mut self.changed);
         let beams = [
             (ranges.front_m, 0.0),
             (ranges.back_m, core::f32::consts::PI),
@@ -506,7 +554,9 @@ impl<const CELLS: usize, const QUEUE: usize> Mission<CELLS, QUEUE> {
             (ranges.right_m, -core::f32::consts::FRAC_PI_2),
         ];
         for (range, offset) in beams {
-            let Some(d) = range.filter(|d| d.is_finite() && *d > 0.02) else { continue };
+            let Some(d) = range.filter(|d| d.is_finite() && *d > 0.02) else {
+                continue;
+            };
             let (length, hit) = if d <= self.config.max_mapping_range_m {
                 (d, true)
             } else {
@@ -552,9 +602,17 @@ impl<const CELLS: usize, const QUEUE: usize> Mission<CELLS, QUEUE> {
             if !state.valid && !matches!(self.phase, Phase::EmergencyLand { .. }) {
                 // Without a usable estimate nothing can be flown safely; descend blind at the last known spot
                 // and let the supervisor's touchdown or timeout stop the motors.
-                self.phase = Phase::EmergencyLand { x, y, then: MissionState::EstimatorFault };
+                self.phase = Phase::EmergencyLand {
+                    x,
+                    y,
+                    then: MissionState::EstimatorFault,
+                };
             } else if inputs.battery_low && !matches!(self.phase, Phase::EmergencyLand { .. } | Phase::Land { .. }) {
-                self.phase = Phase::EmergencyLand { x, y, then: MissionState::BatteryLow };
+                self.phase = Phase::EmergencyLand {
+                    x,
+                    y,
+                    then: MissionState::BatteryLow,
+                };
             }
         }
 
@@ -577,8 +635,17 @@ impl<const CELLS: usize, const QUEUE: usize> Mission<CELLS, QUEUE> {
                     return self.navigate(now, state, dt_s);
                 }
                 let target = (z_target + self.config.climb_speed_m_s * dt_s).min(self.params.height_m);
-                self.phase = Phase::TakeOff { x: tx, y: ty, z_target: target };
-                Setpoint::Position { x_m: tx, y_m: ty, z_m: target, yaw_rad: self.heading }
+                self.phase = Phase::TakeOff {
+                    x: tx,
+                    y: ty,
+                    z_target: target,
+                };
+                Setpoint::Position {
+                    x_m: tx,
+                    y_m: ty,
+                    z_m: target,
+                    yaw_rad: self.heading,
+                }
             }
             Phase::Navigate => self.navigate(now, state, dt_s),
             Phase::NoPath { since, x: hx, y: hy } => {
@@ -591,12 +658,25 @@ impl<const CELLS: usize, const QUEUE: usize> Mission<CELLS, QUEUE> {
                     Err(()) => {}
                 }
                 if (now.saturating_sub(since)) as f32 * 1e-6 > self.config.no_path_wait_s {
-                    self.phase = Phase::EmergencyLand { x: hx, y: hy, then: MissionState::NoPath };
+                    self.phase = Phase::EmergencyLand {
+                        x: hx,
+                        y: hy,
+                        then: MissionState::NoPath,
+                    };
                 }
-                Setpoint::Position { x_m: hx, y_m: hy, z_m: self.params.height_m, yaw_rad: self.heading }
+                Setpoint::Position {
+                    x_m: hx,
+                    y_m: hy,
+                    z_m: self.params.height_m,
+                    yaw_rad: self.heading,
+                }
             }
             Phase::Search(search) => self.search(search, state, dt_s),
-            Phase::Approach { x: px, y: py, settled_since } => {
+            Phase::Approach {
+                x: px,
+                y: py,
+                settled_since,
+            } => {
                 let err = libm::hypotf(x - px, y - py);
                 let slow = libm::hypotf(state.velocity_m_s[0], state.velocity_m_s[1]) < 0.05;
                 let settled_since = if err < self.config.settle_tolerance_m && slow {
@@ -609,9 +689,18 @@ impl<const CELLS: usize, const QUEUE: usize> Mission<CELLS, QUEUE> {
                 {
                     self.phase = Phase::Land { x: px, y: py };
                 } else {
-                    self.phase = Phase::Approach { x: px, y: py, settled_since };
+                    self.phase = Phase::Approach {
+                        x: px,
+                        y: py,
+                        settled_since,
+                    };
                 }
-                Setpoint::Position { x_m: px, y_m: py, z_m: self.params.height_m, yaw_rad: self.heading }
+                Setpoint::Position {
+                    x_m: px,
+                    y_m: py,
+                    z_m: self.params.height_m,
+                    yaw_rad: self.heading,
+                }
             }
             Phase::Land { x: px, y: py } => {
                 if inputs.landed {
@@ -621,13 +710,22 @@ impl<const CELLS: usize, const QUEUE: usize> Mission<CELLS, QUEUE> {
                             Setpoint::Stop
                         }
                         Leg::Return => {
-                            let end = if self.pad_not_found { MissionState::PadNotFound } else { MissionState::Completed };
+                            let end = if self.pad_not_found {
+                                MissionState::PadNotFound
+                            } else {
+                                MissionState::Completed
+                            };
                             self.phase = Phase::Ended(end);
                             Setpoint::Stop
                         }
                     };
                 }
-                Setpoint::Descend { x_m: px, y_m: py, vz_m_s: -self.descent_speed(state), yaw_rad: self.heading }
+                Setpoint::Descend {
+                    x_m: px,
+                    y_m: py,
+                    vz_m_s: -self.descent_speed(state),
+                    yaw_rad: self.heading,
+                }
             }
             Phase::OnPad { since } => {
                 if (now.saturating_sub(since)) as f32 * 1e-6 >= self.config.pause_s {
@@ -640,7 +738,12 @@ impl<const CELLS: usize, const QUEUE: usize> Mission<CELLS, QUEUE> {
                     self.phase = Phase::Ended(then);
                     return Setpoint::Stop;
                 }
-                Setpoint::Descend { x_m: lx, y_m: ly, vz_m_s: -self.descent_speed(state), yaw_rad: self.heading }
+                Setpoint::Descend {
+                    x_m: lx,
+                    y_m: ly,
+                    vz_m_s: -self.descent_speed(state),
+                    yaw_rad: self.heading,
+                }
             }
         }
     }
@@ -683,7 +786,12 @@ impl<const CELLS: usize, const QUEUE: usize> Mission<CELLS, QUEUE> {
         let (x, y) = (state.position_m[0], state.position_m[1]);
         let z_target = state.position_m[2].max(0.0);
         self.phase = Phase::TakeOff { x, y, z_target };
-        Setpoint::Position { x_m: x, y_m: y, z_m: z_target, yaw_rad: self.heading }
+        Setpoint::Position {
+            x_m: x,
+            y_m: y,
+            z_m: z_target,
+            yaw_rad: self.heading,
+        }
     }
 
     fn cell_of(&self, p: (f32, f32)) -> Cell {
@@ -799,7 +907,12 @@ impl<const CELLS: usize, const QUEUE: usize> Mission<CELLS, QUEUE> {
             Ok(Some(t)) => Some(t),
             Ok(None) => {
                 self.phase = Phase::NoPath { since: now, x, y };
-                return Setpoint::Position { x_m: x, y_m: y, z_m: self.params.height_m, yaw_rad: self.heading };
+                return Setpoint::Position {
+                    x_m: x,
+                    y_m: y,
+                    z_m: self.params.height_m,
+                    yaw_rad: self.heading,
+                };
             }
             // An unfinished repair: keep heading for the previous waypoint, if any.
             Err(()) => self.waypoints.get(1).map(|c| self.shape.center_of(*c)),
@@ -809,7 +922,11 @@ impl<const CELLS: usize, const QUEUE: usize> Mission<CELLS, QUEUE> {
                 let (dx, dy) = (tx - x, ty - y);
                 let d = libm::hypotf(dx, dy);
                 // Slow into the goal (stop within ~0.5 s at 1 m/s²) and never overshoot a waypoint hard.
-                let mut speed = self.params.speed_m_s.min(libm::sqrtf(2.0 * 0.8 * to_goal)).min(0.3 + 2.0 * d);
+                let mut speed = self
+                    .params
+                    .speed_m_s
+                    .min(libm::sqrtf(2.0 * 0.8 * to_goal))
+                    .min(0.3 + 2.0 * d);
                 if d > 0.05 {
                     // Face the direction of travel, sweeping the heading ±SCAN_AMPLITUDE so the front ranger also
                     // sees obstacles diagonally ahead (a wall's end beside the path is otherwise invisible to
@@ -820,12 +937,23 @@ impl<const CELLS: usize, const QUEUE: usize> Mission<CELLS, QUEUE> {
                     let misalignment = wrap_angle(travel - state.attitude_rad[2]);
                     speed *= libm::cosf(misalignment).max(0.0);
                 }
-                if d > 1e-3 { (speed * dx / d, speed * dy / d) } else { (0.0, 0.0) }
+                if d > 1e-3 {
+                    (speed * dx / d, speed * dy / d)
+                } else {
+                    (0.0, 0.0)
+                }
             }
             None => (0.0, 0.0),
         };
-        let cmd = self.avoidance.step(&self.last_ranges, state.attitude_rad[2], dvx, dvy, dt_s);
-        Setpoint::Velocity { vx_m_s: cmd.vx, vy_m_s: cmd.vy, z_m: self.params.height_m, yaw_rad: self.heading }
+        let cmd = self
+            .avoidance
+            .step(&self.last_ranges, state.attitude_rad[2], dvx, dvy, dt_s);
+        Setpoint::Velocity {
+            vx_m_s: cmd.vx,
+            vy_m_s: cmd.vy,
+            z_m: self.params.height_m,
+            yaw_rad: self.heading,
+        }
     }
 
     fn begin_search(&mut self, state: &StateEstimate) -> Setpoint {
@@ -834,7 +962,10 @@ impl<const CELLS: usize, const QUEUE: usize> Mission<CELLS, QUEUE> {
         let here = (state.position_m[0], state.position_m[1]);
         self.sweep = LawnmowerSweep::new(centre, here, &self.config.sweep, &arena).ok();
         self.pad.reset();
-        let search = Search::Coarse { step: 0, reverse: false };
+        let search = Search::Coarse {
+            step: 0,
+            reverse: false,
+        };
         self.phase = Phase::Search(search);
         self.search(search, state, 0.02)
     }
@@ -846,15 +977,36 @@ impl<const CELLS: usize, const QUEUE: usize> Mission<CELLS, QUEUE> {
         let d = libm::hypotf(dx, dy);
         let reached = d < 0.03;
         let speed = self.config.search_speed_m_s.min(0.05 + 1.5 * d);
-        let (vx, vy) = if d > 1e-3 { (speed * dx / d, speed * dy / d) } else { (0.0, 0.0) };
-        (Setpoint::Velocity { vx_m_s: vx, vy_m_s: vy, z_m: self.params.height_m, yaw_rad: self.heading }, reached)
+        let (vx, vy) = if d > 1e-3 {
+            (speed * dx / d, speed * dy / d)
+        } else {
+            (0.0, 0.0)
+        };
+        (
+            Setpoint::Velocity {
+                vx_m_s: vx,
+                vy_m_s: vy,
+                z_m: self.params.height_m,
+                yaw_rad: self.heading,
+            },
+            reached,
+        )
     }
 
     fn search(&mut self, search: Search, state: &StateEstimate, _dt_s: f32) -> Setpoint {
         if let Some((px, py)) = self.pad.locked_centre() {
             self.stats.pad_centres[self.leg_index()] = Some((px, py));
-            self.phase = Phase::Approach { x: px, y: py, settled_since: None };
-            return Setpoint::Position { x_m: px, y_m: py, z_m: self.params.height_m, yaw_rad: self.heading };
+            self.phase = Phase::Approach {
+                x: px,
+                y: py,
+                settled_since: None,
+            };
+            return Setpoint::Position {
+                x_m: px,
+                y_m: py,
+                z_m: self.params.height_m,
+                yaw_rad: self.heading,
+            };
         }
         match search {
             Search::Coarse { step, reverse } => {
@@ -872,7 +1024,9 @@ impl<const CELLS: usize, const QUEUE: usize> Mission<CELLS, QUEUE> {
                     self.phase = Phase::Search(refine);
                     return self.search(refine, state, _dt_s);
                 }
-                let Some((a, b)) = self.coarse_line(step / 2) else { return self.give_up_search(state) };
+                let Some((a, b)) = self.coarse_line(step / 2) else {
+                    return self.give_up_search(state);
+                };
                 // Enter each line at the end nearer the drone.
                 let reverse = if step % 2 == 0 {
                     let here = (state.position_m[0], state.position_m[1]);
@@ -883,10 +1037,19 @@ impl<const CELLS: usize, const QUEUE: usize> Mission<CELLS, QUEUE> {
                 let (first, second) = if reverse { (b, a) } else { (a, b) };
                 let wp = if step % 2 == 0 { first } else { second };
                 let (sp, reached) = self.fly_to(state, wp);
-                self.phase = Phase::Search(Search::Coarse { step: if reached { step + 1 } else { step }, reverse });
+                self.phase = Phase::Search(Search::Coarse {
+                    step: if reached { step + 1 } else { step },
+                    reverse,
+                });
                 sp
             }
-            Search::Refine { stage, line, end, centre, first_along_x } => {
+            Search::Refine {
+                stage,
+                line,
+                end,
+                centre,
+                first_along_x,
+            } => {
                 if stage >= REFINE_STAGES {
                     self.pad.flush();
                     return self.give_up_search(state);
@@ -897,23 +1060,51 @@ impl<const CELLS: usize, const QUEUE: usize> Mission<CELLS, QUEUE> {
                 let offset = (f32::from(line) - 1.0) * self.config.refine_offset_m;
                 // The first stage crosses a pad whose centre may lie up to a pad width to either side of the
                 // first crossing's line, so its lines are longer; later stages are centred on the estimate.
-                let length = if stage == 0 { self.config.refine_line_m + 0.3 } else { self.config.refine_line_m };
+                let length = if stage == 0 {
+                    self.config.refine_line_m + 0.3
+                } else {
+                    self.config.refine_line_m
+                };
                 let half = 0.5 * length;
                 let (a, b) = if along_x {
-                    ((centre.0 - half, centre.1 + offset), (centre.0 + half, centre.1 + offset))
+                    (
+                        (centre.0 - half, centre.1 + offset),
+                        (centre.0 + half, centre.1 + offset),
+                    )
                 } else {
-                    ((centre.0 + offset, centre.1 - half), (centre.0 + offset, centre.1 + half))
+                    (
+                        (centre.0 + offset, centre.1 - half),
+                        (centre.0 + offset, centre.1 + half),
+                    )
                 };
                 // Alternate directions so consecutive lines join up like a lawnmower.
                 let (first, second) = if line % 2 == 0 { (a, b) } else { (b, a) };
                 let wp = if end == 0 { first } else { second };
                 let (sp, reached) = self.fly_to(state, wp);
                 let next = if !reached {
-                    Search::Refine { stage, line, end, centre, first_along_x }
+                    Search::Refine {
+                        stage,
+                        line,
+                        end,
+                        centre,
+                        first_along_x,
+                    }
                 } else if end == 0 {
-                    Search::Refine { stage, line, end: 1, centre, first_along_x }
+                    Search::Refine {
+                        stage,
+                        line,
+                        end: 1,
+                        centre,
+                        first_along_x,
+                    }
                 } else if line + 1 < REFINE_LINES {
-                    Search::Refine { stage, line: line + 1, end: 0, centre, first_along_x }
+                    Search::Refine {
+                        stage,
+                        line: line + 1,
+                        end: 0,
+                        centre,
+                        first_along_x,
+                    }
                 } else {
                     // Next stage, centred on the detector's best estimate so far. After the first round the
                     // detector starts afresh: the position estimate drifts (≈ 1 cm/√s on flow alone), so
@@ -923,7 +1114,13 @@ impl<const CELLS: usize, const QUEUE: usize> Mission<CELLS, QUEUE> {
                     if stage + 1 == 2 {
                         self.pad.reset();
                     }
-                    Search::Refine { stage: stage + 1, line: 0, end: 0, centre: c, first_along_x }
+                    Search::Refine {
+                        stage: stage + 1,
+                        line: 0,
+                        end: 0,
+                        centre: c,
+                        first_along_x,
+                    }
                 };
                 self.phase = Phase::Search(next);
                 sp
@@ -936,15 +1133,27 @@ impl<const CELLS: usize, const QUEUE: usize> Mission<CELLS, QUEUE> {
     fn coarse_line(&self, k: usize) -> Option<((f32, f32), (f32, f32))> {
         let sweep = self.sweep.as_ref()?;
         let [first, second] = sweep.lines_per_pass();
-        let (pass_start, lines, j) = if k < first { (0, first, k) } else { (2 * first, second, k.checked_sub(first)?) };
+        let (pass_start, lines, j) = if k < first {
+            (0, first, k)
+        } else {
+            (2 * first, second, k.checked_sub(first)?)
+        };
         if j >= lines {
             return None;
         }
         // Centre-out: mid, mid+1, mid−1, mid+2, …
         let mid = (lines - 1) / 2;
         let offset = j.div_ceil(2);
-        let line = if j % 2 == 1 { mid + offset } else { mid.checked_sub(offset)? };
-        let line = if line < lines { line } else { mid.checked_sub(offset + 1)? };
+        let line = if j % 2 == 1 {
+            mid + offset
+        } else {
+            mid.checked_sub(offset)?
+        };
+        let line = if line < lines {
+            line
+        } else {
+            mid.checked_sub(offset + 1)?
+        };
         let a = sweep.waypoint(pass_start + 2 * line)?;
         let b = sweep.waypoint(pass_start + 2 * line + 1)?;
         Some((a, b))
@@ -953,11 +1162,24 @@ impl<const CELLS: usize, const QUEUE: usize> Mission<CELLS, QUEUE> {
     /// No lock: land on the best estimate, or the nominal point, and remember it for the final code.
     fn give_up_search(&mut self, state: &StateEstimate) -> Setpoint {
         self.pad_not_found = true;
-        let (px, py) = self.pad.estimate().map(|e| (e.x, e.y)).unwrap_or_else(|| self.leg_target());
+        let (px, py) = self
+            .pad
+            .estimate()
+            .map(|e| (e.x, e.y))
+            .unwrap_or_else(|| self.leg_target());
         self.stats.pad_centres[self.leg_index()] = None;
         let _ = state;
-        self.phase = Phase::Approach { x: px, y: py, settled_since: None };
-        Setpoint::Position { x_m: px, y_m: py, z_m: self.params.height_m, yaw_rad: self.heading }
+        self.phase = Phase::Approach {
+            x: px,
+            y: py,
+            settled_since: None,
+        };
+        Setpoint::Position {
+            x_m: px,
+            y_m: py,
+            z_m: self.params.height_m,
+            yaw_rad: self.heading,
+        }
     }
 
     fn leg_index(&self) -> usize {

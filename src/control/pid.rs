@@ -94,7 +94,7 @@ impl Gate {
 }
 
 /// One step's result.
-#[derive(Clone, Copy, Debug, PartialEq)]
+#[derive(Clone, Copy, Debug, PartialEq, Default)]
 pub struct PidStep {
     /// The clamped output.
     pub output: f32,

@@ -33,6 +33,12 @@ pub struct SimArgs {
     /// Draw the arena, the believed map, the paths and the track (.svg or .png).
     #[arg(long)]
     pub plot: Option<PathBuf>,
+    /// Inject a flow-deck failure at this time, s (fault scenario).
+    #[arg(long, value_name = "S")]
+    pub flow_fails_at: Option<f64>,
+    /// Write `mission.start = 0` at this time, s (abort scenario).
+    #[arg(long, value_name = "S")]
+    pub abort_at: Option<f64>,
     /// Print every mission state change to stderr.
     #[arg(long)]
     pub verbose: bool,
@@ -98,7 +104,10 @@ fn percentile(mut v: Vec<f32>, p: f64) -> Option<f32> {
 /// The batch summary of `--random`.
 pub fn summarise(reports: &[RunReport], wall_s: f64) -> Summary {
     let completed: Vec<&RunReport> = reports.iter().filter(|r| r.outcome == "completed").collect();
-    let errors: Vec<f32> = completed.iter().flat_map(|r| r.landings.iter().map(|l| l.error_m)).collect();
+    let errors: Vec<f32> = completed
+        .iter()
+        .flat_map(|r| r.landings.iter().map(|l| l.error_m))
+        .collect();
     let sim_s: f64 = reports.iter().map(|r| r.sim_time_s).sum();
     Summary {
         runs: reports.len(),
@@ -107,14 +116,28 @@ pub fn summarise(reports: &[RunReport], wall_s: f64) -> Summary {
         median_mission_time_s: median(completed.iter().filter_map(|r| r.mission_time_s).collect()),
         median_landing_error_m: median(errors.clone()),
         p95_landing_error_m: percentile(errors, 0.95),
-        completed_fraction: if reports.is_empty() { 0.0 } else { completed.len() as f64 / reports.len() as f64 },
+        completed_fraction: if reports.is_empty() {
+            0.0
+        } else {
+            completed.len() as f64 / reports.len() as f64
+        },
         sim_seconds_per_wall_second: if wall_s > 0.0 { sim_s / wall_s } else { 0.0 },
     }
 }
 
 fn one_line(r: &RunReport) -> String {
-    let landings: Vec<String> =
-        r.landings.iter().map(|l| format!("pad {} {:.1} cm{}", l.pad, l.error_m * 100.0, if l.on_pad { "" } else { " OFF" })).collect();
+    let landings: Vec<String> = r
+        .landings
+        .iter()
+        .map(|l| {
+            format!(
+                "pad {} {:.1} cm{}",
+                l.pad,
+                l.error_m * 100.0,
+                if l.on_pad { "" } else { " OFF" }
+            )
+        })
+        .collect();
     format!(
         "{}: {}{} in {} s (sim {:.1} s, wall {:.2} s), landings [{}], collisions {}, min clearance {}, replans {}, estimate error max {:.1} cm",
         r.world,
@@ -160,6 +183,8 @@ pub fn run_cli(args: &SimArgs) -> ExitCode {
     }
     options.record = args.plot.is_some();
     options.verbose = args.verbose;
+    options.faults.flow_fails_at_s = args.flow_fails_at;
+    options.faults.abort_at_s = args.abort_at;
     let result = match run(&world, &options) {
         Ok(r) => r,
         Err(e) => return fail(e),
@@ -188,7 +213,9 @@ fn run_random(n: usize, seed: u64, args: &SimArgs) -> ExitCode {
     let next = AtomicUsize::new(0);
     let results: Mutex<Vec<Option<RunReport>>> = Mutex::new((0..n).map(|_| None).collect());
     let errors: Mutex<Vec<String>> = Mutex::new(Vec::new());
-    let workers = std::thread::available_parallelism().map_or(1, |p| p.get()).min(n.max(1));
+    let workers = std::thread::available_parallelism()
+        .map_or(1, |p| p.get())
+        .min(n.max(1));
     std::thread::scope(|scope| {
         for _ in 0..workers {
             scope.spawn(|| {
@@ -226,7 +253,13 @@ fn run_random(n: usize, seed: u64, args: &SimArgs) -> ExitCode {
     let summary = summarise(&reports, started.elapsed().as_secs_f64());
     print_table(&reports, &summary);
     if let Some(path) = &args.json
-        && let Err(e) = write_json(path, &BatchReport { runs: &reports, summary: &summary })
+        && let Err(e) = write_json(
+            path,
+            &BatchReport {
+                runs: &reports,
+                summary: &summary,
+            },
+        )
     {
         return fail(e);
     }
@@ -250,8 +283,15 @@ fn print_table(reports: &[RunReport], s: &Summary) {
     println!("{:<32} {:>6}", "runs", s.runs);
     println!("{:<32} {:>5.1} %", "completed", 100.0 * s.completed_fraction);
     println!("{:<32} {:>6}", "collisions", s.collisions);
-    println!("{:<32} {:>6}", "median mission time", s.median_mission_time_s.map_or("-".into(), |t| format!("{t:.1} s")));
+    println!(
+        "{:<32} {:>6}",
+        "median mission time",
+        s.median_mission_time_s.map_or("-".into(), |t| format!("{t:.1} s"))
+    );
     println!("{:<32} {:>6}", "median landing error", fmt_m(s.median_landing_error_m));
     println!("{:<32} {:>6}", "p95 landing error", fmt_m(s.p95_landing_error_m));
-    println!("{:<32} {:>6.0}×", "simulation speed (real time)", s.sim_seconds_per_wall_second);
+    println!(
+        "{:<32} {:>6.0}×",
+        "simulation speed (real time)", s.sim_seconds_per_wall_second
+    );
 }

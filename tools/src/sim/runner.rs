@@ -109,7 +109,7 @@ pub struct RunReport {
     pub max_estimate_error_m: f32,
     /// RMS horizontal error of the position estimate while airborne, m.
     pub rms_estimate_error_m: f32,
-    /// Largest height error (estimate − truth, relative to the take-off surface), m.
+    /// Largest error of the height above the surface below (estimate vs truth) at flying height, m.
     pub max_height_error_m: f32,
     /// The `mission.state` at each collision's start (where to look).
     pub collision_states: Vec<u8>,
@@ -245,7 +245,7 @@ pub fn run(world: &World, options: &RunOptions) -> Result<RunResult, String> {
         let on_ground = quad.on_ground();
         if !on_ground {
             let clearance = world.clearance(p[0], p[1], p[2]) - BODY_RADIUS_M;
-            score.airborne(clearance, &core, p, take_off_surface);
+            score.airborne(clearance, &core, p, take_off_surface, world.surface_height(p[0], p[1]));
         } else {
             score.grounded();
         }
@@ -290,12 +290,23 @@ pub fn run(world: &World, options: &RunOptions) -> Result<RunResult, String> {
                 core.supervisor().state,
             );
         }
-        if options.verbose && state != last_state && matches!(state, MissionState::ApproachGoalPad | MissionState::ApproachHomePad) {
+        if options.verbose
+            && state != last_state
+            && matches!(state, MissionState::ApproachGoalPad | MissionState::ApproachHomePad)
+        {
             for e in core.mission().pad_detector().edges() {
-                eprintln!("             edge {:?} at ({:.3}, {:.3}) step {:.3}", e.kind, e.x, e.y, e.step_m);
+                eprintln!(
+                    "             edge {:?} at ({:.3}, {:.3}) step {:.3}",
+                    e.kind, e.x, e.y, e.step_m
+                );
             }
             for c in core.mission().pad_detector().crossings() {
-                eprintln!("             crossing mid ({:.3}, {:.3}) len {:.3}", c.midpoint().0, c.midpoint().1, c.length());
+                eprintln!(
+                    "             crossing mid ({:.3}, {:.3}) len {:.3}",
+                    c.midpoint().0,
+                    c.midpoint().1,
+                    c.length()
+                );
             }
         }
         last_state = state;
@@ -317,7 +328,10 @@ pub fn run(world: &World, options: &RunOptions) -> Result<RunResult, String> {
                 e.velocity_m_s[1],
                 core.mission().pad_detector().edges().len(),
                 core.mission().pad_detector().crossings().len(),
-                core.mission().pad_detector().estimate().map(|e| (e.x, e.y, e.confidence, e.inliers)),
+                core.mission()
+                    .pad_detector()
+                    .estimate()
+                    .map(|e| (e.x, e.y, e.confidence, e.inliers)),
                 core.setpoint(),
                 e.position_m[2],
                 p[2],
@@ -371,8 +385,9 @@ pub fn run(world: &World, options: &RunOptions) -> Result<RunResult, String> {
             _ => ("aborted", Some("unknown")),
         }
     };
-    let mission_time_s =
-        last_motor_stop.filter(|_| started).map(|t| (t.saturating_sub(trigger_tick)) as f64 * 1e-3);
+    let mission_time_s = last_motor_stop
+        .filter(|_| started)
+        .map(|t| (t.saturating_sub(trigger_tick)) as f64 * 1e-3);
     let mission = core.mission();
     let grid = mission.grid();
     let shape = grid.shape();
@@ -401,11 +416,21 @@ pub fn run(world: &World, options: &RunOptions) -> Result<RunResult, String> {
         wall_time_s: wall.elapsed().as_secs_f64(),
         mission_state: state.code(),
         max_estimate_error_m: score.max_err,
-        rms_estimate_error_m: if score.err_n > 0 { (score.err_sq / score.err_n as f64).sqrt() as f32 } else { 0.0 },
+        rms_estimate_error_m: if score.err_n > 0 {
+            (score.err_sq / score.err_n as f64).sqrt() as f32
+        } else {
+            0.0
+        },
         max_height_error_m: score.max_height_err,
         collision_states: score.collision_states.clone(),
     };
-    Ok(RunResult { report, trace, paths, believed, pad_locks })
+    Ok(RunResult {
+        report,
+        trace,
+        paths,
+        believed,
+        pad_locks,
+    })
 }
 
 fn path_snapshot(core: &SimCore) -> Option<Vec<(f32, f32)>> {
@@ -448,7 +473,7 @@ impl Score {
         }
     }
 
-    fn airborne(&mut self, clearance: f32, core: &SimCore, p: [f32; 3], take_off_surface: f32) {
+    fn airborne(&mut self, clearance: f32, core: &SimCore, p: [f32; 3], take_off_surface: f32, surface: f32) {
         self.min_clearance = self.min_clearance.min(clearance);
         if clearance < 0.0 {
             if !self.in_collision {
@@ -470,7 +495,8 @@ impl Score {
             self.max_err = self.max_err.max(err);
             self.err_sq += f64::from(err * err);
             self.err_n += 1;
-            let h_err = (e.position_m[2] - (p[2] - take_off_surface)).abs();
+            // Height above whatever is below: the estimate's own reference (take-off surface or floor) cancels.
+            let h_err = ((e.position_m[2] - e.surface_height_m) - (p[2] - surface)).abs();
             self.max_height_err = self.max_height_err.max(h_err);
         }
     }
@@ -496,6 +522,10 @@ impl Score {
             }
         };
         let c = world.pads.get(pad).map_or([p[0], p[1]], |pd| pd.center);
-        self.landings.push(Landing { pad, error_m: (c[0] - p[0]).hypot(c[1] - p[1]), on_pad });
+        self.landings.push(Landing {
+            pad,
+            error_m: (c[0] - p[0]).hypot(c[1] - p[1]),
+            on_pad,
+        });
     }
 }

@@ -145,37 +145,26 @@ pub fn wrap_angle(a: f32) -> f32 {
     w - core::f32::consts::PI
 }
 
-/// Rotate a body-frame vector into the arena frame with the attitude `[roll, pitch, yaw]`.
-pub fn body_to_arena(v: [f32; 3], attitude_rad: [f32; 3]) -> [f32; 3] {
+/// The rotation matrix `R = Rz(yaw)·Ry(pitch)·Rx(roll)` (body → arena) of the attitude `[roll, pitch, yaw]`.
+pub fn rotation(attitude_rad: [f32; 3]) -> [[f32; 3]; 3] {
     let (sr, cr) = (libm::sinf(attitude_rad[0]), libm::cosf(attitude_rad[0]));
     let (sp, cp) = (libm::sinf(attitude_rad[1]), libm::cosf(attitude_rad[1]));
     let (sy, cy) = (libm::sinf(attitude_rad[2]), libm::cosf(attitude_rad[2]));
-    // R = Rz(yaw)·Ry(pitch)·Rx(roll).
-    let r = [
+    [
         [cy * cp, cy * sp * sr - sy * cr, cy * sp * cr + sy * sr],
         [sy * cp, sy * sp * sr + cy * cr, sy * sp * cr - cy * sr],
         [-sp, cp * sr, cp * cr],
-    ];
-    [
-        r[0][0] * v[0] + r[0][1] * v[1] + r[0][2] * v[2],
-        r[1][0] * v[0] + r[1][1] * v[1] + r[1][2] * v[2],
-        r[2][0] * v[0] + r[2][1] * v[1] + r[2][2] * v[2],
     ]
+}
+
+/// Rotate a body-frame vector into the arena frame with the attitude `[roll, pitch, yaw]`.
+pub fn body_to_arena(v: [f32; 3], attitude_rad: [f32; 3]) -> [f32; 3] {
+    let r = rotation(attitude_rad);
+    core::array::from_fn(|i| r[i][0] * v[0] + r[i][1] * v[1] + r[i][2] * v[2])
 }
 
 /// Rotate an arena-frame vector into the body frame (the transpose of [`body_to_arena`]).
 pub fn arena_to_body(v: [f32; 3], attitude_rad: [f32; 3]) -> [f32; 3] {
-    let (sr, cr) = (libm::sinf(attitude_rad[0]), libm::cosf(attitude_rad[0]));
-    let (sp, cp) = (libm::sinf(attitude_rad[1]), libm::cosf(attitude_rad[1]));
-    let (sy, cy) = (libm::sinf(attitude_rad[2]), libm::cosf(attitude_rad[2]));
-    let r = [
-        [cy * cp, cy * sp * sr - sy * cr, cy * sp * cr + sy * sr],
-        [sy * cp, sy * sp * sr + cy * cr, sy * sp * cr - cy * sr],
-        [-sp, cp * sr, cp * cr],
-    ];
-    [
-        r[0][0] * v[0] + r[1][0] * v[1] + r[2][0] * v[2],
-        r[0][1] * v[0] + r[1][1] * v[1] + r[2][1] * v[2],
-        r[0][2] * v[0] + r[1][2] * v[1] + r[2][2] * v[2],
-    ]
+    let r = rotation(attitude_rad);
+    core::array::from_fn(|i| r[0][i] * v[0] + r[1][i] * v[1] + r[2][i] * v[2])
 }

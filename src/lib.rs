@@ -21,6 +21,7 @@ pub mod mission;
 pub mod pad;
 pub mod path;
 pub mod queue;
+pub mod radio;
 pub mod supervisor;
 pub mod sweep;
 pub mod types;

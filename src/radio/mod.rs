@@ -1,0 +1,17 @@
+//! The radio side of the firmware: the syslink wire codec to the nRF51 and the CRTP packet layer above it.
+//!
+//! Job: turn bytes into packets and packets into bytes, and answer the CRTP services every client needs
+//! before anything else (link port 15, platform port 13), with the stock firmware's exact byte layouts.
+//!
+//! Non-goals: no UART, DMA, flow-control pin or UDP socket (the caller moves bytes), no clock, no log or
+//! parameter protocol (other services plug into [`crtp::Router`] through [`crtp::Service`]).
+//!
+//! Sources: `/work/shared/reference/crazyflie-hardware.md` §3 (syslink) and §4 (CRTP),
+//! `/work/shared/reference/crtp-over-udp.md` §1–§2 (what cflib sends and expects), and
+//! `/work/shared/spec/interfaces.md` §5 (protocol version 12).
+//!
+//! Memory: everything is fixed-size (`heapless`); the largest object is the syslink decoder's 70-byte frame
+//! buffer and the router's reply queue (`Q` × 32 bytes).
+
+pub mod crtp;
+pub mod syslink;

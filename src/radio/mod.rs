@@ -3,8 +3,9 @@
 //! Job: turn bytes into packets and packets into bytes, and answer the CRTP services every client needs
 //! before anything else (link port 15, platform port 13), with the stock firmware's exact byte layouts.
 //!
-//! Non-goals: no UART, DMA, flow-control pin or UDP socket (the caller moves bytes), no clock, no log or
-//! parameter protocol (other services plug into [`crtp::Router`] through [`crtp::Service`]).
+//! Non-goals: no UART, DMA, flow-control pin or UDP socket (the caller moves bytes), no clock, no log
+//! protocol (other services plug into [`crtp::Router`] through [`crtp::Service`]). The parameter protocol is
+//! [`param::ParamService`] (port 2) over a [`registry::ParamStore`].
 //!
 //! Sources: `/work/shared/reference/crazyflie-hardware.md` §3 (syslink) and §4 (CRTP),
 //! `/work/shared/reference/crtp-over-udp.md` §1–§2 (what cflib sends and expects), and
@@ -14,4 +15,6 @@
 //! buffer and the router's reply queue (`Q` × 32 bytes).
 
 pub mod crtp;
+pub mod param;
+pub mod registry;
 pub mod syslink;

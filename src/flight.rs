@@ -227,6 +227,7 @@ impl<const CELLS: usize, const QUEUE: usize> FlightCore<CELLS, QUEUE> {
                 || (!self.last_supervisor.flying && self.duty == MotorDuty::default()),
             crashed: matches!(sup, SupervisorState::Crashed | SupervisorState::Locked),
             battery_low: self.last_supervisor.battery_low,
+            armed: self.last_supervisor.motors_allowed,
         };
         self.mission_setpoint = self.mission.tick(now, &state, &inputs);
         self.mission_setpoint_time = Some(now);

@@ -283,6 +283,9 @@ pub struct MissionInputs {
     pub crashed: bool,
     /// The battery has been low long enough to land now.
     pub battery_low: bool,
+    /// The supervisor allows the motors (armed or flying). It arms only while it sees a Stop setpoint
+    /// (the thrust lock), so the mission keeps sending Stop until then.
+    pub armed: bool,
 }
 
 /// A map whose blocked cells grow by one cell (8-neighbourhood): the margin shortcuts keep.
@@ -623,7 +626,7 @@ impl<const CELLS: usize, const QUEUE: usize> Mission<CELLS, QUEUE> {
                     self.phase = Phase::Ended(MissionState::Crashed);
                     return Setpoint::Stop;
                 }
-                if !state.valid {
+                if !state.valid || !inputs.armed {
                     return Setpoint::Stop;
                 }
                 self.begin_leg(now, state, Leg::Outbound)
@@ -728,7 +731,11 @@ impl<const CELLS: usize, const QUEUE: usize> Mission<CELLS, QUEUE> {
                 }
             }
             Phase::OnPad { since } => {
-                if (now.saturating_sub(since)) as f32 * 1e-6 >= self.config.pause_s {
+                if inputs.crashed {
+                    self.phase = Phase::Ended(MissionState::Crashed);
+                    return Setpoint::Stop;
+                }
+                if (now.saturating_sub(since)) as f32 * 1e-6 >= self.config.pause_s && inputs.armed && state.valid {
                     return self.begin_leg(now, state, Leg::Return);
                 }
                 Setpoint::Stop

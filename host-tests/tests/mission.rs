@@ -1,0 +1,201 @@
+//! The mission state machine on its own: start refusals, the thrust-lock handshake, abort, state codes.
+
+use cfnav::mission::{Mission, MissionConfig, MissionInputs, MissionParams, MissionState, StartRefusal};
+use cfnav::types::{Setpoint, StateEstimate};
+
+type M = Mission<{ 128 * 64 }, 1024>;
+
+fn mission() -> Box<M> {
+    Box::new(Mission::new(MissionConfig::default()).expect("default config is valid"))
+}
+
+fn at(x: f32, y: f32, z: f32) -> StateEstimate {
+    StateEstimate {
+        position_m: [x, y, z],
+        valid: true,
+        ..StateEstimate::default()
+    }
+}
+
+#[test]
+fn nonsense_parameters_are_refused_and_nothing_starts() {
+    let mut m = mission();
+    let ok = MissionParams::SEED;
+    let cases = [
+        (
+            MissionParams {
+                goal_m: (7.0, 1.5),
+                ..ok
+            },
+            StartRefusal::OutsideArena,
+        ),
+        (
+            MissionParams {
+                goal_m: (f32::NAN, 1.5),
+                ..ok
+            },
+            StartRefusal::OutsideArena,
+        ),
+        (
+            MissionParams {
+                start_m: (0.6, -0.2),
+                ..ok
+            },
+            StartRefusal::OutsideArena,
+        ),
+        (MissionParams { height_m: 0.1, ..ok }, StartRefusal::BadHeight),
+        (MissionParams { speed_m_s: -0.3, ..ok }, StartRefusal::BadSpeed),
+        (MissionParams { speed_m_s: 0.0, ..ok }, StartRefusal::BadSpeed),
+        (
+            MissionParams {
+                arena_m: (60.0, 30.0),
+                ..ok
+            },
+            StartRefusal::BadArena,
+        ),
+    ];
+    for (params, why) in cases {
+        assert_eq!(m.start(params), Err(why), "{params:?}");
+        assert_eq!(m.state(), MissionState::Idle);
+    }
+    m.start(ok).unwrap();
+    assert_eq!(m.start(ok), Err(StartRefusal::AlreadyRunning));
+}
+
+#[test]
+fn preflight_waits_for_a_valid_estimate_and_the_armed_supervisor() {
+    let mut m = mission();
+    m.start(MissionParams::SEED).unwrap();
+    let mut now = 0;
+    let mut tick = |m: &mut M, state: StateEstimate, armed: bool| {
+        now += 20_000;
+        m.tick(
+            now,
+            &state,
+            &MissionInputs {
+                armed,
+                ..MissionInputs::default()
+            },
+        )
+    };
+    // Valid estimate but the supervisor has not armed yet: keep sending Stop (its thrust lock needs it).
+    for _ in 0..10 {
+        assert_eq!(tick(&mut m, at(0.6, 1.3, 0.0), false), Setpoint::Stop);
+        assert_eq!(m.state(), MissionState::Preflight);
+    }
+    // Armed but no valid estimate: still Stop.
+    assert_eq!(
+        tick(
+            &mut m,
+            StateEstimate {
+                valid: false,
+                ..at(0.6, 1.3, 0.0)
+            },
+            true
+        ),
+        Setpoint::Stop
+    );
+    // Both: take off.
+    let sp = tick(&mut m, at(0.6, 1.3, 0.0), true);
+    assert!(matches!(sp, Setpoint::Position { .. }), "{sp:?}");
+    assert_eq!(m.state(), MissionState::TakeOffOutbound);
+}
+
+#[test]
+fn abort_lands_where_it_is_and_ends_aborted() {
+    let mut m = mission();
+    m.start(MissionParams::SEED).unwrap();
+    let inputs = MissionInputs {
+        armed: true,
+        ..MissionInputs::default()
+    };
+    m.tick(20_000, &at(0.6, 1.3, 0.0), &inputs);
+    m.tick(40_000, &at(0.6, 1.3, 0.3), &inputs);
+    m.abort(&at(0.7, 1.2, 0.3));
+    let sp = m.tick(60_000, &at(0.7, 1.2, 0.3), &inputs);
+    assert!(
+        matches!(sp, Setpoint::Descend { x_m, y_m, vz_m_s, .. } if x_m == 0.7 && y_m == 1.2 && vz_m_s < 0.0),
+        "{sp:?}"
+    );
+    assert_eq!(m.state(), MissionState::EmergencyLanding);
+    let sp = m.tick(80_000, &at(0.7, 1.2, 0.0), &MissionInputs { landed: true, ..inputs });
+    assert_eq!(sp, Setpoint::Stop);
+    assert_eq!(m.state(), MissionState::Aborted);
+    assert_eq!(m.state().code(), 200);
+    // Idle again for a new start.
+    m.start(MissionParams::SEED).unwrap();
+}
+
+#[test]
+fn battery_low_and_crash_end_flying_phases() {
+    let mut m = mission();
+    m.start(MissionParams::SEED).unwrap();
+    let inputs = MissionInputs {
+        armed: true,
+        ..MissionInputs::default()
+    };
+    m.tick(20_000, &at(0.6, 1.3, 0.0), &inputs);
+    m.tick(
+        40_000,
+        &at(0.6, 1.3, 0.3),
+        &MissionInputs {
+            battery_low: true,
+            ..inputs
+        },
+    );
+    assert_eq!(m.state(), MissionState::EmergencyLanding);
+    m.tick(60_000, &at(0.6, 1.3, 0.0), &MissionInputs { landed: true, ..inputs });
+    assert_eq!(m.state(), MissionState::BatteryLow);
+
+    let mut m = mission();
+    m.start(MissionParams::SEED).unwrap();
+    m.tick(20_000, &at(0.6, 1.3, 0.0), &inputs);
+    assert_eq!(
+        m.tick(
+            40_000,
+            &at(0.6, 1.3, 0.3),
+            &MissionInputs {
+                crashed: true,
+                ..inputs
+            }
+        ),
+        Setpoint::Stop
+    );
+    assert_eq!(m.state(), MissionState::Crashed);
+}
+
+#[test]
+fn state_codes_follow_the_documented_ranges() {
+    use MissionState::*;
+    for s in [
+        Idle,
+        Preflight,
+        TakeOffOutbound,
+        NavigateToGoal,
+        SearchGoalPad,
+        ApproachGoalPad,
+        LandOnGoalPad,
+        OnGoalPad,
+        TakeOffReturn,
+        NavigateHome,
+        SearchHomePad,
+        ApproachHomePad,
+        LandOnHomePad,
+        NoPathHover,
+        EmergencyLanding,
+    ] {
+        assert!(s.code() < 100 && !s.is_final(), "{s:?}");
+    }
+    assert_eq!(Completed.code(), 100);
+    for s in [
+        Aborted,
+        NoPath,
+        PadNotFound,
+        BatteryLow,
+        EstimatorFault,
+        Crashed,
+        PlannerFault,
+    ] {
+        assert!(s.code() >= 200 && s.is_final(), "{s:?}");
+    }
+}

@@ -3,9 +3,10 @@
 //! Job: turn bytes into packets and packets into bytes, and answer the CRTP services every client needs
 //! before anything else (link port 15, platform port 13), with the stock firmware's exact byte layouts.
 //!
-//! Non-goals: no UART, DMA, flow-control pin or UDP socket (the caller moves bytes), no clock, no log
-//! protocol (other services plug into [`crtp::Router`] through [`crtp::Service`]). The parameter protocol is
-//! [`param::ParamService`] (port 2) over a [`registry::ParamStore`].
+//! Non-goals: no UART, DMA, flow-control pin or UDP socket (the caller moves bytes), no clock (the caller
+//! passes `now_ms`). Services plug into [`crtp::Router`] through [`crtp::Service`]: the parameter protocol is
+//! [`param::ParamService`] (port 2) over a [`registry::ParamStore`], the log protocol [`log::LogService`]
+//! (port 5) over a [`log_registry::LogSource`].
 //!
 //! Sources: `/work/shared/reference/crazyflie-hardware.md` §3 (syslink) and §4 (CRTP),
 //! `/work/shared/reference/crtp-over-udp.md` §1–§2 (what cflib sends and expects), and
@@ -15,6 +16,8 @@
 //! buffer and the router's reply queue (`Q` × 32 bytes).
 
 pub mod crtp;
+pub mod log;
+pub mod log_registry;
 pub mod param;
 pub mod registry;
 pub mod syslink;

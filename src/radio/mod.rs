@@ -6,7 +6,7 @@
 //! Non-goals: no UART, DMA, flow-control pin or UDP socket (the caller moves bytes), no clock (the caller
 //! passes `now_ms`). Services plug into [`crtp::Router`] through [`crtp::Service`]: the parameter protocol is
 //! [`param::ParamService`] (port 2) over a [`registry::ParamStore`], the log protocol [`log::LogService`]
-//! (port 5) over a [`log_registry::LogSource`].
+//! (port 5) over a [`log_registry::LogSource`], the memory count [`mem::MemService`] (port 4).
 //!
 //! Sources: `/work/shared/reference/crazyflie-hardware.md` §3 (syslink) and §4 (CRTP),
 //! `/work/shared/reference/crtp-over-udp.md` §1–§2 (what cflib sends and expects), and
@@ -18,6 +18,7 @@
 pub mod crtp;
 pub mod log;
 pub mod log_registry;
+pub mod mem;
 pub mod param;
 pub mod registry;
 pub mod syslink;

@@ -42,7 +42,8 @@ pub struct SimArgs {
     /// Print every mission state change to stderr.
     #[arg(long)]
     pub verbose: bool,
-    /// Serve CRTP over UDP instead of flying at once (not available yet).
+    /// Serve CRTP over UDP on 127.0.0.1:PORT in (a multiple of) real time instead of flying at once; nothing
+    /// flies until a client writes `mission.start`; runs until interrupted.
     #[arg(long)]
     pub serve: bool,
     /// UDP port for --serve.
@@ -157,7 +158,7 @@ fn one_line(r: &RunReport) -> String {
 /// `cfnav sim`.
 pub fn run_cli(args: &SimArgs) -> ExitCode {
     if args.serve {
-        return fail("--serve is not available in this build yet (the radio milestone adds it)");
+        return run_serve(args);
     }
     if let Some(n) = args.random {
         if args.world.is_some() {
@@ -201,6 +202,29 @@ pub fn run_cli(args: &SimArgs) -> ExitCode {
         return fail(e);
     }
     ExitCode::from(if result.report.outcome == "completed" { 0 } else { 1 })
+}
+
+/// `cfnav sim --serve [--port P] [--world FILE | --random-world SEED] [--speed X]`.
+fn run_serve(args: &SimArgs) -> ExitCode {
+    if args.random.is_some() {
+        return fail("--serve flies one world; drop --random");
+    }
+    if args.json.is_some() || args.plot.is_some() || args.flow_fails_at.is_some() || args.abort_at.is_some() {
+        return fail("--json, --plot, --flow-fails-at and --abort-at do not apply to --serve");
+    }
+    let world = match (&args.world, args.random_world) {
+        (Some(_), Some(_)) => return fail("--world and --random-world exclude each other"),
+        (Some(path), None) => match World::load(path) {
+            Ok(w) => w,
+            Err(e) => return fail(e),
+        },
+        (None, Some(seed)) => World::random(seed),
+        (None, None) => World::default_world(),
+    };
+    match crate::sim::serve::serve(&world, args.port, args.speed) {
+        Ok(()) => ExitCode::SUCCESS,
+        Err(e) => fail(e),
+    }
 }
 
 fn run_random(n: usize, seed: u64, args: &SimArgs) -> ExitCode {

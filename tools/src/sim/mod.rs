@@ -5,9 +5,11 @@
 //!   and collision geometry.
 //! - [`physics`]: the rigid-body quadrotor, motors, battery, contacts.
 //! - [`sensors`]: the drone's sensors as the drivers deliver them (types in `cfnav::types`).
+//! - [`serve`]: `cfnav sim --serve`, the drone in real time behind CRTP over UDP.
 
 pub mod physics;
 pub mod plot;
 pub mod runner;
 pub mod sensors;
+pub mod serve;
 pub mod world;

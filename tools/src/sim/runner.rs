@@ -10,7 +10,7 @@ use std::time::Instant;
 
 use cfnav::flight::{FlightConfig, FlightCore};
 use cfnav::mission::{MissionParams, MissionState};
-use cfnav::types::MotorDuty;
+use cfnav::types::{MotorDuty, MultiRangerSample, RangeReading};
 use rand::SeedableRng;
 use rand::rngs::SmallRng;
 use serde::Serialize;
@@ -137,6 +137,114 @@ pub struct RunResult {
     pub pad_locks: Vec<(f32, f32)>,
 }
 
+/// The simulated drone: the quadrotor, its sensors with their own noise streams, and the firmware's
+/// [`FlightCore`], stepped together 1 ms at a time with each step function at its MCU rate. Shared by
+/// [`run`], the UDP server and the tests, so they all fly exactly the same loop.
+pub struct SimDrone {
+    /// The true vehicle.
+    pub quad: Quadrotor,
+    /// The firmware's flight stack.
+    pub core: Box<SimCore>,
+    rng_imu: SmallRng,
+    rng_flow: SmallRng,
+    rng_z: SmallRng,
+    rng_mr: SmallRng,
+    rng_bat: SmallRng,
+    imu: Imu,
+    flow: FlowSensor,
+    zranger: ZRanger,
+    multiranger: MultiRanger,
+    battery: BatterySensor,
+    /// The latest readings (for logs).
+    pub last_multiranger: MultiRangerSample,
+    /// The latest downward range.
+    pub last_zrange: RangeReading,
+    /// The latest battery voltage reading, V.
+    pub last_vbat: f32,
+    tick: u64,
+}
+
+impl SimDrone {
+    /// A drone standing on the world's start, powered on, with `faults` applied.
+    pub fn new(world: &World, seed: u64, faults: &Faults) -> Result<Self, String> {
+        let stream = |k: u64| SmallRng::seed_from_u64(seed.wrapping_mul(0x9E37_79B9_7F4A_7C15) ^ k);
+        let mut rng_imu = stream(1);
+        let start = world.mission.start;
+        let mut quad = Quadrotor::new(QuadParams::default(), [start[0], start[1], 0.0], 0.0);
+        quad.place_on_surface(world);
+        if let Some(soc) = faults.battery_state_of_charge {
+            quad.battery_mut().set_state_of_charge(soc);
+        }
+        if let Some(k) = faults.battery_drain_multiplier {
+            quad.battery_mut().set_drain_multiplier(k);
+        }
+        let imu = Imu::new(ImuParams::default(), &mut rng_imu);
+        let mut flow = FlowSensor::new(FlowParams::default());
+        if let Some(t) = faults.flow_fails_at_s {
+            flow.inject_fault(Some((t, SensorFault::Stopped)));
+        }
+        let mut core: Box<SimCore> = Box::new(
+            FlightCore::new(&FlightConfig::default(), (start[0], start[1]), 0.0)
+                .map_err(|e| format!("the flight configuration is invalid: {e:?}"))?,
+        );
+        core.set_decks_ok(!faults.decks_missing);
+        Ok(Self {
+            quad,
+            core,
+            rng_imu,
+            rng_flow: stream(2),
+            rng_z: stream(3),
+            rng_mr: stream(4),
+            rng_bat: stream(5),
+            imu,
+            flow,
+            zranger: ZRanger::new(ZRangerParams::default()),
+            multiranger: MultiRanger::new(MultiRangerParams::default()),
+            battery: BatterySensor::default(),
+            last_multiranger: MultiRangerSample::default(),
+            last_zrange: None,
+            last_vbat: 0.0,
+            tick: 0,
+        })
+    }
+
+    /// Milliseconds since power-on.
+    pub fn tick(&self) -> u64 {
+        self.tick
+    }
+
+    /// One millisecond: sensors at their rates into the flight core, the mission tick, the IMU step, the
+    /// duties to the motors, physics. Returns the duties written.
+    pub fn step(&mut self, world: &World) -> MotorDuty {
+        let tick = self.tick;
+        let now_us = tick * 1000;
+        if tick.is_multiple_of(10) {
+            if let Some(f) = self.flow.sample(&self.quad, world, &mut self.rng_flow) {
+                self.core.on_flow(&f);
+            }
+            self.last_vbat = self.battery.sample(&self.quad, &mut self.rng_bat);
+            self.core.on_battery(self.last_vbat);
+        }
+        if tick.is_multiple_of(25) {
+            self.last_zrange = self.zranger.sample(&self.quad, world, &mut self.rng_z);
+            self.core.on_zrange(self.last_zrange);
+        }
+        if tick.is_multiple_of(100) {
+            self.last_multiranger = self.multiranger.sample(&self.quad, world, &mut self.rng_mr);
+            self.core.on_multiranger(&self.last_multiranger);
+        }
+        if tick.is_multiple_of(20) {
+            self.core.mission_tick(now_us);
+        }
+        let sample = self.imu.sample(&self.quad, &mut self.rng_imu);
+        let duty = self.core.on_imu(&sample, now_us);
+        self.quad.set_duty(duty);
+        self.quad.step(0.001, world);
+        self.tick += 1;
+        duty
+    }
+}
+
 /// The parameters the world gives the drone.
 pub fn mission_params(world: &World) -> MissionParams {
     MissionParams {
@@ -152,37 +260,9 @@ pub fn mission_params(world: &World) -> MissionParams {
 pub fn run(world: &World, options: &RunOptions) -> Result<RunResult, String> {
     let wall = Instant::now();
     let seed = options.seed;
-    let mut rng_imu = SmallRng::seed_from_u64(seed.wrapping_mul(0x9E37_79B9_7F4A_7C15) ^ 1);
-    let mut rng_flow = SmallRng::seed_from_u64(seed.wrapping_mul(0x9E37_79B9_7F4A_7C15) ^ 2);
-    let mut rng_z = SmallRng::seed_from_u64(seed.wrapping_mul(0x9E37_79B9_7F4A_7C15) ^ 3);
-    let mut rng_mr = SmallRng::seed_from_u64(seed.wrapping_mul(0x9E37_79B9_7F4A_7C15) ^ 4);
-    let mut rng_bat = SmallRng::seed_from_u64(seed.wrapping_mul(0x9E37_79B9_7F4A_7C15) ^ 5);
-
-    let start = world.mission.start;
-    let mut quad = Quadrotor::new(QuadParams::default(), [start[0], start[1], 0.0], 0.0);
-    quad.place_on_surface(world);
-    if let Some(soc) = options.faults.battery_state_of_charge {
-        quad.battery_mut().set_state_of_charge(soc);
-    }
-    if let Some(k) = options.faults.battery_drain_multiplier {
-        quad.battery_mut().set_drain_multiplier(k);
-    }
-    let mut imu = Imu::new(ImuParams::default(), &mut rng_imu);
-    let mut flow = FlowSensor::new(FlowParams::default());
-    if let Some(t) = options.faults.flow_fails_at_s {
-        flow.inject_fault(Some((t, SensorFault::Stopped)));
-    }
-    let mut zranger = ZRanger::new(ZRangerParams::default());
-    let mut multiranger = MultiRanger::new(MultiRangerParams::default());
-    let battery = BatterySensor::default();
-
-    let mut core: Box<SimCore> = Box::new(
-        FlightCore::new(&FlightConfig::default(), (start[0], start[1]), 0.0)
-            .map_err(|e| format!("the flight configuration is invalid: {e:?}"))?,
-    );
-    core.set_decks_ok(!options.faults.decks_missing);
+    let mut drone = SimDrone::new(world, seed, &options.faults)?;
     let params = mission_params(world);
-    let take_off_surface = quad.position()[2];
+    let take_off_surface = drone.quad.position()[2];
 
     let total_ticks = (options.time_limit_s * 1000.0).max(0.0) as u64;
     let trigger_tick = (options.trigger_s * 1000.0) as u64;
@@ -198,54 +278,37 @@ pub fn run(world: &World, options: &RunOptions) -> Result<RunResult, String> {
     let mut last_motor_stop: Option<u64> = None;
     let mut was_on_ground = true;
     let mut tick = 0u64;
-    let mut last_state = core.mission_state();
+    let mut last_state = drone.core.mission_state();
 
     while tick < total_ticks {
-        let now_us = tick * 1000;
         if tick == trigger_tick {
-            match core.start_mission(params) {
+            match drone.core.start_mission(params) {
                 Ok(()) => started = true,
                 Err(_) => start_refused = true,
             }
         }
         if Some(tick) == abort_tick {
-            core.abort_mission();
+            drone.core.abort_mission();
         }
-        if tick.is_multiple_of(10) {
-            if let Some(f) = flow.sample(&quad, world, &mut rng_flow) {
-                core.on_flow(&f);
-            }
-            core.on_battery(battery.sample(&quad, &mut rng_bat));
+        let new_duty = drone.step(world);
+        if tick.is_multiple_of(20)
+            && let Some(snapshot) = path_snapshot(&drone.core)
+            && paths.last() != Some(&snapshot)
+        {
+            paths.push(snapshot);
         }
-        if tick.is_multiple_of(25) {
-            core.on_zrange(zranger.sample(&quad, world, &mut rng_z));
-        }
-        if tick.is_multiple_of(100) {
-            core.on_multiranger(&multiranger.sample(&quad, world, &mut rng_mr));
-        }
-        if tick.is_multiple_of(20) {
-            core.mission_tick(now_us);
-            if let Some(snapshot) = path_snapshot(&core)
-                && paths.last() != Some(&snapshot)
-            {
-                paths.push(snapshot);
-            }
-        }
-        let sample = imu.sample(&quad, &mut rng_imu);
-        let new_duty = core.on_imu(&sample, now_us);
         if duty != MotorDuty::default() && new_duty == MotorDuty::default() {
             last_motor_stop = Some(tick);
         }
         duty = new_duty;
-        quad.set_duty(duty);
-        quad.step(0.001, world);
+        let (quad, core) = (&drone.quad, &drone.core);
 
         // Score on the truth.
         let p = quad.position();
         let on_ground = quad.on_ground();
         if !on_ground {
             let clearance = world.clearance(p[0], p[1], p[2]) - BODY_RADIUS_M;
-            score.airborne(clearance, &core, p, take_off_surface, world.surface_height(p[0], p[1]));
+            score.airborne(clearance, core, p, take_off_surface, world.surface_height(p[0], p[1]));
         } else {
             score.grounded();
         }
@@ -359,6 +422,7 @@ pub fn run(world: &World, options: &RunOptions) -> Result<RunResult, String> {
     }
 
     let sim_time_s = tick as f64 * 1e-3;
+    let core = &drone.core;
     let state = core.mission_state();
     let completed_on_pads = score.landings.len() >= 2
         && score.landings[0].on_pad

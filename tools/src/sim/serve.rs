@@ -17,22 +17,15 @@ use std::io::ErrorKind;
 use std::net::{SocketAddr, UdpSocket};
 use std::time::{Duration, Instant};
 
-use cfnav::flight::{FlightConfig, FlightCore};
 use cfnav::radio::crtp::{CrtpPacket, MAX_DATA, NULL_HEADER, PlatformService, Router, Service, is_null_header};
 use cfnav::radio::log::LogService;
 use cfnav::radio::log_registry::FlightLogState;
 use cfnav::radio::mem::MemService;
 use cfnav::radio::param::ParamService;
 use cfnav::radio::registry::{ID_START, MissionParamState};
-use cfnav::types::{MotorDuty, MultiRangerSample, RangeReading};
-use rand::SeedableRng;
-use rand::rngs::SmallRng;
+use cfnav::types::RangeReading;
 
-use super::physics::{QuadParams, Quadrotor};
-use super::runner::{SIM_CELLS, SimCore, mission_params};
-use super::sensors::{
-    BatterySensor, FlowParams, FlowSensor, Imu, ImuParams, MultiRanger, MultiRangerParams, ZRanger, ZRangerParams,
-};
+use super::runner::{Faults, SIM_CELLS, SimDrone, mission_params};
 use super::world::World;
 
 /// Simulated milliseconds run at most between two polls of the socket.
@@ -51,115 +44,31 @@ const NO_RANGE_MM: u16 = 32767;
 type Params = ParamService<MissionParamState>;
 type Logs = LogService<FlightLogState>;
 
-/// The simulated drone: the same parts and rates as [`super::runner::run`].
-struct Drone {
-    rng_imu: SmallRng,
-    rng_flow: SmallRng,
-    rng_z: SmallRng,
-    rng_mr: SmallRng,
-    rng_bat: SmallRng,
-    quad: Quadrotor,
-    imu: Imu,
-    flow: FlowSensor,
-    zranger: ZRanger,
-    multiranger: MultiRanger,
-    battery: BatterySensor,
-    core: Box<SimCore>,
-    duty: MotorDuty,
-    /// Latest readings, for the log.
-    last_mr: MultiRangerSample,
-    last_z: RangeReading,
-    vbat: f32,
-    /// Simulated milliseconds since power-on.
-    tick: u64,
+/// What the log service reads from the simulated drone.
+fn log_state(drone: &SimDrone) -> FlightLogState {
+    let mm = |r: RangeReading| match r {
+        Some(m) if m.is_finite() && m >= 0.0 => (m * 1000.0).round().min(f32::from(NO_RANGE_MM)) as u16,
+        _ => NO_RANGE_MM,
+    };
+    let mr = &drone.last_multiranger;
+    FlightLogState {
+        mission_state: drone.core.mission_state().code(),
+        position_m: drone.core.estimate().position_m,
+        ranges_mm: [
+            mm(mr.front_m),
+            mm(mr.back_m),
+            mm(mr.left_m),
+            mm(mr.right_m),
+            mm(mr.up_m),
+            mm(drone.last_zrange),
+        ],
+        vbat_v: drone.last_vbat,
+    }
 }
 
-impl Drone {
-    fn new(world: &World, seed: u64) -> Result<Self, String> {
-        let mut rng_imu = SmallRng::seed_from_u64(seed.wrapping_mul(0x9E37_79B9_7F4A_7C15) ^ 1);
-        let start = world.mission.start;
-        let mut quad = Quadrotor::new(QuadParams::default(), [start[0], start[1], 0.0], 0.0);
-        quad.place_on_surface(world);
-        let imu = Imu::new(ImuParams::default(), &mut rng_imu);
-        let mut core: Box<SimCore> = Box::new(
-            FlightCore::new(&FlightConfig::default(), (start[0], start[1]), 0.0)
-                .map_err(|e| format!("the flight configuration is invalid: {e:?}"))?,
-        );
-        core.set_decks_ok(true);
-        Ok(Self {
-            rng_imu,
-            rng_flow: SmallRng::seed_from_u64(seed.wrapping_mul(0x9E37_79B9_7F4A_7C15) ^ 2),
-            rng_z: SmallRng::seed_from_u64(seed.wrapping_mul(0x9E37_79B9_7F4A_7C15) ^ 3),
-            rng_mr: SmallRng::seed_from_u64(seed.wrapping_mul(0x9E37_79B9_7F4A_7C15) ^ 4),
-            rng_bat: SmallRng::seed_from_u64(seed.wrapping_mul(0x9E37_79B9_7F4A_7C15) ^ 5),
-            quad,
-            imu,
-            flow: FlowSensor::new(FlowParams::default()),
-            zranger: ZRanger::new(ZRangerParams::default()),
-            multiranger: MultiRanger::new(MultiRangerParams::default()),
-            battery: BatterySensor::default(),
-            core,
-            duty: MotorDuty::default(),
-            last_mr: MultiRangerSample::default(),
-            last_z: None,
-            vbat: 0.0,
-            tick: 0,
-        })
-    }
-
-    /// One millisecond, exactly as the runner's loop body (without its scoring).
-    fn step(&mut self, world: &World) {
-        let tick = self.tick;
-        let now_us = tick * 1000;
-        if tick.is_multiple_of(10) {
-            if let Some(f) = self.flow.sample(&self.quad, world, &mut self.rng_flow) {
-                self.core.on_flow(&f);
-            }
-            self.vbat = self.battery.sample(&self.quad, &mut self.rng_bat);
-            self.core.on_battery(self.vbat);
-        }
-        if tick.is_multiple_of(25) {
-            self.last_z = self.zranger.sample(&self.quad, world, &mut self.rng_z);
-            self.core.on_zrange(self.last_z);
-        }
-        if tick.is_multiple_of(100) {
-            self.last_mr = self.multiranger.sample(&self.quad, world, &mut self.rng_mr);
-            self.core.on_multiranger(&self.last_mr);
-        }
-        if tick.is_multiple_of(20) {
-            self.core.mission_tick(now_us);
-        }
-        let sample = self.imu.sample(&self.quad, &mut self.rng_imu);
-        self.duty = self.core.on_imu(&sample, now_us);
-        self.quad.set_duty(self.duty);
-        self.quad.step(0.001, world);
-        self.tick += 1;
-    }
-
-    fn log_state(&self) -> FlightLogState {
-        let mm = |r: RangeReading| match r {
-            Some(m) if m.is_finite() && m >= 0.0 => (m * 1000.0).round().min(f32::from(NO_RANGE_MM)) as u16,
-            _ => NO_RANGE_MM,
-        };
-        let mr = &self.last_mr;
-        FlightLogState {
-            mission_state: self.core.mission_state().code(),
-            position_m: self.core.estimate().position_m,
-            ranges_mm: [
-                mm(mr.front_m),
-                mm(mr.back_m),
-                mm(mr.left_m),
-                mm(mr.right_m),
-                mm(mr.up_m),
-                mm(self.last_z),
-            ],
-            vbat_v: self.vbat,
-        }
-    }
-
-    fn seconds(&self) -> f64 {
-        self.tick as f64 * 1e-3
-    }
+/// Simulated seconds since power-on.
+fn seconds(drone: &SimDrone) -> f64 {
+    drone.tick() as f64 * 1e-3
 }
 
 /// The radio side: the CRTP services and the client's address.
@@ -218,7 +127,7 @@ impl Radio {
     }
 
     /// One datagram from `from`.
-    fn on_datagram(&mut self, bytes: &[u8], from: SocketAddr, drone: &mut Drone) {
+    fn on_datagram(&mut self, bytes: &[u8], from: SocketAddr, drone: &mut SimDrone) {
         let Some(&header) = bytes.first() else {
             return;
         };
@@ -228,7 +137,7 @@ impl Radio {
             return;
         }
         if self.client != Some(from) {
-            eprintln!("{:8.3} s  client {from}", drone.seconds());
+            eprintln!("{:8.3} s  client {from}", seconds(drone));
             self.client = Some(from);
         }
         self.last_uplink = Instant::now();
@@ -259,13 +168,13 @@ impl Radio {
                 match drone.core.start_mission(params) {
                     Ok(()) => eprintln!(
                         "{:8.3} s  mission.start = 1: mission started, goal ({:.2}, {:.2})",
-                        drone.seconds(),
+                        seconds(drone),
                         params.goal_m.0,
                         params.goal_m.1
                     ),
                     Err(e) => {
                         let line = format!("mission.start refused by the flight core: {e:?}\n");
-                        eprintln!("{:8.3} s  {}", drone.seconds(), line.trim_end());
+                        eprintln!("{:8.3} s  {}", seconds(drone), line.trim_end());
                         self.param.store_mut().start = 0;
                         self.param.notify(ID_START);
                         self.console(&line);
@@ -273,7 +182,7 @@ impl Radio {
                 }
             }
             (1, 0) => {
-                eprintln!("{:8.3} s  mission.start = 0: aborting", drone.seconds());
+                eprintln!("{:8.3} s  mission.start = 0: aborting", seconds(drone));
                 drone.core.abort_mission();
             }
             _ => {}
@@ -291,7 +200,7 @@ pub fn serve(world: &World, port: u16, speed: f64) -> Result<(), String> {
     socket
         .set_nonblocking(true)
         .map_err(|e| format!("cannot make the UDP socket non-blocking: {e}"))?;
-    let mut drone = Drone::new(world, world.sim.seed)?;
+    let mut drone = SimDrone::new(world, world.sim.seed, &Faults::default())?;
     let mut radio = Radio {
         socket,
         client: None,
@@ -309,7 +218,7 @@ pub fn serve(world: &World, port: u16, speed: f64) -> Result<(), String> {
     let mut last_state = drone.core.mission_state();
     eprintln!(
         "{:8.3} s  state {:3} {last_state:?}",
-        drone.seconds(),
+        seconds(&drone),
         last_state.code()
     );
     let mut buf = [0u8; 64];
@@ -335,7 +244,7 @@ pub fn serve(world: &World, port: u16, speed: f64) -> Result<(), String> {
         if radio.client.is_some() && radio.last_uplink.elapsed() > CLIENT_TIMEOUT {
             eprintln!(
                 "{:8.3} s  client silent for {CLIENT_TIMEOUT:?}: log blocks stopped",
-                drone.seconds()
+                seconds(&drone)
             );
             radio.log.reset();
             radio.client = None;
@@ -343,11 +252,11 @@ pub fn serve(world: &World, port: u16, speed: f64) -> Result<(), String> {
 
         // The drone: catch up with the wall clock, at most one chunk before polling again.
         let target = (wall.elapsed().as_secs_f64() * speed * 1000.0) as u64;
-        let end = target.min(drone.tick + CHUNK_TICKS);
-        while drone.tick < end {
+        let end = target.min(drone.tick() + CHUNK_TICKS);
+        while drone.tick() < end {
             drone.step(world);
-            let log_state = drone.log_state();
-            let now_ms = drone.tick as u32;
+            let log_state = log_state(&drone);
+            let now_ms = drone.tick() as u32;
             while let Some(p) = radio.log.tick(now_ms, &log_state) {
                 radio.send(&p);
             }
@@ -356,7 +265,7 @@ pub fn serve(world: &World, port: u16, speed: f64) -> Result<(), String> {
                 let e = drone.core.estimate().position_m;
                 eprintln!(
                     "{:8.3} s  state {:3} {state:?}  estimate ({:.2}, {:.2}, {:.2})",
-                    drone.seconds(),
+                    seconds(&drone),
                     state.code(),
                     e[0],
                     e[1],
@@ -370,7 +279,7 @@ pub fn serve(world: &World, port: u16, speed: f64) -> Result<(), String> {
                 last_state = state;
             }
         }
-        if drone.tick >= target {
+        if drone.tick() >= target {
             std::thread::sleep(Duration::from_micros(500));
         }
     }

@@ -28,7 +28,7 @@
 //! Memory: the table is `'static`; [`FlightLogState`] is 32 bytes.
 
 use super::crtp::MAX_DATA;
-use super::registry::crc32_update;
+use super::registry::{crc32_toc_entry, crc32_update, valid_name};
 
 /// Bytes before `group\0name\0` in a TOC item reply: command, id u16, type (§4.6).
 pub const TOC_ITEM_HEADER: usize = 4;
@@ -177,21 +177,6 @@ pub struct LogEntry {
     pub ty: LogType,
 }
 
-const fn valid_name(s: &str) -> bool {
-    let b = s.as_bytes();
-    if b.is_empty() {
-        return false;
-    }
-    let mut i = 0;
-    while i < b.len() {
-        if b[i] == 0 || b[i] >= 0x80 {
-            return false;
-        }
-        i += 1;
-    }
-    true
-}
-
 impl LogEntry {
     /// An entry; panics (a compile error in a `const`) if the TOC item `[2, id u16, type, group\0, name\0]`
     /// would not fit 30 bytes, a name is empty, holds a NUL or non-ASCII byte, or the type is FP16.
@@ -215,11 +200,7 @@ pub const fn log_toc_crc(table: &[LogEntry]) -> u32 {
     let mut i = 0;
     while i < table.len() {
         let e = &table[i];
-        crc = crc32_update(crc, &[e.ty.code()]);
-        crc = crc32_update(crc, e.group.as_bytes());
-        crc = crc32_update(crc, &[0]);
-        crc = crc32_update(crc, e.name.as_bytes());
-        crc = crc32_update(crc, &[0]);
+        crc = crc32_toc_entry(crc, e.ty.code(), e.group, e.name);
         i += 1;
     }
     crc ^ 0xFFFF_FFFF

@@ -166,7 +166,8 @@ pub struct ParamEntry {
     pub flags: u8,
 }
 
-const fn valid_name(s: &str) -> bool {
+/// Whether a TOC group or name is usable: non-empty ASCII without NUL (shared with the log table).
+pub const fn valid_name(s: &str) -> bool {
     let b = s.as_bytes();
     if b.is_empty() {
         return false;
@@ -233,17 +234,23 @@ pub const fn crc32(bytes: &[u8]) -> u32 {
     crc32_update(0xFFFF_FFFF, bytes) ^ 0xFFFF_FFFF
 }
 
+/// Feeds one TOC entry, `type, group, 0, name, 0`, into a running CRC-32 (the param and log TOC CRCs both
+/// hash their entries this way, each after its own seed).
+pub const fn crc32_toc_entry(crc: u32, type_byte: u8, group: &str, name: &str) -> u32 {
+    let crc = crc32_update(crc, &[type_byte]);
+    let crc = crc32_update(crc, group.as_bytes());
+    let crc = crc32_update(crc, &[0]);
+    let crc = crc32_update(crc, name.as_bytes());
+    crc32_update(crc, &[0])
+}
+
 /// The parameter TOC CRC: CRC-32 over [`PARAM_CRC_SEED`], then per entry `type, group, 0, name, 0`.
 pub const fn toc_crc(table: &[ParamEntry]) -> u32 {
     let mut crc = crc32_update(0xFFFF_FFFF, PARAM_CRC_SEED);
     let mut i = 0;
     while i < table.len() {
         let e = &table[i];
-        crc = crc32_update(crc, &[e.type_byte()]);
-        crc = crc32_update(crc, e.group.as_bytes());
-        crc = crc32_update(crc, &[0]);
-        crc = crc32_update(crc, e.name.as_bytes());
-        crc = crc32_update(crc, &[0]);
+        crc = crc32_toc_entry(crc, e.type_byte(), e.group, e.name);
         i += 1;
     }
     crc ^ 0xFFFF_FFFF

@@ -12,6 +12,7 @@
 
 pub mod avoidance;
 pub mod control;
+pub mod drivers;
 pub mod dstar;
 pub mod estimator;
 pub mod flight;

@@ -1,0 +1,373 @@
+//! BMI088 driver against recorded I2C traffic (embedded-hal-mock) written from the Bosch BMI088 datasheet
+//! (BST-BMI088-DS001 §5 register map) and the stock Crazyflie configuration (crazyflie-firmware
+//! sensors_bmi088_bmp3xx.c, crazyflie-hardware.md §8.1): full init, a data read converted with the
+//! datasheet's scale formulas, and every failure path (NACK, wrong id, ACC_ERR_REG, config read-back,
+//! data-ready timeout).
+
+use cfnav::drivers::DriverError;
+use cfnav::drivers::bmi088::{Bmi088, DATA_READY_POLLS};
+use embassy_futures::block_on;
+use embedded_hal::i2c::{ErrorKind, NoAcknowledgeSource};
+use embedded_hal_mock::eh1::delay::{CheckedDelay, Transaction as D};
+use embedded_hal_mock::eh1::i2c::{Mock as I2cMock, Transaction as T};
+
+// Datasheet facts, written here independently of the driver.
+const ACC: u8 = 0x18; // SDO1 to GND on the CF2.1
+const GYR: u8 = 0x69; // SDO2 to VDDIO on the CF2.1
+const G: f32 = 9.81; // the g of cfnav::types::GRAVITY_M_S2 and the simulator
+
+fn nack() -> ErrorKind {
+    ErrorKind::NoAcknowledge(NoAcknowledgeSource::Address)
+}
+
+fn reg_read(addr: u8, reg: u8, value: u8) -> T {
+    T::write_read(addr, vec![reg], vec![value])
+}
+
+fn reg_write(addr: u8, reg: u8, value: u8) -> T {
+    T::write(addr, vec![reg, value])
+}
+
+/// Gyro part of init: id, soft reset, normal mode, ±2000 °/s, 1 kHz / 116 Hz, DRDY on INT3 active-high
+/// push-pull, DRDY interrupt on.
+fn gyro_init() -> (Vec<T>, Vec<D>) {
+    (
+        vec![
+            reg_read(GYR, 0x00, 0x0F),  // GYRO_CHIP_ID
+            reg_write(GYR, 0x14, 0xB6), // GYRO_SOFTRESET
+            reg_write(GYR, 0x11, 0x00), // GYRO_LPM1: normal
+            reg_write(GYR, 0x0F, 0x00), // GYRO_RANGE: ±2000 °/s
+            reg_write(GYR, 0x10, 0x02), // GYRO_BANDWIDTH: ODR 1000 Hz, 116 Hz
+            reg_write(GYR, 0x16, 0x0D), // INT3_INT4_IO_CONF: int3_lvl = 1, int3_od = 0 (INT4 at reset)
+            reg_write(GYR, 0x18, 0x01), // INT3_INT4_IO_MAP: DRDY → INT3
+            reg_write(GYR, 0x15, 0x80), // GYRO_INT_CTRL: DRDY enable
+        ],
+        vec![D::delay_ms(30), D::delay_ms(30)],
+    )
+}
+
+/// Accelerometer part of init up to (not including) the error check.
+fn accel_config() -> (Vec<T>, Vec<D>) {
+    (
+        vec![
+            reg_read(ACC, 0x00, 0x1E),  // ACC_CHIP_ID
+            reg_write(ACC, 0x7E, 0xB6), // ACC_SOFTRESET
+            reg_write(ACC, 0x7D, 0x04), // ACC_PWR_CTRL: on
+            reg_write(ACC, 0x7C, 0x00), // ACC_PWR_CONF: active
+            reg_write(ACC, 0x40, 0x8C), // ACC_CONF: bwp OSR4 (0x8 << 4) | odr 1600 Hz (0xC)
+            reg_write(ACC, 0x41, 0x03), // ACC_RANGE: ±24 g
+        ],
+        vec![D::delay_ms(1), D::delay_ms(5), D::delay_ms(10)],
+    )
+}
+
+/// Error register clean and ACC_CONF/ACC_RANGE read back (ACC_RANGE's reserved bits may read non-zero).
+fn accel_checks() -> Vec<T> {
+    vec![
+        reg_read(ACC, 0x02, 0x00),
+        T::write_read(ACC, vec![0x40], vec![0x8C, 0xF3]),
+    ]
+}
+
+/// Data ready at the first poll: ACC_STATUS bit 7, then GYRO_INT_STAT_1 bit 7.
+fn ready_at_once() -> Vec<T> {
+    vec![reg_read(ACC, 0x03, 0x80), reg_read(GYR, 0x0A, 0x80)]
+}
+
+fn full_init() -> (Vec<T>, Vec<D>) {
+    let (mut bus, mut delays) = gyro_init();
+    let (b, d) = accel_config();
+    bus.extend(b);
+    delays.extend(d);
+    bus.extend(accel_checks());
+    bus.extend(ready_at_once());
+    (bus, delays)
+}
+
+fn run_init(bus: &[T], delays: &[D]) -> (Result<(), DriverError<ErrorKind>>, Bmi088<I2cMock>, CheckedDelay) {
+    let mut imu = Bmi088::new(I2cMock::new(bus));
+    let mut delay = CheckedDelay::new(delays);
+    let result = block_on(imu.init(&mut delay));
+    (result, imu, delay)
+}
+
+fn finish(imu: Bmi088<I2cMock>, mut delay: CheckedDelay) {
+    imu.release().done();
+    delay.done();
+}
+
+#[test]
+fn init_writes_the_stock_configuration_with_the_datasheet_delays() {
+    let (bus, delays) = full_init();
+    let (result, imu, delay) = run_init(&bus, &delays);
+    assert_eq!(result, Ok(()));
+    assert!(imu.is_initialised());
+    assert_eq!(imu.last_accel_error(), 0);
+    finish(imu, delay);
+}
+
+#[test]
+fn init_polls_data_ready_one_millisecond_apart() {
+    let (mut bus, mut delays) = gyro_init();
+    let (b, d) = accel_config();
+    bus.extend(b);
+    delays.extend(d);
+    bus.extend(accel_checks());
+    // Accelerometer ready at the third poll (other ACC_STATUS bits are reserved and ignored), gyro at the
+    // second.
+    bus.extend([
+        reg_read(ACC, 0x03, 0x00),
+        reg_read(ACC, 0x03, 0x7F),
+        reg_read(ACC, 0x03, 0x80),
+        reg_read(GYR, 0x0A, 0x00),
+        reg_read(GYR, 0x0A, 0x80),
+    ]);
+    delays.extend([D::delay_ms(1), D::delay_ms(1), D::delay_ms(1)]);
+    let (result, imu, delay) = run_init(&bus, &delays);
+    assert_eq!(result, Ok(()));
+    finish(imu, delay);
+}
+
+/// Expected gyro rate from the datasheet: ±2000 °/s full scale over ±32768 LSB.
+fn gyro_rad_s(raw: i16) -> f32 {
+    (raw as f32 / 32768.0 * 2000.0).to_radians()
+}
+
+/// Expected acceleration from the datasheet formula `mg = raw / 32768 · 1000 · 2^(range + 1) · 1.5`
+/// with ACC_RANGE = 3, in m/s².
+fn accel_m_s2(raw: i16) -> f32 {
+    let range = 3;
+    raw as f32 / 32768.0 * 1000.0 * 2f32.powi(range + 1) * 1.5 / 1000.0 * G
+}
+
+fn close(a: f32, b: f32) -> bool {
+    (a - b).abs() <= 1e-6 * b.abs().max(1.0)
+}
+
+#[test]
+fn read_converts_little_endian_counts_to_si_in_the_body_frame() {
+    // Gyro: x = 0x4000 = +16384 (+1000 °/s), y = 0x8000 = −32768 (−2000 °/s), z = 0x0001 (+1 LSB).
+    // Accel: level at rest: x = −2 LSB, y = +3 LSB, z = 0x0555 = 1365 LSB ≈ +1 g (1365.33 LSB/g).
+    let bus = [
+        T::write_read(GYR, vec![0x02], vec![0x00, 0x40, 0x00, 0x80, 0x01, 0x00]),
+        T::write_read(ACC, vec![0x12], vec![0xFE, 0xFF, 0x03, 0x00, 0x55, 0x05]),
+    ];
+    let mut imu = Bmi088::new(I2cMock::new(&bus));
+    let sample = block_on(imu.read()).expect("read");
+    let expected_gyro = [gyro_rad_s(16384), gyro_rad_s(-32768), gyro_rad_s(1)];
+    let expected_accel = [accel_m_s2(-2), accel_m_s2(3), accel_m_s2(1365)];
+    for i in 0..3 {
+        assert!(close(sample.gyro_rad_s[i], expected_gyro[i]), "gyro {i}: {sample:?}");
+        assert!(close(sample.accel_m_s2[i], expected_accel[i]), "accel {i}: {sample:?}");
+    }
+    // Sanity in physical terms: +1000 °/s is 17.45 rad/s; 1365 LSB is one g up (level, at rest).
+    assert!((sample.gyro_rad_s[0] - 17.453_29).abs() < 1e-4);
+    assert!((sample.accel_m_s2[2] - G).abs() < 0.01);
+    imu.release().done();
+}
+
+#[test]
+fn read_raw_keeps_the_counts() {
+    let bus = [
+        T::write_read(GYR, vec![0x02], vec![0xFF, 0x7F, 0x00, 0x00, 0x34, 0x12]),
+        T::write_read(ACC, vec![0x12], vec![0x01, 0x80, 0x10, 0x00, 0x00, 0x01]),
+    ];
+    let mut imu = Bmi088::new(I2cMock::new(&bus));
+    let raw = block_on(imu.read_raw()).expect("read");
+    assert_eq!(raw.gyro, [32767, 0, 0x1234]);
+    assert_eq!(raw.accel, [-32767, 16, 256]);
+    imu.release().done();
+}
+
+#[test]
+fn nack_at_the_gyro_probe_is_a_bus_error_and_nothing_else_is_sent() {
+    let bus = [reg_read(GYR, 0x00, 0x00).with_error(nack())];
+    let (result, imu, delay) = run_init(&bus, &[]);
+    assert_eq!(result, Err(DriverError::Bus(nack())));
+    assert!(!imu.is_initialised());
+    finish(imu, delay);
+}
+
+#[test]
+fn nack_at_the_accelerometer_probe_is_a_bus_error() {
+    let (mut bus, delays) = gyro_init();
+    bus.push(reg_read(ACC, 0x00, 0x00).with_error(nack()));
+    let (result, imu, delay) = run_init(&bus, &delays);
+    assert_eq!(result, Err(DriverError::Bus(nack())));
+    finish(imu, delay);
+}
+
+#[test]
+fn nack_during_configuration_is_a_bus_error() {
+    let (mut bus, _) = gyro_init();
+    bus.truncate(2);
+    bus[1] = reg_write(GYR, 0x14, 0xB6).with_error(ErrorKind::ArbitrationLoss);
+    let (result, imu, delay) = run_init(&bus, &[]);
+    assert_eq!(result, Err(DriverError::Bus(ErrorKind::ArbitrationLoss)));
+    finish(imu, delay);
+}
+
+#[test]
+fn wrong_gyro_id_is_reported_and_nothing_is_written() {
+    // An all-ones read (floating bus that still ACKs) is not a BMI088 gyro.
+    let bus = [reg_read(GYR, 0x00, 0xFF)];
+    let (result, imu, delay) = run_init(&bus, &[]);
+    assert_eq!(
+        result,
+        Err(DriverError::WrongChipId {
+            expected: 0x0F,
+            found: 0xFF
+        })
+    );
+    finish(imu, delay);
+}
+
+#[test]
+fn wrong_accelerometer_id_is_reported() {
+    // 0x1F is the BMI085's accelerometer id: a different part, different ranges.
+    let (mut bus, delays) = gyro_init();
+    bus.push(reg_read(ACC, 0x00, 0x1F));
+    let (result, imu, delay) = run_init(&bus, &delays);
+    assert_eq!(
+        result,
+        Err(DriverError::WrongChipId {
+            expected: 0x1E,
+            found: 0x1F
+        })
+    );
+    finish(imu, delay);
+}
+
+fn init_with_error_register(value: u8) -> (Result<(), DriverError<ErrorKind>>, Bmi088<I2cMock>, CheckedDelay) {
+    let (mut bus, mut delays) = gyro_init();
+    let (b, d) = accel_config();
+    bus.extend(b);
+    delays.extend(d);
+    bus.push(reg_read(ACC, 0x02, value));
+    run_init(&bus, &delays)
+}
+
+#[test]
+fn accelerometer_fatal_error_is_reported() {
+    // ACC_ERR_REG bit 0 fatal_err: chip not operational.
+    let (result, imu, delay) = init_with_error_register(0x01);
+    assert_eq!(result, Err(DriverError::InvalidData));
+    assert_eq!(imu.last_accel_error(), 0x01);
+    assert!(!imu.is_initialised());
+    finish(imu, delay);
+}
+
+#[test]
+fn accelerometer_configuration_error_is_reported() {
+    // ACC_ERR_REG bits 4:2 error_code = 1: invalid ACC_CONF.
+    let (result, imu, delay) = init_with_error_register(0x01 << 2);
+    assert_eq!(result, Err(DriverError::InvalidConfig));
+    assert_eq!(imu.last_accel_error(), 0x04);
+    finish(imu, delay);
+}
+
+#[test]
+fn reserved_error_bits_alone_are_not_an_error() {
+    // Bits 7:5 and 1 are reserved in ACC_ERR_REG.
+    let (mut bus, mut delays) = gyro_init();
+    let (b, d) = accel_config();
+    bus.extend(b);
+    delays.extend(d);
+    bus.push(reg_read(ACC, 0x02, 0xE2));
+    bus.push(T::write_read(ACC, vec![0x40], vec![0x8C, 0x03]));
+    bus.extend(ready_at_once());
+    let (result, imu, delay) = run_init(&bus, &delays);
+    assert_eq!(result, Ok(()));
+    assert_eq!(imu.last_accel_error(), 0xE2);
+    finish(imu, delay);
+}
+
+#[test]
+fn configuration_that_does_not_read_back_is_refused() {
+    for readback in [[0xA8, 0x03], [0x8C, 0x01]] {
+        // 0xA8 = ACC_CONF reset value (write lost); 0x01 = ACC_RANGE reset value (±6 g).
+        let (mut bus, mut delays) = gyro_init();
+        let (b, d) = accel_config();
+        bus.extend(b);
+        delays.extend(d);
+        bus.push(reg_read(ACC, 0x02, 0x00));
+        bus.push(T::write_read(ACC, vec![0x40], readback.to_vec()));
+        let (result, imu, delay) = run_init(&bus, &delays);
+        assert_eq!(result, Err(DriverError::InvalidConfig), "read back {readback:02X?}");
+        finish(imu, delay);
+    }
+}
+
+#[test]
+fn accelerometer_that_never_has_data_times_out() {
+    let (mut bus, mut delays) = gyro_init();
+    let (b, d) = accel_config();
+    bus.extend(b);
+    delays.extend(d);
+    bus.extend(accel_checks());
+    for i in 0..DATA_READY_POLLS {
+        bus.push(reg_read(ACC, 0x03, 0x00));
+        if i > 0 {
+            delays.push(D::delay_ms(1));
+        }
+    }
+    let (result, imu, delay) = run_init(&bus, &delays);
+    assert_eq!(result, Err(DriverError::Timeout));
+    assert!(!imu.is_initialised());
+    // The budget covers many periods of the slowest configured rate (1 kHz gyro).
+    const { assert!(DATA_READY_POLLS >= 5) };
+    finish(imu, delay);
+}
+
+#[test]
+fn gyro_that_never_has_data_times_out() {
+    let (mut bus, mut delays) = gyro_init();
+    let (b, d) = accel_config();
+    bus.extend(b);
+    delays.extend(d);
+    bus.extend(accel_checks());
+    bus.push(reg_read(ACC, 0x03, 0x80));
+    for i in 0..DATA_READY_POLLS {
+        bus.push(reg_read(GYR, 0x0A, 0x7F));
+        if i > 0 {
+            delays.push(D::delay_ms(1));
+        }
+    }
+    let (result, imu, delay) = run_init(&bus, &delays);
+    assert_eq!(result, Err(DriverError::Timeout));
+    finish(imu, delay);
+}
+
+#[test]
+fn init_after_a_failure_starts_over() {
+    let (good_bus, good_delays) = full_init();
+    let mut bus = vec![reg_read(GYR, 0x00, 0x00).with_error(nack())];
+    bus.extend(good_bus);
+    let mut imu = Bmi088::new(I2cMock::new(&bus));
+    let mut delay = CheckedDelay::new(&good_delays);
+    assert_eq!(block_on(imu.init(&mut delay)), Err(DriverError::Bus(nack())));
+    assert_eq!(block_on(imu.init(&mut delay)), Ok(()));
+    assert!(imu.is_initialised());
+    finish(imu, delay);
+}
+
+#[test]
+fn nack_during_a_read_is_a_bus_error() {
+    let bus = [
+        T::write_read(GYR, vec![0x02], vec![0; 6]),
+        T::write_read(ACC, vec![0x12], vec![0; 6]).with_error(nack()),
+    ];
+    let mut imu = Bmi088::new(I2cMock::new(&bus));
+    assert_eq!(block_on(imu.read()), Err(DriverError::Bus(nack())));
+    imu.release().done();
+}
+
+#[test]
+fn runtime_error_check_reads_acc_err_reg() {
+    let bus = [reg_read(ACC, 0x02, 0x00), reg_read(ACC, 0x02, 0x01)];
+    let mut imu = Bmi088::new(I2cMock::new(&bus));
+    assert_eq!(block_on(imu.check_accel_errors()), Ok(()));
+    assert_eq!(block_on(imu.check_accel_errors()), Err(DriverError::InvalidData));
+    assert_eq!(imu.last_accel_error(), 0x01);
+    imu.release().done();
+}

@@ -371,3 +371,117 @@ fn runtime_error_check_reads_acc_err_reg() {
     assert_eq!(imu.last_accel_error(), 0x01);
     imu.release().done();
 }
+
+/// Everything the driver does on the bus and with the delay, in one ordered log.
+#[derive(Debug, Clone, PartialEq)]
+enum Event {
+    /// Register write: address, register, value.
+    Write(u8, u8, u8),
+    /// Register read: address, first register, length.
+    Read(u8, u8, usize),
+    DelayNs(u64),
+}
+
+/// A BMI088 model that answers like a healthy chip and logs every access and delay in order.
+#[derive(Clone, Default)]
+struct Recorder {
+    log: std::rc::Rc<std::cell::RefCell<Vec<Event>>>,
+}
+
+impl embedded_hal_async::i2c::ErrorType for Recorder {
+    type Error = ErrorKind;
+}
+
+impl embedded_hal_async::i2c::I2c for Recorder {
+    async fn transaction(
+        &mut self,
+        address: u8,
+        operations: &mut [embedded_hal_async::i2c::Operation<'_>],
+    ) -> Result<(), ErrorKind> {
+        use embedded_hal_async::i2c::Operation;
+        let mut register = None;
+        for op in operations {
+            match op {
+                Operation::Write(bytes) if bytes.len() == 2 => {
+                    self.log.borrow_mut().push(Event::Write(address, bytes[0], bytes[1]));
+                }
+                Operation::Write(bytes) if bytes.len() == 1 => register = Some(bytes[0]),
+                Operation::Write(bytes) => panic!("unexpected write {bytes:02X?}"),
+                Operation::Read(buf) => {
+                    let reg = register.expect("read without a register");
+                    let answer: &[u8] = match (address, reg) {
+                        (GYR, 0x00) => &[0x0F],
+                        (ACC, 0x00) => &[0x1E],
+                        (ACC, 0x40) => &[0x8C, 0x03],
+                        (ACC, 0x03) | (GYR, 0x0A) => &[0x80],
+                        _ => &[0x00; 6],
+                    };
+                    buf.copy_from_slice(&answer[..buf.len()]);
+                    self.log.borrow_mut().push(Event::Read(address, reg, buf.len()));
+                }
+            }
+        }
+        Ok(())
+    }
+}
+
+impl embedded_hal_async::delay::DelayNs for Recorder {
+    async fn delay_ns(&mut self, ns: u32) {
+        self.log.borrow_mut().push(Event::DelayNs(u64::from(ns)));
+    }
+    async fn delay_us(&mut self, us: u32) {
+        self.log.borrow_mut().push(Event::DelayNs(u64::from(us) * 1_000));
+    }
+    async fn delay_ms(&mut self, ms: u32) {
+        self.log.borrow_mut().push(Event::DelayNs(u64::from(ms) * 1_000_000));
+    }
+}
+
+#[test]
+fn init_waits_after_each_reset_and_power_change_before_the_next_access() {
+    let rec = Recorder::default();
+    let mut imu = Bmi088::new(rec.clone());
+    let mut delay = rec.clone();
+    assert_eq!(block_on(imu.init(&mut delay)), Ok(()));
+    let log = rec.log.borrow();
+    let at = |e: Event| {
+        log.iter()
+            .position(|x| *x == e)
+            .unwrap_or_else(|| panic!("{e:?} missing"))
+    };
+    let ms = |n: u64| Event::DelayNs(n * 1_000_000);
+    // Each reset / power-mode write is immediately followed by its datasheet / Bosch-API wait.
+    for (write, wait_ms) in [
+        (Event::Write(GYR, 0x14, 0xB6), 30), // gyro soft reset
+        (Event::Write(GYR, 0x11, 0x00), 30), // gyro normal mode
+        (Event::Write(ACC, 0x7E, 0xB6), 1),  // accelerometer soft reset
+        (Event::Write(ACC, 0x7D, 0x04), 5),  // accelerometer on
+        (Event::Write(ACC, 0x7C, 0x00), 10), // accelerometer active
+    ] {
+        let i = at(write.clone());
+        assert_eq!(log.get(i + 1), Some(&ms(wait_ms)), "after {write:?}");
+    }
+    // Identity is checked before anything is written to each half.
+    assert!(at(Event::Read(GYR, 0x00, 1)) < at(Event::Write(GYR, 0x14, 0xB6)));
+    assert!(at(Event::Read(ACC, 0x00, 1)) < at(Event::Write(ACC, 0x7E, 0xB6)));
+    // The measurement configuration is written once the accelerometer is active; the error register and
+    // the read-back come after it, and the data-ready polls last.
+    let active = at(Event::Write(ACC, 0x7C, 0x00));
+    let conf = at(Event::Write(ACC, 0x40, 0x8C));
+    let range = at(Event::Write(ACC, 0x41, 0x03));
+    let err = at(Event::Read(ACC, 0x02, 1));
+    let readback = at(Event::Read(ACC, 0x40, 2));
+    let acc_ready = at(Event::Read(ACC, 0x03, 1));
+    let gyro_ready = at(Event::Read(GYR, 0x0A, 1));
+    assert!(active < conf && conf < range && range < err && err < readback);
+    assert!(readback < acc_ready && acc_ready < gyro_ready);
+    assert_eq!(gyro_ready, log.len() - 1);
+    // The gyro interrupt is configured (mapped, then enabled) before init returns.
+    assert!(at(Event::Write(GYR, 0x18, 0x01)) < at(Event::Write(GYR, 0x15, 0x80)));
+    // Total waiting: 76 ms (30 + 30 + 1 + 5 + 10) for a chip whose data is ready at once.
+    let waited: u64 = log
+        .iter()
+        .map(|e| if let Event::DelayNs(ns) = e { *ns } else { 0 })
+        .sum();
+    assert_eq!(waited, 76_000_000);
+}

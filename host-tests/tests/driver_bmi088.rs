@@ -485,3 +485,9 @@ fn init_waits_after_each_reset_and_power_change_before_the_next_access() {
         .sum();
     assert_eq!(waited, 76_000_000);
 }
+
+#[test]
+fn driver_state_beyond_the_bus_handle_is_two_bytes() {
+    // Module doc: the last ACC_ERR_REG value and the initialised flag.
+    assert_eq!(size_of::<Bmi088<()>>(), 2);
+}

@@ -541,3 +541,9 @@ fn init_orders_delays_and_accesses_as_the_datasheet_requires() {
         }
     }
 }
+
+#[test]
+fn driver_state_beyond_the_spi_device_is_the_previous_timestamp() {
+    // Module doc: 16 bytes (Option<u64> microseconds).
+    assert_eq!(size_of::<Pmw3901<()>>(), 16);
+}

@@ -68,8 +68,8 @@
 //! [`DriverError::InvalidConfig`]; no data-ready within the polling budget → [`DriverError::Timeout`].
 //! The raw ACC_ERR_REG value of the last check is kept ([`Bmi088::last_accel_error`]) for the console.
 //!
-//! Memory: the driver holds the bus handle plus 2 bytes (`size_of::<Bmi088<I>>() ≤ size_of::<I>() + 2`,
-//! before padding); no buffers beyond 6 bytes on the stack per read.
+//! Memory: the driver holds the bus handle plus 2 bytes (the last ACC_ERR_REG value and an initialised
+//! flag; `size_of::<Bmi088<()>>() == 2`, tested); a read uses a 6-byte stack buffer per half.
 
 use embedded_hal_async::delay::DelayNs;
 use embedded_hal_async::i2c::I2c;

@@ -27,18 +27,19 @@
 //!
 //! ## SPI timing
 //!
-//! Every access is one [`SpiDevice`] transaction (CS low … CS high) with the stock driver's delays, which
-//! are generous against the datasheet's minimum address-to-data and inter-command times and have flown on
-//! this deck:
+//! Every access is one [`SpiDevice`] transaction (CS low … CS high) with the stock driver's delays (they have
+//! flown on this deck for years; the PMW3901 datasheet's SPI timing table could not be consulted here, so
+//! its minima, tSRAD etc., are not restated — the stock values are long for this class of PixArt sensor):
 //! - write: 50 µs, `reg | 0x80`, 50 µs, value, 50 µs; then 200 µs with CS high before the next access;
 //! - read: 50 µs, `reg & 0x7F`, **500 µs**, one byte clocked out, 50 µs; then 200 µs with CS high;
 //! - motion burst: 50 µs, 0x16, 50 µs, 12 bytes, 50 µs; then 50 µs with CS high.
 //!
 //! The in-transaction delays are [`Operation::DelayNs`] (CS stays low); the gaps with CS high are
 //! [`DelayNs`] calls on the delay the caller passes (the board's `SpiDevice` must support
-//! `Operation::DelayNs`: embassy-embedded-hal needs its `time` feature). One motion read is ~0.25 ms of
-//! bus + delays; [`Pmw3901::init`] takes ≈ 80 ms (40 ms power-up wait, 6 ms SPI-port reset, 5 ms power-up
-//! reset, 10 ms table pause, ~85 register writes of 0.35 ms each).
+//! `Operation::DelayNs`: embassy-embedded-hal needs its `time` feature). One motion read takes ≈ 0.3 ms
+//! (150 µs of in-transaction waits, 13 bytes at ~1.3 MHz, 50 µs gap); [`Pmw3901::init`] ≈ 95 ms (40 ms
+//! power-up wait, 6 ms SPI-port reset, 7 register reads of ≈ 0.8 ms, 5 ms after the power-up reset, 1 ms,
+//! 76 table writes of ≈ 0.37 ms, the 10 ms table pause).
 //!
 //! ## Output
 //!

@@ -28,7 +28,7 @@
 //! The accelerometer's "dummy read" of the datasheet (§6.1) is only needed to switch it to **SPI** (a rising
 //! CSB1 edge); it starts in I2C mode after power-on and soft reset, so on the Crazyflie it is not needed.
 //! The caller must leave the chip its start-up time after power-on first (stock waits 1000 ms,
-//! `SENSORS_STARTUP_TIME_MS`, mostly for the other sensors; the datasheet's start-up time is ~30 ms).
+//! `SENSORS_STARTUP_TIME_MS`, mostly for the other sensors on the bus).
 //!
 //! After configuring, [`Bmi088::init`] reads ACC_ERR_REG (0x02: bit 0 `fatal_err`, bits 4:2 `error_code`,
 //! 1 = invalid ACC_CONF), reads ACC_CONF/ACC_RANGE back, and waits (polling, 1 ms apart, at most

@@ -6,19 +6,28 @@
 //! Non-goals: no UART, DMA, flow-control pin or UDP socket (the caller moves bytes), no clock (the caller
 //! passes `now_ms`). Services plug into [`crtp::Router`] through [`crtp::Service`]: the parameter protocol is
 //! [`param::ParamService`] (port 2) over a [`registry::ParamStore`], the log protocol [`log::LogService`]
-//! (port 5) over a [`log_registry::LogSource`], the memory count [`mem::MemService`] (port 4).
+//! (port 5) over a [`log_registry::LogSource`], the memory count [`mem::MemService`] (port 4), the commander
+//! ports 3 and 7 through [`commander::CommanderService::ports`] (decoded setpoint commands with the RPYT
+//! thrust lock; [`commander::SetpointFollower`] maps them to [`crate::types::Setpoint`]), the supervisor port 9
+//! [`supervisor_port::SupervisorPortService`] (state bits, arming, recovery, emergency stop and its watchdog,
+//! as requests for the caller) and the console port 0 [`console::ConsoleService`] (text lines cut into
+//! ≤ 30-byte packets, handed out one per downlink opportunity).
 //!
-//! Sources: `/work/shared/reference/crazyflie-hardware.md` §3 (syslink) and §4 (CRTP),
+//! Sources: `/work/shared/reference/crazyflie-hardware.md` §3 (syslink), §4 (CRTP) and §10 (setpoint
+//! watchdog, emergency stop),
 //! `/work/shared/reference/crtp-over-udp.md` §1–§2 (what cflib sends and expects), and
 //! `/work/shared/spec/interfaces.md` §5 (protocol version 12).
 //!
 //! Memory: everything is fixed-size (`heapless`); the largest object is the syslink decoder's 70-byte frame
-//! buffer and the router's reply queue (`Q` × 32 bytes).
+//! buffer, the router's reply queue (`Q` × 32 bytes) and the console queue (`N` × 31 bytes).
 
+pub mod commander;
+pub mod console;
 pub mod crtp;
 pub mod log;
 pub mod log_registry;
 pub mod mem;
 pub mod param;
 pub mod registry;
+pub mod supervisor_port;
 pub mod syslink;

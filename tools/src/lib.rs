@@ -2,6 +2,7 @@
 //! (`src/main.rs`) is a thin command-line front end over these modules; benches and tests use them too.
 
 pub mod firmware;
+pub mod mission;
 pub mod plan;
 pub mod sim;
 pub mod sim_cli;

@@ -1,7 +1,7 @@
 //! `cfnav`: the host-side tools of the cfnav firmware (simulator, planner replay, firmware image).
 use std::process::ExitCode;
 
-use cfnav_tools::{firmware, plan, sim_cli};
+use cfnav_tools::{firmware, mission, plan, sim_cli};
 use clap::{Parser, Subcommand};
 
 /// cfnav host tools: planner replay, firmware image, simulator.
@@ -20,6 +20,8 @@ enum Command {
     Plan(plan::PlanArgs),
     /// Build the release firmware and write the raw image for the radio bootloader.
     Firmware(firmware::FirmwareArgs),
+    /// Start a mission on a drone (radio://) or a simulator (udp://) and follow it until it ends.
+    Mission(mission::MissionArgs),
 }
 
 fn main() -> ExitCode {
@@ -35,5 +37,6 @@ fn main() -> ExitCode {
         Command::Sim(args) => sim_cli::run_cli(&args),
         Command::Plan(args) => plan::run(&args),
         Command::Firmware(args) => firmware::run(&args),
+        Command::Mission(args) => mission::run_cli(&args),
     }
 }

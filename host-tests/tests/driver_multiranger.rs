@@ -446,3 +446,18 @@ fn flow_deck_z_ranger_moves_off_0x29_before_the_multi_ranger_sensors_are_release
     assert!(report.all_up());
     i2c.done();
 }
+
+#[test]
+fn driver_state_is_as_small_as_documented() {
+    use cfnav::drivers::pca95x4::Pca95x4;
+    // Module docs: a VL53L1x is 2 bytes (address, data-ready level), the expander 2 (address, output
+    // copy), the whole deck about 16.
+    assert_eq!(core::mem::size_of::<Vl53l1x>(), 2);
+    assert_eq!(core::mem::size_of::<Option<Vl53l1x>>(), 2);
+    assert_eq!(core::mem::size_of::<Pca95x4>(), 2);
+    assert!(
+        core::mem::size_of::<MultiRanger>() <= 16,
+        "{}",
+        core::mem::size_of::<MultiRanger>()
+    );
+}

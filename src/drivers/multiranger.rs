@@ -168,7 +168,8 @@ impl MultiRanger {
     }
 
     /// Puts every sensor into reset: expander output register with the five XSHUT bits low, then those
-    /// pins as outputs (see the expander's glitch-free order). Forgets the running sensors.
+    /// pins as outputs (see the expander's glitch-free order). Forgets the running sensors first, also when
+    /// the expander then fails (their state is unknown, so they are not read).
     pub async fn hold_all_in_reset<I: I2c>(&mut self, i2c: &mut I) -> Result<(), DriverError<I::Error>> {
         self.sensors = [None; 5];
         self.expander.configure_outputs(i2c, XSHUT_ALL_MASK, 0x00).await

@@ -367,6 +367,13 @@ const CHANGED_CAPACITY: usize = 512;
 const PAD_EDGES: usize = 48;
 const REFINE_LINES: u8 = 3;
 const REFINE_STAGES: u8 = 4;
+/// Search lines stop this far from mapped obstacles and arena walls, m: the drone's radius (0.06 m), the
+/// estimate's drift over a search (≈ 5 cm) and tracking overshoot at a line's end.
+const SEARCH_CLEARANCE_M: f32 = 0.18;
+/// How far [`Mission::clearance`] looks, m.
+const CLEARANCE_HORIZON_M: f32 = 0.3;
+/// Sampling step along a search line for the clearance check, m.
+const CLEARANCE_STEP_M: f32 = 0.025;
 /// Heading sweep while navigating: amplitude, rad, and period, s.
 const SCAN_AMPLITUDE_RAD: f32 = 0.6;
 const SCAN_PERIOD_S: f32 = 2.0;
@@ -977,9 +984,56 @@ impl<const CELLS: usize, const QUEUE: usize> Mission<CELLS, QUEUE> {
         self.search(search, state, 0.02)
     }
 
-    /// Fly towards `target` at the search speed; `true` once within 3 cm.
+    /// Distance from `p` to the nearest mapped obstacle cell (the cell's square, not its centre) or arena
+    /// wall, m, capped at [`CLEARANCE_HORIZON_M`]. Looks at a (2·3+1)² window of cells: O(49).
+    fn clearance(&self, p: (f32, f32)) -> f32 {
+        let (w, h) = self.params.arena_m;
+        let mut best = CLEARANCE_HORIZON_M.min(p.0).min(w - p.0).min(p.1).min(h - p.1);
+        let cx = libm::floorf(p.0 / CELL_SIZE_M) as i32;
+        let cy = libm::floorf(p.1 / CELL_SIZE_M) as i32;
+        let reach = libm::ceilf(CLEARANCE_HORIZON_M / CELL_SIZE_M) as i32;
+        for y in (cy - reach)..=(cy + reach) {
+            for x in (cx - reach)..=(cx + reach) {
+                if !self.shape.contains(x, y) || !self.grid.is_occupied(Cell::new(x as u16, y as u16)) {
+                    continue;
+                }
+                let (x0, y0) = (x as f32 * CELL_SIZE_M, y as f32 * CELL_SIZE_M);
+                let dx = (x0 - p.0).max(p.0 - (x0 + CELL_SIZE_M)).max(0.0);
+                let dy = (y0 - p.1).max(p.1 - (y0 + CELL_SIZE_M)).max(0.0);
+                best = best.min(libm::hypotf(dx, dy));
+            }
+        }
+        best
+    }
+
+    /// The point where the straight flight `from → to` must stop to keep [`SEARCH_CLEARANCE_M`] from what
+    /// the drone has mapped: the search pattern is laid out blind around the nominal point, and its lines
+    /// may run into a wall or box beside the pad. Moving while the clearance grows (leaving a tight spot) is
+    /// always allowed; the first sample where it drops below the minimum and keeps shrinking ends the line.
+    fn clip_to_clearance(&self, from: (f32, f32), to: (f32, f32)) -> (f32, f32) {
+        let length = libm::hypotf(to.0 - from.0, to.1 - from.1);
+        if !(length.is_finite() && length > 1e-3) {
+            return to;
+        }
+        let steps = libm::ceilf(length / CLEARANCE_STEP_M).min(400.0) as u32;
+        let mut previous = (from, self.clearance(from));
+        for i in 1..=steps {
+            let t = i as f32 / steps as f32;
+            let p = (from.0 + t * (to.0 - from.0), from.1 + t * (to.1 - from.1));
+            let c = self.clearance(p);
+            if c < SEARCH_CLEARANCE_M && c < previous.1 - 1e-4 {
+                return previous.0;
+            }
+            previous = (p, c);
+        }
+        to
+    }
+
+    /// Fly towards `target` at the search speed (stopping short of mapped obstacles, see
+    /// [`Self::clip_to_clearance`]); `true` once within 3 cm of where it can get.
     fn fly_to(&self, state: &StateEstimate, target: (f32, f32)) -> (Setpoint, bool) {
         let (x, y) = (state.position_m[0], state.position_m[1]);
+        let target = self.clip_to_clearance((x, y), target);
         let (dx, dy) = (target.0 - x, target.1 - y);
         let d = libm::hypotf(dx, dy);
         let reached = d < 0.03;
@@ -1067,7 +1121,10 @@ impl<const CELLS: usize, const QUEUE: usize> Mission<CELLS, QUEUE> {
                 let offset = (f32::from(line) - 1.0) * self.config.refine_offset_m;
                 // The first stage crosses a pad whose centre may lie up to a pad width to either side of the
                 // first crossing's line, so its lines are longer; later stages are centred on the estimate.
-                let length = if stage == 0 {
+                // The same holds while every inlier crossing runs one way: the estimate's other coordinate
+                // is then only the lines' offset, anywhere within half a pad of the centre.
+                let one_direction_only = self.pad.estimate().is_none_or(|e| e.min_direction_crossings < 0.5);
+                let length = if stage == 0 || one_direction_only {
                     self.config.refine_line_m + 0.3
                 } else {
                     self.config.refine_line_m

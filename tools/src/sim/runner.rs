@@ -113,6 +113,8 @@ pub struct RunReport {
     pub max_height_error_m: f32,
     /// The `mission.state` at each collision's start (where to look).
     pub collision_states: Vec<u8>,
+    /// The true position (x, y, z) at each collision's start, m.
+    pub collision_points: Vec<[f32; 3]>,
 }
 
 /// One traced instant.
@@ -487,6 +489,7 @@ pub fn run(world: &World, options: &RunOptions) -> Result<RunResult, String> {
         },
         max_height_error_m: score.max_height_err,
         collision_states: score.collision_states.clone(),
+        collision_points: score.collision_points.clone(),
     };
     Ok(RunResult {
         report,
@@ -507,6 +510,7 @@ fn path_snapshot(core: &SimCore) -> Option<Vec<(f32, f32)>> {
 struct Score {
     collisions: u32,
     collision_states: Vec<u8>,
+    collision_points: Vec<[f32; 3]>,
     in_collision: bool,
     min_clearance: f32,
     landings: Vec<Landing>,
@@ -524,6 +528,7 @@ impl Score {
         Self {
             collisions: 0,
             collision_states: Vec::new(),
+            collision_points: Vec::new(),
             in_collision: false,
             min_clearance: f32::INFINITY,
             landings: Vec::new(),
@@ -543,6 +548,7 @@ impl Score {
             if !self.in_collision {
                 self.collisions += 1;
                 self.collision_states.push(core.mission_state().code());
+                self.collision_points.push(p);
             }
             self.in_collision = true;
         } else {

@@ -11,7 +11,9 @@
 #![warn(missing_docs)]
 
 pub mod avoidance;
+pub mod config_block;
 pub mod control;
+pub mod cpu_load;
 pub mod drivers;
 pub mod dstar;
 pub mod estimator;
@@ -23,6 +25,7 @@ pub mod pad;
 pub mod path;
 pub mod queue;
 pub mod radio;
+pub mod status_led;
 pub mod supervisor;
 pub mod sweep;
 pub mod types;

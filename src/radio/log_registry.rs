@@ -270,3 +270,82 @@ impl LogSource for FlightLogState {
         })
     }
 }
+
+// ---------------------------------------------------------------------------------------------------------
+// Firmware-only variables: the table above (what the simulator serves) followed by the board's timing.
+// ---------------------------------------------------------------------------------------------------------
+
+/// Id of `cfnav.cpuLoadPct` (uint8, %): instrumented work of all levels over the last second.
+pub const ID_CPU_LOAD_PCT: u16 = 11;
+/// Id of `cfnav.ctrlLoadPct` (uint8, %): estimation + control.
+pub const ID_CTRL_LOAD_PCT: u16 = 12;
+/// Id of `cfnav.ioLoadPct` (uint8, %): sensors and radio.
+pub const ID_IO_LOAD_PCT: u16 = 13;
+/// Id of `cfnav.missionLoadPct` (uint8, %): mission and planner (thread mode).
+pub const ID_MISSION_LOAD_PCT: u16 = 14;
+/// Id of `cfnav.loopJitterUs` (uint16, µs): peak-to-peak spread of the control period over the last second.
+pub const ID_LOOP_JITTER_US: u16 = 15;
+/// Id of `cfnav.loopStepMaxUs` (uint16, µs): the longest control step over the last second.
+pub const ID_LOOP_STEP_MAX_US: u16 = 16;
+/// Id of `cfnav.loopRateHz` (uint16): control steps in the last second.
+pub const ID_LOOP_RATE_HZ: u16 = 17;
+
+/// The firmware's log table: [`FLIGHT_LOG_TABLE`] (same ids) followed by the CPU-load and loop-timing
+/// variables.
+pub const FIRMWARE_LOG_TABLE: &[LogEntry] = &[
+    FLIGHT_LOG_TABLE[0],
+    FLIGHT_LOG_TABLE[1],
+    FLIGHT_LOG_TABLE[2],
+    FLIGHT_LOG_TABLE[3],
+    FLIGHT_LOG_TABLE[4],
+    FLIGHT_LOG_TABLE[5],
+    FLIGHT_LOG_TABLE[6],
+    FLIGHT_LOG_TABLE[7],
+    FLIGHT_LOG_TABLE[8],
+    FLIGHT_LOG_TABLE[9],
+    FLIGHT_LOG_TABLE[10],
+    LogEntry::new("cfnav", "cpuLoadPct", LogType::U8),
+    LogEntry::new("cfnav", "ctrlLoadPct", LogType::U8),
+    LogEntry::new("cfnav", "ioLoadPct", LogType::U8),
+    LogEntry::new("cfnav", "missionLoadPct", LogType::U8),
+    LogEntry::new("cfnav", "loopJitterUs", LogType::U16),
+    LogEntry::new("cfnav", "loopStepMaxUs", LogType::U16),
+    LogEntry::new("cfnav", "loopRateHz", LogType::U16),
+];
+
+const _: () = assert!(
+    FLIGHT_LOG_TABLE.len() == ID_CPU_LOAD_PCT as usize && FIRMWARE_LOG_TABLE.len() == ID_LOOP_RATE_HZ as usize + 1,
+    "the firmware table repeats the whole flight table, then its own variables"
+);
+
+/// What the firmware publishes: the flight variables plus CPU load and control-loop timing.
+#[derive(Debug, Clone, Copy, PartialEq, Default)]
+pub struct FirmwareLogState {
+    /// The interfaces.md §5 variables.
+    pub flight: FlightLogState,
+    /// `cfnav.cpuLoadPct`, `.ctrlLoadPct`, `.ioLoadPct`, `.missionLoadPct`, %.
+    pub load_pct: [u8; 4],
+    /// `cfnav.loopJitterUs`, µs.
+    pub loop_jitter_us: u16,
+    /// `cfnav.loopStepMaxUs`, µs.
+    pub loop_step_max_us: u16,
+    /// `cfnav.loopRateHz`.
+    pub loop_rate_hz: u16,
+}
+
+impl LogSource for FirmwareLogState {
+    const TABLE: &'static [LogEntry] = FIRMWARE_LOG_TABLE;
+
+    fn value(&self, id: u16) -> Option<LogValue> {
+        Some(match id {
+            ID_MISSION_STATE..=ID_VBAT => return self.flight.value(id),
+            ID_CPU_LOAD_PCT..=ID_MISSION_LOAD_PCT => {
+                LogValue::U8(*self.load_pct.get(usize::from(id - ID_CPU_LOAD_PCT))?)
+            }
+            ID_LOOP_JITTER_US => LogValue::U16(self.loop_jitter_us),
+            ID_LOOP_STEP_MAX_US => LogValue::U16(self.loop_step_max_us),
+            ID_LOOP_RATE_HZ => LogValue::U16(self.loop_rate_hz),
+            _ => return None,
+        })
+    }
+}

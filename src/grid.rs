@@ -295,6 +295,31 @@ impl<const CELLS: usize> OccupancyGrid<CELLS> {
         self.inflation_radius
     }
 
+    /// Changes the inflation radius and rebuilds the blocked layer from the occupied cells and the walls,
+    /// keeping all evidence. Every cell whose blocked state flips is reported (a large change overflows
+    /// `changed`, which tells the planner to start afresh). O(cells · r²): about 0.4 M cell visits for the
+    /// seed arena at 4 cells, so it belongs to a rare event (a no-path fallback), not to every tick.
+    pub fn set_inflation_radius<const N: usize>(&mut self, inflation_radius_cells: u8, changed: &mut ChangedCells<N>) {
+        let r = inflation_radius_cells.min(MAX_INFLATION_RADIUS_CELLS);
+        if r == self.inflation_radius {
+            return;
+        }
+        self.inflation_radius = r;
+        let (w, h) = (i32::from(self.shape.width), i32::from(self.shape.height));
+        for y in 0..h {
+            for x in 0..w {
+                let blocked = self.wall_within_radius(x, y)
+                    || Disc::new(self.shape, x, y, r).any(|(qx, qy)| self.occupied_at(qx, qy));
+                if let Some(byte) = self.byte_mut(x, y)
+                    && (*byte & BLOCKED != 0) != blocked
+                {
+                    *byte ^= BLOCKED;
+                    changed.push(Cell::new(x as u16, y as u16));
+                }
+            }
+        }
+    }
+
     /// Whether a cell is occupied (after hysteresis). Cells outside the grid are not.
     pub fn is_occupied(&self, cell: Cell) -> bool {
         self.byte(i32::from(cell.x), i32::from(cell.y))

@@ -196,6 +196,12 @@ impl MissionParams {
 pub struct MissionConfig {
     /// Obstacles are inflated by the drone's radius (0.06 m) plus a margin, m.
     pub inflation_radius_m: f32,
+    /// When no path exists at [`MissionConfig::inflation_radius_m`], the planner tries once more with this
+    /// smaller margin (a gap the full margin closes may still be wide enough), and the drone flies the
+    /// leg at [`MissionConfig::narrow_speed_m_s`]. Equal to the full radius: no fallback. m.
+    pub narrow_inflation_radius_m: f32,
+    /// Speed cap while the narrow margin is in use, m/s.
+    pub narrow_speed_m_s: f32,
     /// Horizontal ranges beyond this map only free space, m (the VL53L1x gets noisy beyond ~3–4 m).
     pub max_mapping_range_m: f32,
     /// Cells around the drone that are its own body and cannot be an obstacle, m.
@@ -234,6 +240,9 @@ impl Default for MissionConfig {
     fn default() -> Self {
         Self {
             inflation_radius_m: 0.2,
+            // Drone radius 0.06 m + 0.09 m for estimate and tracking errors at the slower speed.
+            narrow_inflation_radius_m: 0.15,
+            narrow_speed_m_s: 0.2,
             max_mapping_range_m: 3.0,
             body_clearance_m: 0.07,
             planner_budget: 4000,
@@ -498,8 +507,7 @@ impl<const CELLS: usize, const QUEUE: usize> Mission<CELLS, QUEUE> {
             return Err(StartRefusal::AlreadyRunning);
         }
         let shape = params.validate(CELLS)?;
-        let inflation = libm::ceilf(self.config.inflation_radius_m / CELL_SIZE_M).clamp(0.0, 16.0) as u8;
-        if !self.grid.reset(shape, inflation) {
+        if !self.grid.reset(shape, self.full_inflation_cells()) {
             return Err(StartRefusal::BadArena);
         }
         // Avoidance clamps to the cruise speed the user asked for.
@@ -793,6 +801,7 @@ impl<const CELLS: usize, const QUEUE: usize> Mission<CELLS, QUEUE> {
 
     fn begin_leg(&mut self, _now: Micros, state: &StateEstimate, leg: Leg) -> Setpoint {
         self.leg = leg;
+        self.restore_full_inflation();
         self.planner_needs_reset = true;
         self.pad.reset();
         self.sweep = None;
@@ -805,6 +814,27 @@ impl<const CELLS: usize, const QUEUE: usize> Mission<CELLS, QUEUE> {
             y_m: y,
             z_m: z_target,
             yaw_rad: self.heading,
+        }
+    }
+
+    fn full_inflation_cells(&self) -> u8 {
+        libm::ceilf(self.config.inflation_radius_m / CELL_SIZE_M).clamp(0.0, 16.0) as u8
+    }
+
+    fn narrow_inflation_cells(&self) -> u8 {
+        libm::ceilf(self.config.narrow_inflation_radius_m / CELL_SIZE_M).clamp(0.0, 16.0) as u8
+    }
+
+    /// Whether the planner currently uses the narrow no-path fallback margin.
+    fn narrow(&self) -> bool {
+        self.grid.inflation_radius_cells() < self.full_inflation_cells()
+    }
+
+    /// Back to the full margin (a new leg plans with it first).
+    fn restore_full_inflation(&mut self) {
+        let full = self.full_inflation_cells();
+        if self.grid.inflation_radius_cells() != full {
+            self.grid.set_inflation_radius(full, &mut self.changed);
         }
     }
 
@@ -919,6 +949,18 @@ impl<const CELLS: usize, const QUEUE: usize> Mission<CELLS, QUEUE> {
         }
         let target = match self.plan(state) {
             Ok(Some(t)) => Some(t),
+            Ok(None) if !self.narrow() && self.narrow_inflation_cells() < self.full_inflation_cells() => {
+                // The full margin closes every way: try the narrow one (next tick plans with it), holding
+                // position meanwhile.
+                let narrow = self.narrow_inflation_cells();
+                self.grid.set_inflation_radius(narrow, &mut self.changed);
+                return Setpoint::Position {
+                    x_m: x,
+                    y_m: y,
+                    z_m: self.params.height_m,
+                    yaw_rad: self.heading,
+                };
+            }
             Ok(None) => {
                 self.phase = Phase::NoPath { since: now, x, y };
                 return Setpoint::Position {
@@ -936,11 +978,12 @@ impl<const CELLS: usize, const QUEUE: usize> Mission<CELLS, QUEUE> {
                 let (dx, dy) = (tx - x, ty - y);
                 let d = libm::hypotf(dx, dy);
                 // Slow into the goal (stop within ~0.5 s at 1 m/s²) and never overshoot a waypoint hard.
-                let mut speed = self
-                    .params
-                    .speed_m_s
-                    .min(libm::sqrtf(2.0 * 0.8 * to_goal))
-                    .min(0.3 + 2.0 * d);
+                let cruise = if self.narrow() {
+                    self.params.speed_m_s.min(self.config.narrow_speed_m_s)
+                } else {
+                    self.params.speed_m_s
+                };
+                let mut speed = cruise.min(libm::sqrtf(2.0 * 0.8 * to_goal)).min(0.3 + 2.0 * d);
                 if d > 0.05 {
                     // Face the direction of travel, sweeping the heading ±SCAN_AMPLITUDE so the front ranger also
                     // sees obstacles diagonally ahead (a wall's end beside the path is otherwise invisible to

@@ -849,3 +849,33 @@ proptest! {
         }
     }
 }
+
+#[test]
+fn changing_the_inflation_radius_rebuilds_the_layer_and_keeps_the_evidence() {
+    let mut rng = SmallRng::seed_from_u64(77);
+    let mut g = grid(40, 24, 4);
+    let mut changed = Changes::new();
+    for _ in 0..60 {
+        random_update(&mut rng, &mut g, &mut changed);
+    }
+    for radius in [2u8, 0, 3, 4, 4, MAX_INFLATION_RADIUS_CELLS + 3] {
+        let evidence = state_snapshot(&g);
+        let before = blocked_snapshot(&g);
+        changed.clear();
+        g.set_inflation_radius(radius, &mut changed);
+        assert_eq!(g.inflation_radius_cells(), radius.min(MAX_INFLATION_RADIUS_CELLS));
+        assert_eq!(
+            state_snapshot(&g),
+            evidence,
+            "radius {radius}: log-odds or occupancy changed"
+        );
+        check_layer(&g, &before, &changed, &format!("radius {radius}"));
+        // Later updates keep the layer exact at the new radius.
+        for _ in 0..10 {
+            let before = blocked_snapshot(&g);
+            changed.clear();
+            let (what, _) = random_update(&mut rng, &mut g, &mut changed);
+            check_layer(&g, &before, &changed, &format!("radius {radius}, then {what}"));
+        }
+    }
+}

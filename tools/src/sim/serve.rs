@@ -12,18 +12,34 @@
 //!
 //! Clock: the simulated time (ms since power-on) is the drone's clock, also the log timestamps; it is paced
 //! to `speed` × wall time, advancing in chunks of at most [`CHUNK_TICKS`] between network polls.
+//!
+//! Commander (ports 3 and 7): each accepted setpoint packet is mapped by [`SetpointFollower`] and handed to
+//! `FlightCore::commander_setpoint` with its arrival time, once (so the supervisor's 500 ms / 2 s setpoint
+//! watchdog sees the real packet age), and only while no mission runs. Packets cfnav cannot fly (RPYT or
+//! manual with thrust, tilted z-distance, full state) or that are refused get a rate-limited console note.
+//!
+//! Supervisor (port 9): answered from the flight core's supervisor verdict. Arming cannot be changed (the
+//! core auto-arms), recovery is refused while crashed (the core has no supervisor reset). An emergency stop
+//! (command or watchdog) is latched: with no mission running a Stop setpoint is flown and every later
+//! commander setpoint becomes Stop; during a mission the core offers no motor cut, so the mission is aborted
+//! (it lands) — the console says so. `mission.start` is refused after an emergency stop (stock: Locked, reboot).
+//!
+//! Console (port 0): refusal notes and these messages go through [`ConsoleService`] and are sent at once.
 
 use std::io::ErrorKind;
 use std::net::{SocketAddr, UdpSocket};
 use std::time::{Duration, Instant};
 
-use cfnav::radio::crtp::{CrtpPacket, MAX_DATA, NULL_HEADER, PlatformService, Router, Service, is_null_header};
+use cfnav::radio::commander::{Command, CommanderService, SetpointFollower};
+use cfnav::radio::console::ConsoleService;
+use cfnav::radio::crtp::{CrtpPacket, NULL_HEADER, PlatformService, Router, Service, is_null_header};
 use cfnav::radio::log::LogService;
 use cfnav::radio::log_registry::FlightLogState;
 use cfnav::radio::mem::MemService;
 use cfnav::radio::param::ParamService;
 use cfnav::radio::registry::{ID_START, MissionParamState};
-use cfnav::types::RangeReading;
+use cfnav::radio::supervisor_port::{SupervisorPortConfig, SupervisorPortService, SupervisorStatus};
+use cfnav::types::{RangeReading, Setpoint};
 
 use super::runner::{Faults, SIM_CELLS, SimDrone, mission_params};
 use super::world::World;
@@ -36,8 +52,10 @@ pub const CLIENT_TIMEOUT: Duration = Duration::from_secs(3);
 const FIRMWARE_TAG: &str = concat!("cfnav-sim-", env!("CARGO_PKG_VERSION"));
 /// Router reply queue depth (flushed after every uplink).
 const ROUTER_QUEUE: usize = 8;
-/// Port and channel of console text (stock: port 0, channel 0).
-const PORT_CONSOLE: u8 = 0;
+/// Console queue depth, packets (sent at once after every uplink and simulation chunk).
+const CONSOLE_QUEUE: usize = 32;
+/// Shortest simulated time between two console notes about commander packets, µs.
+const COMMANDER_NOTE_INTERVAL_US: u64 = 2_000_000;
 /// Range reported when a ranger has no valid return (stock multiranger.c, `crazyflie-hardware.md`).
 const NO_RANGE_MM: u16 = 32767;
 
@@ -66,6 +84,33 @@ fn log_state(drone: &SimDrone) -> FlightLogState {
     }
 }
 
+/// Simulated µs since power-on.
+fn now_us(drone: &SimDrone) -> u64 {
+    drone.tick() * 1000
+}
+
+/// What the supervisor port reports.
+fn supervisor_status(drone: &SimDrone) -> SupervisorStatus {
+    SupervisorStatus {
+        output: *drone.core.supervisor(),
+        mission_running: drone.core.mission().is_running(),
+        mission_finished: drone.core.mission_state().is_final(),
+        decks_ok: true,
+    }
+}
+
+/// Short name of a command kind, for console notes.
+fn command_name(command: &Command) -> &'static str {
+    match command {
+        Command::Stop => "stop",
+        Command::Attitude { .. } => "attitude/thrust (RPYT or manual)",
+        Command::VelocityWorld { .. } => "velocity",
+        Command::ZDistance { .. } => "z-distance",
+        Command::Hover { .. } => "hover",
+        Command::Position { .. } => "position",
+    }
+}
+
 /// Simulated seconds since power-on.
 fn seconds(drone: &SimDrone) -> f64 {
     drone.tick() as f64 * 1e-3
@@ -80,6 +125,12 @@ struct Radio {
     param: Params,
     log: Logs,
     mem: MemService,
+    commander: CommanderService,
+    follower: SetpointFollower,
+    supervisor: SupervisorPortService,
+    console: ConsoleService<CONSOLE_QUEUE>,
+    commander_refused: u32,
+    last_commander_note_us: Option<u64>,
     send_errors: u64,
 }
 
@@ -105,13 +156,96 @@ impl Radio {
         }
     }
 
-    /// Sends `text` as console packets (port 0, channel 0, ≤ 30 bytes each).
+    /// Queues `text` on the console (port 0, channel 0, ≤ 30-byte packets) and sends it.
     fn console(&mut self, text: &str) {
-        for chunk in text.as_bytes().chunks(MAX_DATA) {
-            if let Ok(p) = CrtpPacket::new(PORT_CONSOLE, 0, chunk) {
-                self.send(&p);
+        self.console.print(text);
+        self.flush_console();
+    }
+
+    /// Sends every waiting console packet (UDP has no downlink pacing).
+    fn flush_console(&mut self) {
+        while let Some(p) = self.console.next_packet() {
+            self.send(&p);
+        }
+    }
+
+    /// A console note about the commander, at most one per [`COMMANDER_NOTE_INTERVAL_US`] of simulated time.
+    fn commander_note(&mut self, drone: &SimDrone, text: &str) {
+        let now = now_us(drone);
+        if self
+            .last_commander_note_us
+            .is_some_and(|t| now.saturating_sub(t) < COMMANDER_NOTE_INTERVAL_US)
+        {
+            return;
+        }
+        self.last_commander_note_us = Some(now);
+        eprintln!("{:8.3} s  {text}", seconds(drone));
+        self.console.write_line(text);
+        self.flush_console();
+    }
+
+    /// Flies the commander's new setpoint, if one arrived.
+    fn apply_commander(&mut self, drone: &mut SimDrone) {
+        if let Some((meta, _)) = self.commander.take_meta() {
+            eprintln!(
+                "{:8.3} s  commander: {meta:?} (no high-level commander: the last setpoint ages out)",
+                seconds(drone)
+            );
+        }
+        let refused = self.commander.stats().refused;
+        if refused != self.commander_refused {
+            self.commander_refused = refused;
+            if let Some(e) = self.commander.last_error() {
+                self.commander_note(drone, &format!("commander packet refused: {e:?}"));
             }
         }
+        let Some((command, received_us)) = self.commander.take_fresh() else {
+            return;
+        };
+        if self.supervisor.emergency_stopped() {
+            drone.core.commander_setpoint(Setpoint::Stop, received_us);
+            return;
+        }
+        if drone.core.mission().is_running() {
+            self.commander_note(
+                drone,
+                "commander setpoint ignored: a mission is running (write mission.start = 0 to abort it)",
+            );
+            return;
+        }
+        match self.follower.to_setpoint(&command, received_us, &drone.core.estimate()) {
+            Some(setpoint) => drone.core.commander_setpoint(setpoint, received_us),
+            None => {
+                let note = format!(
+                    "commander: {} setpoint not flown (cfnav flies stop, position, velocity, hover, level z-distance)",
+                    command_name(&command)
+                );
+                self.commander_note(drone, &note);
+            }
+        }
+    }
+
+    /// Acts on the supervisor port's requests (emergency stop; arming and recovery are never granted here).
+    fn apply_supervisor(&mut self, drone: &mut SimDrone) {
+        let requests = self.supervisor.take_requests();
+        if !requests.emergency_stop {
+            return;
+        }
+        let line = if drone.core.mission().is_running() {
+            drone.core.abort_mission();
+            "emergency stop: the flight core cannot cut the motors of a running mission; mission aborted (landing)"
+        } else {
+            drone.core.commander_setpoint(Setpoint::Stop, now_us(drone));
+            "emergency stop: motors stopped; restart the simulator to fly again"
+        };
+        eprintln!("{:8.3} s  {line}", seconds(drone));
+        self.console.write_line(line);
+        if self.param.store().start != 0 {
+            self.param.store_mut().start = 0;
+            self.param.notify(ID_START);
+        }
+        self.flush_param_events();
+        self.flush_console();
     }
 
     /// Sends every pending VALUE_UPDATED and refusal console line.
@@ -122,8 +256,9 @@ impl Radio {
         while let Some(note) = self.param.take_refusal() {
             let line = Params::console_line(&note);
             eprintln!("serve: {}", line.trim_end());
-            self.console(&line);
+            self.console.print(&line);
         }
+        self.flush_console();
     }
 
     /// One datagram from `from`.
@@ -147,8 +282,20 @@ impl Radio {
             store.decks_ok = true;
         }
         let before = self.param.store().start;
+        self.commander.set_now(now_us(drone));
+        self.supervisor.set_now(now_us(drone));
+        self.supervisor.set_status(supervisor_status(drone));
         let reply = {
-            let mut services: [&mut dyn Service; 3] = [&mut self.param, &mut self.log, &mut self.mem];
+            let [mut rpyt, mut generic] = self.commander.ports();
+            let mut services: [&mut dyn Service; 7] = [
+                &mut self.param,
+                &mut self.log,
+                &mut self.mem,
+                &mut rpyt,
+                &mut generic,
+                &mut self.supervisor,
+                &mut self.console,
+            ];
             self.router.handle_uplink(bytes, &mut services)
         };
         if let Some(reply) = reply {
@@ -161,8 +308,17 @@ impl Radio {
                 None => break,
             }
         }
+        self.apply_commander(drone);
+        self.apply_supervisor(drone);
         let after = self.param.store().start;
         match (before, after) {
+            (0, 1) if self.supervisor.emergency_stopped() => {
+                let line = "mission.start refused: emergency stop latched (restart the simulator)\n";
+                eprintln!("{:8.3} s  {}", seconds(drone), line.trim_end());
+                self.param.store_mut().start = 0;
+                self.param.notify(ID_START);
+                self.console(line);
+            }
             (0, 1) => {
                 let params = self.param.store().params;
                 match drone.core.start_mission(params) {
@@ -209,6 +365,16 @@ pub fn serve(world: &World, port: u16, speed: f64) -> Result<(), String> {
         param: ParamService::new(MissionParamState::new(mission_params(world), SIM_CELLS)),
         log: LogService::new(),
         mem: MemService,
+        commander: CommanderService::new(),
+        follower: SetpointFollower::new(),
+        // The sim's flight core auto-arms and has no supervisor reset.
+        supervisor: SupervisorPortService::new(SupervisorPortConfig {
+            auto_arm: true,
+            can_recover: false,
+        }),
+        console: ConsoleService::new(),
+        commander_refused: 0,
+        last_commander_note_us: None,
         send_errors: 0,
     };
     eprintln!(
@@ -255,6 +421,9 @@ pub fn serve(world: &World, port: u16, speed: f64) -> Result<(), String> {
         let end = target.min(drone.tick() + CHUNK_TICKS);
         while drone.tick() < end {
             drone.step(world);
+            if radio.supervisor.poll(now_us(&drone)) {
+                radio.apply_supervisor(&mut drone);
+            }
             let log_state = log_state(&drone);
             let now_ms = drone.tick() as u32;
             while let Some(p) = radio.log.tick(now_ms, &log_state) {

@@ -21,11 +21,13 @@
 //! (the times shown are the drone's clock, the log timestamps, from the first sample after the start).
 
 pub mod progress;
+#[cfg(test)]
+mod sim_tests;
 pub mod toc_cache;
 pub mod udp_link;
 
 use std::collections::HashMap;
-use std::io::{IsTerminal, Write};
+use std::io::IsTerminal;
 use std::path::PathBuf;
 use std::process::ExitCode;
 use std::sync::{Arc, Mutex};
@@ -220,36 +222,41 @@ impl Printer {
         self.inner.lock().unwrap_or_else(|p| p.into_inner()).tty
     }
 
+    /// Writes `text` to stdout; a closed stdout (`| head`) is not an error worth stopping a mission for.
+    fn emit(text: &str) {
+        #[cfg(test)]
+        print!("{text}");
+        #[cfg(not(test))]
+        {
+            use std::io::Write as _;
+            let mut out = std::io::stdout().lock();
+            let _ = out.write_all(text.as_bytes());
+            let _ = out.flush();
+        }
+    }
+
     fn line(&self, text: &str) {
         let mut st = self.inner.lock().unwrap_or_else(|p| p.into_inner());
-        let mut out = std::io::stdout().lock();
-        if st.status_shown {
-            let _ = write!(out, "\r\x1b[K");
-            st.status_shown = false;
-        }
-        let _ = writeln!(out, "{text}");
-        let _ = out.flush();
+        let clear = if st.status_shown { "\r\x1b[K" } else { "" };
+        st.status_shown = false;
+        Self::emit(&format!("{clear}{text}\n"));
     }
 
     /// The live line: rewritten in place on a terminal, a plain line otherwise.
     fn status(&self, text: &str) {
         let mut st = self.inner.lock().unwrap_or_else(|p| p.into_inner());
-        let mut out = std::io::stdout().lock();
         if st.tty {
-            let _ = write!(out, "\r\x1b[K{text}");
+            Self::emit(&format!("\r\x1b[K{text}"));
             st.status_shown = true;
         } else {
-            let _ = writeln!(out, "{text}");
+            Self::emit(&format!("{text}\n"));
         }
-        let _ = out.flush();
     }
 
     fn error(&self, text: &str) {
         let mut st = self.inner.lock().unwrap_or_else(|p| p.into_inner());
         if st.status_shown {
-            let mut out = std::io::stdout().lock();
-            let _ = writeln!(out);
-            let _ = out.flush();
+            Self::emit("\n");
             st.status_shown = false;
         }
         eprintln!("error: {text}");
@@ -646,6 +653,7 @@ async fn fly(args: &StartArgs, printer: &Printer, session: &Session, sigint: &mu
     let mut status_tick = tokio::time::interval(status_every);
     status_tick.set_missed_tick_behavior(tokio::time::MissedTickBehavior::Delay);
     let mut last_sample: Option<Sample> = None;
+    let mut last_sample_at = Instant::now();
     let mut last_state: Option<u8> = None;
     let mut missed_pings = 0u32;
     // mission.start went back to 0 before the mission was seen running: refused by the flight core, unless a
@@ -674,6 +682,7 @@ async fn fly(args: &StartArgs, printer: &Printer, session: &Session, sigint: &mu
                         last_state = Some(s.state);
                     }
                     last_sample = Some(s);
+                    last_sample_at = Instant::now();
                     if let Some(o) = outcome {
                         break Ending::Outcome(o);
                     }
@@ -710,7 +719,10 @@ async fn fly(args: &StartArgs, printer: &Printer, session: &Session, sigint: &mu
                 }
             }
             _ = status_tick.tick() => {
-                if let Some(s) = last_sample {
+                let silent_s = last_sample_at.elapsed().as_secs_f64();
+                if silent_s >= 1.0 {
+                    printer.status(&format!("  (no log data from the drone for {silent_s:.0} s)"));
+                } else if let Some(s) = last_sample {
                     printer.status(&format!("  {}", s.describe(tracker.mission_time_ms(s.timestamp_ms))));
                 }
             }
@@ -734,7 +746,13 @@ async fn fly(args: &StartArgs, printer: &Printer, session: &Session, sigint: &mu
         }
         Ending::Failed(msg) => {
             tokio::time::sleep(CONSOLE_GRACE).await;
-            printer.error(&msg);
+            // A closed link knows why (e.g. the simulator is gone); a live one does not answer here.
+            match tokio::time::timeout(Duration::from_millis(300), cf.wait_disconnect()).await {
+                Ok(reason) if msg.starts_with("the link was lost") => {
+                    printer.error(&format!("the link was lost: {reason}"))
+                }
+                _ => printer.error(&msg),
+            }
             EXIT_ERROR
         }
         Ending::Interrupted => {

@@ -3,16 +3,19 @@
 //! Build it with `cargo run -p cfnav-tools -- firmware` (or the `cargo fw` alias). On the host this file
 //! compiles to a stub that explains that.
 //!
-//! At this stage the firmware:
-//! - clocks the MCU from the 8 MHz HSE through the PLL at 168 MHz (APB1 42 MHz, APB2 84 MHz, PLL-Q 48 MHz), with
-//!   the embassy time driver on TIM5 (TIM2/TIM4 drive the motors);
-//! - runs a placeholder 1 kHz control tick on an [`InterruptExecutor`] driven by the otherwise unused UART4
-//!   interrupt, at NVIC priority [`CONTROL_PRIORITY`]; it counts ticks and records how late each one ran;
-//! - runs, in thread mode (the lowest priority), the D* Lite planner on a canned 120 × 60 map, in slices of
-//!   [`PLAN_SLICE_EXPANSIONS`] expansions, with the planner's state in CCM; then walks the planned path as a
-//!   self-test and logs the cost, the time taken and how the control tick fared meanwhile;
-//! - shows the state on the LEDs: booting (blue on, green blinking), ready (planner self-test passed: greens on
-//!   with a heartbeat) or fault (reds blinking).
+//! Boot, in order (the board layer's module documentation has the priorities and the messages):
+//! 1. clocks: 8 MHz HSE through the PLL at 168 MHz (APB1 42 MHz, APB2 84 MHz, PLL-Q 48 MHz); the embassy time
+//!    driver runs on TIM5 (TIM2/TIM4 drive the motors); the DWT cycle counter is started for the load figures;
+//! 2. LEDs ("booting"), motors (TIM2/TIM4 PWM, all off), the independent watchdog;
+//! 3. the navigator (map + planner) built in CCM;
+//! 4. deck I2C1: the EEPROM config block (radio settings), the Multi-ranger probe; SPI1: the Flow deck's
+//!    PMW3901; then syslink on USART6 with the radio task (settings, battery auto-update; RADIO_READY once
+//!    booted);
+//! 5. at 1 s after power-on (stock waits as long before touching the IMU) the BMI088 on I2C3, then the
+//!    control loop on the gyro data-ready edge (PC14);
+//! 6. the mission task and the statistics; "booted": motors may run from now on, RADIO_READY goes out.
+//!
+//! Any failure before step 6 records a fault: red LEDs, motors off, the mission refuses to start.
 #![cfg_attr(target_os = "none", no_std, no_main)]
 
 #[cfg(not(target_os = "none"))]
@@ -25,26 +28,49 @@ fn main() {
 }
 
 #[cfg(target_os = "none")]
-mod fw {
-    use core::future::poll_fn;
-    use core::mem::MaybeUninit;
-    use core::sync::atomic::{AtomicBool, AtomicU8, AtomicU32, Ordering};
-    use core::task::Poll;
+mod board;
 
-    use cfnav::dstar::{ArenaPlanner, PlanStatus};
-    use cfnav::map::{ARENA_CELLS, Cell, GridShape, Traversability};
+#[cfg(target_os = "none")]
+mod fw {
+    use core::sync::atomic::Ordering;
+
+    use cfnav::drivers::bmi088::Bmi088;
+    use cfnav::flight::{FlightConfig, Stabilizer};
     use defmt::{error, info, warn};
-    use embassy_executor::{InterruptExecutor, SpawnError, Spawner};
-    use embassy_stm32::gpio::{Level, Output, Speed};
+    use embassy_executor::{SendSpawner, SpawnError, SpawnToken, Spawner};
+    use embassy_stm32::exti::{self, ExtiInput};
+    use embassy_stm32::gpio::{Level, Output, Pull, Speed};
+    use embassy_stm32::i2c::{self, I2c};
     use embassy_stm32::interrupt;
-    use embassy_stm32::interrupt::{InterruptExt, Priority};
-    use embassy_stm32::{Peri, peripherals};
-    use embassy_time::{Duration, Instant, Timer};
+    use embassy_stm32::interrupt::InterruptExt;
+    use embassy_stm32::spi::{self, Spi};
+    use embassy_stm32::time::Hertz;
+    use embassy_stm32::usart::{self, Uart};
+    use embassy_stm32::wdg::IndependentWatchdog;
+    use embassy_stm32::{bind_interrupts, dma, peripherals};
+    use embassy_time::{Delay, Instant, Timer};
+    use static_cell::StaticCell;
     use {defmt_rtt as _, panic_probe as _};
 
-    // ---------------------------------------------------------------------------------------------------------
-    // Clocks
-    // ---------------------------------------------------------------------------------------------------------
+    use crate::board::{self, BOOTED, DECKS_OK, IO_PRIORITY, control, leds, mission, motors, radio, sensors, system};
+
+    bind_interrupts!(struct Irqs {
+        USART6 => usart::InterruptHandler<peripherals::USART6>;
+        DMA2_STREAM7 => dma::InterruptHandler<peripherals::DMA2_CH7>;
+        DMA2_STREAM1 => dma::InterruptHandler<peripherals::DMA2_CH1>;
+        I2C1_EV => i2c::EventInterruptHandler<peripherals::I2C1>;
+        I2C1_ER => i2c::ErrorInterruptHandler<peripherals::I2C1>;
+        DMA1_STREAM6 => dma::InterruptHandler<peripherals::DMA1_CH6>;
+        DMA1_STREAM0 => dma::InterruptHandler<peripherals::DMA1_CH0>;
+        I2C3_EV => i2c::EventInterruptHandler<peripherals::I2C3>;
+        I2C3_ER => i2c::ErrorInterruptHandler<peripherals::I2C3>;
+        DMA1_STREAM4 => dma::InterruptHandler<peripherals::DMA1_CH4>;
+        DMA1_STREAM2 => dma::InterruptHandler<peripherals::DMA1_CH2>;
+        DMA2_STREAM3 => dma::InterruptHandler<peripherals::DMA2_CH3>;
+        DMA2_STREAM0 => dma::InterruptHandler<peripherals::DMA2_CH0>;
+        EXTI4 => exti::InterruptHandler<interrupt::typelevel::EXTI4>;
+        EXTI15_10 => exti::InterruptHandler<interrupt::typelevel::EXTI15_10>;
+    });
 
     /// HSE 8 MHz (crazyflie-hardware.md §2) → PLL: /4 = 2 MHz VCO input, ×168 = 336 MHz VCO, /2 = 168 MHz SYSCLK,
     /// /7 = 48 MHz PLL-Q. AHB /1 = 168 MHz, APB1 /4 = 42 MHz, APB2 /2 = 84 MHz (toolchain.md §3.4).
@@ -52,7 +78,6 @@ mod fw {
         use embassy_stm32::rcc::{
             AHBPrescaler, APBPrescaler, Hse, HseMode, Pll, PllMul, PllPDiv, PllPreDiv, PllQDiv, PllSource, Sysclk,
         };
-        use embassy_stm32::time::Hertz;
 
         let mut config = embassy_stm32::Config::default();
         config.rcc.hse = Some(Hse {
@@ -74,378 +99,40 @@ mod fw {
         config
     }
 
-    // ---------------------------------------------------------------------------------------------------------
-    // Status and LEDs
-    // ---------------------------------------------------------------------------------------------------------
+    /// The I/O executor (sensors + radio), on the otherwise unused UART5 vector.
+    static EXECUTOR_IO: embassy_executor::InterruptExecutor = embassy_executor::InterruptExecutor::new();
 
-    /// What the firmware is doing, as the LEDs show it.
-    #[derive(Clone, Copy, PartialEq, Eq, Debug, defmt::Format)]
-    #[repr(u8)]
-    enum Status {
-        /// Initialising; the planner self-test is running.
-        Booting = 0,
-        /// The planner self-test passed.
-        Ready = 1,
-        /// Something failed (see the defmt log).
-        Fault = 2,
-    }
-
-    impl Status {
-        fn from_u8(v: u8) -> Self {
-            match v {
-                0 => Status::Booting,
-                1 => Status::Ready,
-                _ => Status::Fault,
-            }
-        }
-    }
-
-    static STATUS: AtomicU8 = AtomicU8::new(Status::Booting as u8);
-
-    fn status() -> Status {
-        Status::from_u8(STATUS.load(Ordering::Relaxed))
-    }
-
-    /// Moves to `next` unless a fault was already recorded: a fault is final.
-    fn set_status(next: Status) {
-        let _ = STATUS.fetch_update(Ordering::Relaxed, Ordering::Relaxed, |cur| {
-            (cur != Status::Fault as u8).then_some(next as u8)
-        });
-    }
-
-    /// Which of the five STM32-driven LEDs are lit (`true` = light on, whatever the pin polarity).
-    #[derive(Clone, Copy, PartialEq, Eq, Debug, defmt::Format)]
-    struct LedFrame {
-        blue_l: bool,
-        green_l: bool,
-        red_l: bool,
-        green_r: bool,
-        red_r: bool,
-    }
-
-    /// The LED pattern for a status at `t_ms` milliseconds since boot (pure; the LED task samples it).
-    ///
-    /// - Booting: blue on, both greens blinking together at 4 Hz.
-    /// - Ready: both greens on, with a 100 ms dark heartbeat once a second (shows the thread executor runs).
-    /// - Fault: both reds blinking together at 2 Hz, everything else off.
-    const fn led_frame(status: Status, t_ms: u64) -> LedFrame {
-        const OFF: LedFrame = LedFrame {
-            blue_l: false,
-            green_l: false,
-            red_l: false,
-            green_r: false,
-            red_r: false,
-        };
-        match status {
-            Status::Booting => {
-                let blink = (t_ms / 125).is_multiple_of(2);
-                LedFrame {
-                    blue_l: true,
-                    green_l: blink,
-                    green_r: blink,
-                    ..OFF
-                }
-            }
-            Status::Ready => {
-                let lit = t_ms % 1000 >= 100;
-                LedFrame {
-                    green_l: lit,
-                    green_r: lit,
-                    ..OFF
-                }
-            }
-            Status::Fault => {
-                let blink = (t_ms / 250).is_multiple_of(2);
-                LedFrame {
-                    red_l: blink,
-                    red_r: blink,
-                    ..OFF
-                }
-            }
-        }
-    }
-
-    /// The Crazyflie 2.1's STM32-driven LEDs (crazyflie-hardware.md §7, from bitcraze crazyflie-firmware
-    /// src/drivers/interface/led.h): BLUE_L on PD2 is active high; GREEN_L PC1, RED_L PC0, GREEN_R PC2 and
-    /// RED_R PC3 are active low. The fifth (blue) LED belongs to the nRF51.
-    struct Leds {
-        blue_l: Output<'static>,
-        green_l: Output<'static>,
-        red_l: Output<'static>,
-        green_r: Output<'static>,
-        red_r: Output<'static>,
-    }
-
-    impl Leds {
-        /// Takes the pins, all LEDs off.
-        fn new(
-            pd2: Peri<'static, peripherals::PD2>,
-            pc1: Peri<'static, peripherals::PC1>,
-            pc0: Peri<'static, peripherals::PC0>,
-            pc2: Peri<'static, peripherals::PC2>,
-            pc3: Peri<'static, peripherals::PC3>,
-        ) -> Self {
-            Self {
-                blue_l: Output::new(pd2, Level::Low, Speed::Low),
-                green_l: Output::new(pc1, Level::High, Speed::Low),
-                red_l: Output::new(pc0, Level::High, Speed::Low),
-                green_r: Output::new(pc2, Level::High, Speed::Low),
-                red_r: Output::new(pc3, Level::High, Speed::Low),
-            }
-        }
-
-        fn show(&mut self, frame: LedFrame) {
-            let active_high = |on: bool| if on { Level::High } else { Level::Low };
-            let active_low = |on: bool| if on { Level::Low } else { Level::High };
-            self.blue_l.set_level(active_high(frame.blue_l));
-            self.green_l.set_level(active_low(frame.green_l));
-            self.red_l.set_level(active_low(frame.red_l));
-            self.green_r.set_level(active_low(frame.green_r));
-            self.red_r.set_level(active_low(frame.red_r));
-        }
-    }
-
-    #[embassy_executor::task]
-    async fn led_task(mut leds: Leds) {
-        loop {
-            leds.show(led_frame(status(), Instant::now().as_millis()));
-            Timer::after_millis(25).await;
-        }
-    }
-
-    // ---------------------------------------------------------------------------------------------------------
-    // High-priority control executor
-    // ---------------------------------------------------------------------------------------------------------
-
-    /// NVIC priority of the control executor (P0 is the highest; the TIM5 time driver keeps its default P0).
-    /// Thread mode, where the planner runs, is below every interrupt.
-    const CONTROL_PRIORITY: Priority = Priority::P6;
-    /// Control loop period.
-    const CONTROL_PERIOD: Duration = Duration::from_hz(1000);
-
-    static EXECUTOR_HIGH: InterruptExecutor = InterruptExecutor::new();
-
-    /// Control ticks run since boot.
-    static CONTROL_TICKS: AtomicU32 = AtomicU32::new(0);
-    /// Worst lateness of a control tick behind its deadline, microseconds.
-    static CONTROL_MAX_LATE_US: AtomicU32 = AtomicU32::new(0);
-
-    // The UART4 peripheral is not used (the Crazyflie 2.1's deck UARTs are USART2 and USART3, syslink is USART6:
-    // crazyflie-hardware.md §5), so its interrupt vector drives the control executor. Pick another spare vector
-    // if UART4 is ever needed.
     #[interrupt]
-    fn UART4() {
-        // SAFETY: this is the UART4 handler, the only place `on_interrupt` is called, and UART4 is unmasked only
-        // by `EXECUTOR_HIGH.start()`, so the executor is initialised whenever this runs.
-        unsafe { EXECUTOR_HIGH.on_interrupt() }
+    fn UART5() {
+        // SAFETY: this is the UART5 handler, the only place `on_interrupt` is called, and UART5 is unmasked only
+        // by `EXECUTOR_IO.start()`, so the executor is initialised whenever this runs.
+        unsafe { EXECUTOR_IO.on_interrupt() }
     }
 
-    /// Placeholder for estimation + control: counts 1 kHz ticks and records how late they ran.
-    #[embassy_executor::task]
-    async fn control_task() {
-        let mut deadline = Instant::now() + CONTROL_PERIOD;
-        loop {
-            Timer::at(deadline).await;
-            let late_us = Instant::now().saturating_duration_since(deadline).as_micros();
-            CONTROL_MAX_LATE_US.fetch_max(u32::try_from(late_us).unwrap_or(u32::MAX), Ordering::Relaxed);
-            CONTROL_TICKS.fetch_add(1, Ordering::Relaxed);
-            deadline += CONTROL_PERIOD;
-        }
-    }
+    /// Syslink RX DMA ring (in SRAM: DMA cannot reach CCM). 1 Mbaud is 100 bytes per ms; the radio task
+    /// drains it at least every 10 ms.
+    static SYSLINK_RX_RING: StaticCell<[u8; 1024]> = StaticCell::new();
 
-    // ---------------------------------------------------------------------------------------------------------
-    // Planner self-test on a canned map
-    // ---------------------------------------------------------------------------------------------------------
+    /// The time since power-on the stock firmware waits before touching the IMU (`SENSORS_STARTUP_TIME_MS`).
+    const SENSORS_STARTUP_MS: u64 = 1000;
 
-    /// Expansions per planner slice; the thread executor runs its other tasks between slices.
-    const PLAN_SLICE_EXPANSIONS: u32 = 500;
-
-    /// A blocked rectangle of cells, `x0..x1 × y0..y1` (ends exclusive).
-    struct Rect {
-        x0: i32,
-        y0: i32,
-        x1: i32,
-        y1: i32,
-    }
-
-    /// The 6 × 3 m seed arena (120 × 60 cells) with two walls, each with a 40 cm gap on opposite sides, and a
-    /// box between them. Start on the left, goal on the right: the path must weave up and down.
-    struct CannedMap;
-
-    const CANNED_SHAPE: GridShape = GridShape { width: 120, height: 60 };
-    const _: () = assert!(120 * 60 <= ARENA_CELLS, "the canned map must fit the planner");
-    const CANNED_START: Cell = Cell::new(10, 30);
-    const CANNED_GOAL: Cell = Cell::new(110, 30);
-    const CANNED_BLOCKS: [Rect; 5] = [
-        Rect {
-            x0: 40,
-            y0: 0,
-            x1: 42,
-            y1: 38,
-        }, // wall 1, gap at y 38..46 (upper half)
-        Rect {
-            x0: 40,
-            y0: 46,
-            x1: 42,
-            y1: 60,
-        },
-        Rect {
-            x0: 80,
-            y0: 0,
-            x1: 82,
-            y1: 12,
-        }, // wall 2, gap at y 12..20 (lower half)
-        Rect {
-            x0: 80,
-            y0: 20,
-            x1: 82,
-            y1: 60,
-        },
-        Rect {
-            x0: 58,
-            y0: 24,
-            x1: 64,
-            y1: 36,
-        }, // box
-    ];
-
-    impl Traversability for CannedMap {
-        fn shape(&self) -> GridShape {
-            CANNED_SHAPE
-        }
-
-        fn is_blocked(&self, x: i32, y: i32) -> bool {
-            !CANNED_SHAPE.contains(x, y)
-                || CANNED_BLOCKS
-                    .iter()
-                    .any(|r| x >= r.x0 && x < r.x1 && y >= r.y0 && y < r.y1)
-        }
-    }
-
-    /// The planner's state (≈ 40 KiB), in CCM: CPU-only memory that nothing DMAs from. The section is NOLOAD,
-    /// so it holds garbage at reset until [`take_planner`] writes the initial state.
-    // SAFETY: `.ccmram` is the NOLOAD output section memory.x places in CCM; the linker lays this static out there
-    // like any other, and the only consequence of NOLOAD (no initial value) is handled by `take_planner`.
-    #[unsafe(link_section = ".ccmram")]
-    static mut PLANNER: MaybeUninit<ArenaPlanner> = MaybeUninit::uninit();
-    /// Set once [`PLANNER`] has been handed out (kept in `.bss`, which is zeroed at reset, not in CCM).
-    static PLANNER_TAKEN: AtomicBool = AtomicBool::new(false);
-
-    /// Initialises the CCM planner and hands out the only reference to it; `None` on a second call.
-    fn take_planner() -> Option<&'static mut ArenaPlanner> {
-        if PLANNER_TAKEN.swap(true, Ordering::AcqRel) {
-            return None;
-        }
-        let slot: *mut MaybeUninit<ArenaPlanner> = &raw mut PLANNER;
-        // SAFETY: `PLANNER_TAKEN` lets exactly one caller past this point, and `PLANNER` is named nowhere else,
-        // so this is the only reference ever made to it; the slot is valid, aligned, 'static storage, and writing
-        // a fully initialised value into a `MaybeUninit` is always sound. The initial value is a constant, so it
-        // is written in place (a memset when the planner's initial state is all-zero, as `new()` promises).
-        Some(unsafe { (*slot).write(const { ArenaPlanner::new() }) })
-    }
-
-    /// Walks the planned path from `start` with `next_cell`; returns its number of moves if it reaches `goal`
-    /// through free, adjacent cells without looping.
-    fn walk_path(planner: &ArenaPlanner, map: &CannedMap, start: Cell, goal: Cell) -> Option<u32> {
-        let mut at = start;
-        let mut moves = 0u32;
-        while at != goal {
-            let next = planner.next_cell(map, at)?;
-            if next.chebyshev(at) != 1 || map.is_blocked(i32::from(next.x), i32::from(next.y)) {
-                return None;
-            }
-            moves += 1;
-            if moves as usize > ARENA_CELLS {
-                return None;
-            }
-            at = next;
-        }
-        Some(moves)
-    }
-
-    /// Yields once to the executor, so the other thread-mode tasks run (the planner is CPU-bound).
-    async fn yield_now() {
-        let mut yielded = false;
-        poll_fn(|cx| {
-            if yielded {
-                Poll::Ready(())
-            } else {
-                yielded = true;
-                cx.waker().wake_by_ref();
-                Poll::Pending
-            }
-        })
-        .await;
-    }
-
-    fn fault(what: &str) {
-        error!("fault: {}", what);
-        STATUS.store(Status::Fault as u8, Ordering::Relaxed);
-    }
-
-    #[embassy_executor::task]
-    async fn planner_task(planner: &'static mut ArenaPlanner) {
-        let map = CannedMap;
-        if let Err(e) = planner.reset(map.shape(), CANNED_START, CANNED_GOAL) {
-            error!("planner reset: {}", defmt::Debug2Format(&e));
-            fault("planner reset failed");
-            return;
-        }
-        let t0 = Instant::now();
-        let ticks0 = CONTROL_TICKS.load(Ordering::Relaxed);
-        let mut slices = 0u32;
-        let cost = loop {
-            slices += 1;
-            match planner.compute(&map, PLAN_SLICE_EXPANSIONS) {
-                Ok(PlanStatus::Incomplete) => yield_now().await,
-                Ok(PlanStatus::Found { cost }) => break cost,
-                Ok(PlanStatus::NoPath) => {
-                    fault("planner found no path on the canned map");
-                    return;
-                }
-                Err(e) => {
-                    error!("planner compute: {}", defmt::Debug2Format(&e));
-                    fault("planner compute failed");
-                    return;
-                }
-            }
-        };
-        let elapsed = Instant::now().saturating_duration_since(t0);
-        let ticks = CONTROL_TICKS.load(Ordering::Relaxed).wrapping_sub(ticks0);
-        let Some(moves) = walk_path(planner, &map, CANNED_START, CANNED_GOAL) else {
-            fault("the planned path does not lead to the goal through free cells");
-            return;
-        };
-        info!(
-            "planner self-test passed: cost {} over {} moves, {} slices of {} expansions in {} us",
-            cost,
-            moves,
-            slices,
-            PLAN_SLICE_EXPANSIONS,
-            elapsed.as_micros()
-        );
-        let late_us = CONTROL_MAX_LATE_US.load(Ordering::Relaxed);
-        info!(
-            "control ticks during planning: {} in {} ms; worst tick lateness since boot {} us",
-            ticks,
-            elapsed.as_millis(),
-            late_us
-        );
-        if u64::from(ticks) + 2 < elapsed.as_millis() || late_us > 200 {
-            warn!("the control tick fell behind while the planner ran");
-        }
-        set_status(Status::Ready);
-    }
-
-    // ---------------------------------------------------------------------------------------------------------
-    // Entry
-    // ---------------------------------------------------------------------------------------------------------
-
-    /// Logs a failed spawn and records the fault. Each task has a pool of one and is spawned exactly once, so
-    /// `SpawnError::Busy` cannot happen; this keeps the path explicit rather than panicking.
     fn spawn_failed(task: &str, e: SpawnError) {
         error!("spawning {}: {}", task, e);
-        fault("task spawn failed");
+        board::fault("task spawn failed");
+    }
+
+    fn spawn<S>(spawner: &Spawner, name: &str, token: Result<SpawnToken<S>, SpawnError>) {
+        match token {
+            Ok(token) => spawner.spawn(token),
+            Err(e) => spawn_failed(name, e),
+        }
+    }
+
+    fn spawn_send<S: Send>(spawner: &SendSpawner, name: &str, token: Result<SpawnToken<S>, SpawnError>) {
+        match token {
+            Ok(token) => spawner.spawn(token),
+            Err(e) => spawn_failed(name, e),
+        }
     }
 
     #[embassy_executor::main]
@@ -453,26 +140,119 @@ mod fw {
         let p = embassy_stm32::init(clock_config());
         info!("cfnav firmware {} booting", env!("CARGO_PKG_VERSION"));
 
-        match led_task(Leds::new(p.PD2, p.PC1, p.PC0, p.PC2, p.PC3)) {
-            Ok(token) => spawner.spawn(token),
-            Err(e) => spawn_failed("led_task", e),
+        // The cycle counter for the load and jitter figures.
+        match cortex_m::Peripherals::take() {
+            Some(mut cp) => {
+                cp.DCB.enable_trace();
+                cp.DWT.enable_cycle_counter();
+            }
+            None => warn!("core peripherals already taken: load figures read 0"),
         }
 
-        // The priority must be set before `start()`, which unmasks the interrupt.
-        interrupt::UART4.set_priority(CONTROL_PRIORITY);
-        let control = EXECUTOR_HIGH.start(interrupt::UART4);
-        match control_task() {
-            Ok(token) => control.spawn(token),
-            Err(e) => spawn_failed("control_task", e),
-        }
+        spawn(
+            &spawner,
+            "led_task",
+            leds::led_task(leds::Leds::new(p.PD2, p.PC1, p.PC0, p.PC2, p.PC3)),
+        );
+        let motors = match motors::Motors::new(p.TIM2, p.TIM4, p.PA1, p.PB11, p.PA15, p.PB9) {
+            Ok(m) => Some(m),
+            Err(e) => {
+                error!("motor PWM: {}", e);
+                board::fault("motor timers not at 8-bit 328 kHz");
+                None
+            }
+        };
+        let wdg = IndependentWatchdog::new(p.IWDG, system::WATCHDOG_TIMEOUT_US);
+        spawn(&spawner, "watchdog_task", system::watchdog_task(wdg));
 
-        let Some(planner) = take_planner() else {
-            fault("planner storage already taken");
+        // The navigator first, while the stack is shallow (it is built on the stack, then moved to CCM).
+        let config = FlightConfig::default();
+        let Some(navigator) = mission::take_navigator(&config) else {
+            board::fault("navigator: invalid configuration");
             return;
         };
-        match planner_task(planner) {
-            Ok(token) => spawner.spawn(token),
-            Err(e) => spawn_failed("planner_task", e),
+
+        // The I/O executor: sensors and radio.
+        interrupt::UART5.set_priority(IO_PRIORITY);
+        let io = EXECUTOR_IO.start(interrupt::UART5);
+
+        // Deck bus: config block, Multi-ranger probe.
+        let mut i2c_config = i2c::Config::default();
+        i2c_config.frequency = Hertz(400_000);
+        let mut deck_i2c = I2c::new(p.I2C1, p.PB6, p.PB7, p.DMA1_CH6, p.DMA1_CH0, Irqs, i2c_config);
+        let settings = sensors::read_radio_settings(&mut deck_i2c).await;
+        let rangers = sensors::bring_up_rangers(&mut deck_i2c).await;
+        let rangers_ok = rangers.z.is_some() && rangers.multi.is_some();
+        spawn_send(&io, "deck_task", sensors::deck_task(deck_i2c, rangers));
+
+        // Syslink.
+        let mut uart_config = usart::Config::default();
+        uart_config.baudrate = 1_000_000;
+        match Uart::new(p.USART6, p.PC7, p.PC6, p.DMA2_CH7, p.DMA2_CH1, Irqs, uart_config) {
+            Ok(uart) => {
+                let (tx, rx) = uart.split();
+                let rx = rx.into_ring_buffered(SYSLINK_RX_RING.init([0; 1024]));
+                // PA4: the nRF's RTS, pulled up as stock (high = stop sending).
+                let flow = ExtiInput::new(p.PA4, p.EXTI4, Pull::Up, Irqs);
+                spawn_send(
+                    &io,
+                    "radio_task",
+                    radio::radio_task(radio::SyslinkUart { tx, rx, flow }, settings),
+                );
+            }
+            Err(e) => {
+                error!("USART6: {}", e);
+                board::fault("syslink UART");
+            }
         }
+
+        // Flow deck on SPI1, chip select PB4 (idle high), mode 0 at ≤ 1.3125 MHz like stock.
+        let mut spi_config = spi::Config::default();
+        spi_config.frequency = Hertz(1_312_500);
+        spi_config.mode = spi::MODE_0;
+        let spi = Spi::new(p.SPI1, p.PA5, p.PA7, p.PA6, p.DMA2_CH3, p.DMA2_CH0, Irqs, spi_config);
+        let cs = Output::new(p.PB4, Level::High, Speed::VeryHigh);
+        let flow = sensors::init_flow(sensors::SpiWithCs::new(spi, cs)).await;
+        let flow_ok = flow.is_some();
+        if let Some(flow) = flow {
+            spawn_send(&io, "flow_task", sensors::flow_task(flow));
+        }
+        // The mission needs the flow sensor, the height ranger and all five Multi-ranger beams.
+        DECKS_OK.store(flow_ok && rangers_ok, Ordering::Release);
+        if !(flow_ok && rangers_ok) {
+            warn!("a deck sensor is missing: the mission will refuse to start");
+        }
+        spawn_send(&io, "stats_task", system::stats_task());
+
+        // The IMU, at the stock start-up time after power-on.
+        Timer::at(Instant::from_millis(SENSORS_STARTUP_MS)).await;
+        let sensor_i2c = I2c::new(p.I2C3, p.PA8, p.PC9, p.DMA1_CH4, p.DMA1_CH2, Irqs, i2c_config);
+        let mut imu = Bmi088::new(sensor_i2c);
+        let imu_ok = match imu.init(&mut Delay).await {
+            Ok(()) => true,
+            Err(e) => {
+                error!("BMI088: {}", defmt::Debug2Format(&e));
+                board::fault("IMU init failed");
+                false
+            }
+        };
+        let drdy = ExtiInput::new(p.PC14, p.EXTI14, Pull::None, Irqs);
+        match (
+            Stabilizer::new(&config, cfnav::mission::MissionParams::SEED.start_m, 0.0),
+            motors,
+        ) {
+            (Ok(stab), Some(motors)) if imu_ok => {
+                // The priority must be set before `start()`, which unmasks the interrupt.
+                interrupt::UART4.set_priority(control::PRIORITY);
+                let ctrl = control::EXECUTOR.start(interrupt::UART4);
+                spawn_send(&ctrl, "control_task", control::control_task(stab, imu, drdy, motors));
+            }
+            (Err(_), _) => board::fault("stabilizer: invalid configuration"),
+            _ => {}
+        }
+
+        spawn(&spawner, "mission_task", mission::mission_task(navigator));
+        BOOTED.store(true, Ordering::Release);
+        info!("booted in {} ms", Instant::now().as_millis());
     }
 }

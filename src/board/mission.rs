@@ -1,0 +1,109 @@
+//! Mission and planning in thread mode: the [`Navigator`] (map, D* Lite planner, pad detector), kept in CCM,
+//! ticked at 50 Hz. A tick runs at most one planner slice of `MissionConfig::planner_budget` expansions and
+//! then yields, so the LED and watchdog tasks run between ticks; the control and I/O executors preempt it
+//! at any instruction.
+//!
+//! Messages: takes [`super::MISSION_REQUESTS`] (start/abort from the radio) and [`super::NAV_INPUTS`]
+//! (height and Multi-ranger readings with their estimates), reads [`super::fast_status`], sends
+//! [`MissionCommand`]s to the control task through [`super::FAST_INPUTS`] (awaiting a free slot, so a start
+//! or a setpoint is never dropped), answers start requests on [`super::START_OUTCOME`].
+
+use core::mem::MaybeUninit;
+use core::sync::atomic::{AtomicBool, Ordering};
+
+use cfnav::cpu_load::Level;
+use cfnav::dstar::ARENA_QUEUE;
+use cfnav::flight::{FlightConfig, MissionCommand, Navigator};
+use cfnav::map::ARENA_CELLS;
+use defmt::{info, warn};
+use embassy_time::{Duration, Ticker};
+
+use super::{
+    DECKS_OK, FAST_INPUTS, FastInput, LOAD, MISSION_REQUESTS, MISSION_RUNNING, MissionRequest, NAV_INPUTS, NavInput,
+    START_OUTCOME, cycles, fast_status, now_us, update_log, yield_now,
+};
+
+/// The navigator sized for the firmware's arena.
+pub type FwNavigator = Navigator<ARENA_CELLS, ARENA_QUEUE>;
+
+/// Mission tick period (50 Hz, as the simulator).
+pub const TICK: Duration = Duration::from_millis(20);
+
+/// The navigator (≈ 47 KB: grid + planner + path), in CCM: CPU-only memory that nothing DMAs from. The
+/// section is NOLOAD, so it holds garbage at reset until [`take_navigator`] writes it.
+// SAFETY: `.ccmram` is the NOLOAD output section memory.x places in CCM; the linker lays this static out there
+// like any other, and the only consequence of NOLOAD (no initial value) is handled by `take_navigator`.
+#[unsafe(link_section = ".ccmram")]
+static mut NAVIGATOR: MaybeUninit<FwNavigator> = MaybeUninit::uninit();
+/// Set once [`NAVIGATOR`] has been handed out (kept in `.bss`, which is zeroed at reset, not in CCM).
+static NAVIGATOR_TAKEN: AtomicBool = AtomicBool::new(false);
+
+/// Builds the navigator in CCM and hands out the only reference to it; `None` on a second call or if the
+/// configuration is invalid.
+pub fn take_navigator(config: &FlightConfig) -> Option<&'static mut FwNavigator> {
+    if NAVIGATOR_TAKEN.swap(true, Ordering::AcqRel) {
+        return None;
+    }
+    let navigator = FwNavigator::new(config).ok()?;
+    let slot: *mut MaybeUninit<FwNavigator> = &raw mut NAVIGATOR;
+    // SAFETY: `NAVIGATOR_TAKEN` lets exactly one caller past this point, and `NAVIGATOR` is named nowhere
+    // else, so this is the only reference ever made to it; the slot is valid, aligned, 'static storage, and
+    // writing a fully initialised value into a `MaybeUninit` is always sound.
+    Some(unsafe { (*slot).write(navigator) })
+}
+
+/// The 50 Hz mission loop.
+#[embassy_executor::task]
+pub async fn mission_task(nav: &'static mut FwNavigator) {
+    let mut ticker = Ticker::every(TICK);
+    let mut was_running = false;
+    loop {
+        ticker.next().await;
+        nav.set_decks_ok(DECKS_OK.load(Ordering::Acquire));
+
+        let section = LOAD.begin(Level::Mission, cycles());
+        let mut started = None;
+        while let Ok(request) = MISSION_REQUESTS.try_receive() {
+            match request {
+                MissionRequest::Start(params) => {
+                    let outcome = nav.start(params, &fast_status());
+                    match outcome {
+                        Ok(command) => started = Some(command),
+                        Err(e) => warn!("mission start refused: {}", defmt::Debug2Format(&e)),
+                    }
+                    START_OUTCOME.signal(outcome.map(|_| ()));
+                }
+                MissionRequest::Abort => nav.abort(&fast_status()),
+            }
+        }
+        while let Ok(input) = NAV_INPUTS.try_receive() {
+            match input {
+                NavInput::ZRange(range, estimate) => nav.on_zrange(range, &estimate),
+                NavInput::MultiRanger(sample, estimate) => nav.on_multiranger(&sample, &estimate),
+            }
+        }
+        LOAD.end(section, cycles());
+        // The start message must reach the stabilizer before the first mission setpoint.
+        if let Some(command) = started {
+            FAST_INPUTS.send(FastInput::Mission(command)).await;
+            info!("mission started");
+        }
+
+        let section = LOAD.begin(Level::Mission, cycles());
+        let command = nav.tick(now_us(), &fast_status());
+        let running = nav.is_running();
+        let state = nav.state();
+        LOAD.end(section, cycles());
+        if let Some(command @ MissionCommand::Setpoint { .. }) = command {
+            FAST_INPUTS.send(FastInput::Mission(command)).await;
+        }
+        MISSION_RUNNING.store(running, Ordering::Release);
+        if was_running && !running {
+            info!("mission ended: state {}", state.code());
+        }
+        was_running = running;
+        update_log(|s| s.flight.mission_state = state.code());
+        // Let the other thread-mode tasks (LEDs, watchdog) run before the next slice.
+        yield_now().await;
+    }
+}

@@ -1,0 +1,336 @@
+//! Syslink to the nRF51 on USART6 (TX PC6, RX PC7, 1 Mbaud 8N1, DMA both ways) with the PA4 flow-control
+//! input (high = the nRF's buffer is full: pause sending), and the CRTP services answering over it
+//! (`crazyflie-hardware.md` §3, §4).
+//!
+//! Boot order (§3.4): RADIO_CHANNEL, RADIO_DATARATE, RADIO_ADDRESS from the EEPROM config block (or the
+//! defaults), PM_BATTERY_AUTOUPDATE, then RADIO_READY once the firmware has finished booting (the nRF keeps
+//! its receiver off until then, or 3 s after its boot).
+//!
+//! Pacing (§3.3): one downlink RADIO_RAW per uplink RADIO_RAW, at most; log data, parameter updates and
+//! console lines wait in the router's queue for the next uplink (cfclient and cflib poll continuously).
+//!
+//! Commander (ports 3 and 7): each accepted setpoint is mapped by [`SetpointFollower`] and handed to the
+//! control task with its arrival time, once, and only while no mission runs (as `cfnav sim --serve` does).
+//! Console (port 0): refusal notes and firmware messages through [`ConsoleService`].
+//!
+//! `mission.start` writes become [`MissionRequest`]s for the mission task; a refusal by the flight core
+//! comes back on [`START_OUTCOME`] and is reverted (`mission.start` back to 0, VALUE_UPDATED, console line),
+//! and the end of a mission sets it back to 0 the same way (interfaces.md §5).
+
+use core::fmt::Write as _;
+use core::sync::atomic::Ordering;
+
+use cfnav::config_block::RadioSettings;
+use cfnav::cpu_load::Level;
+use cfnav::map::ARENA_CELLS;
+use cfnav::mission::MissionParams;
+use cfnav::radio::commander::{CommanderService, SetpointFollower};
+use cfnav::radio::console::ConsoleService;
+use cfnav::radio::crtp::{CrtpPacket, PlatformService, Router, Service};
+use cfnav::radio::log::LogService;
+use cfnav::radio::log_registry::FirmwareLogState;
+use cfnav::radio::mem::MemService;
+use cfnav::radio::param::ParamService;
+use cfnav::radio::registry::{ID_START, MissionParamState};
+use cfnav::radio::syslink::{BatteryState, MAX_FRAME, SyslinkDecoder, SyslinkPacket, encode, kind};
+use defmt::{info, warn};
+use embassy_stm32::exti::ExtiInput;
+use embassy_stm32::mode::Async;
+use embassy_stm32::usart::{RingBufferedUartRx, UartTx};
+use embassy_time::{Duration, Instant, with_timeout};
+use heapless::String;
+
+use super::{
+    BOOTED, DECKS_OK, FAST_INPUTS, FastInput, LOAD, MISSION_REQUESTS, MISSION_RUNNING, MissionRequest, START_OUTCOME,
+    cycles, fast_status, fault, log_state, update_log,
+};
+
+/// Firmware version the platform service reports.
+pub const FIRMWARE_TAG: &str = concat!("cfnav-", env!("CARGO_PKG_VERSION"));
+/// Router queue depth (log data, replies, parameter updates, console packets).
+pub const ROUTER_QUEUE: usize = 16;
+/// Console packets waiting for a downlink.
+const CONSOLE_QUEUE: usize = 16;
+/// How long PA4 may hold the link before a frame is dropped.
+const FLOW_CONTROL_TIMEOUT: Duration = Duration::from_millis(20);
+/// Log blocks are stopped when no uplink came for this long (cflib pings at least every 100 ms).
+const LINK_TIMEOUT: Duration = Duration::from_secs(3);
+
+/// USART6 through DMA, with the PA4 flow-control input.
+pub struct SyslinkUart {
+    /// USART6 TX (DMA2 stream 7).
+    pub tx: UartTx<'static, Async>,
+    /// USART6 RX into a DMA ring buffer (DMA2 stream 1).
+    pub rx: RingBufferedUartRx<'static>,
+    /// PA4, the nRF's RTS: high = stop sending.
+    pub flow: ExtiInput<'static, Async>,
+}
+
+/// Why a frame was not sent.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, defmt::Format)]
+enum SendError {
+    /// The nRF held PA4 high for longer than [`FLOW_CONTROL_TIMEOUT`].
+    FlowControl,
+    /// The UART/DMA transfer failed.
+    Uart,
+    /// The packet does not fit a frame (cannot happen for the packets built here).
+    Encode,
+}
+
+impl SyslinkUart {
+    async fn send(&mut self, packet: &SyslinkPacket) -> Result<(), SendError> {
+        let mut frame = [0u8; MAX_FRAME];
+        let n = encode(packet, &mut frame).map_err(|_| SendError::Encode)?;
+        with_timeout(FLOW_CONTROL_TIMEOUT, self.flow.wait_for_low())
+            .await
+            .map_err(|_| SendError::FlowControl)?;
+        self.tx.write(&frame[..n]).await.map_err(|_| SendError::Uart)
+    }
+}
+
+type Params = ParamService<MissionParamState>;
+type Logs = LogService<FirmwareLogState>;
+
+/// The CRTP side: router, services and the `mission.start` bookkeeping.
+struct Crtp {
+    router: Router<ROUTER_QUEUE>,
+    param: Params,
+    log: Logs,
+    mem: MemService,
+    commander: CommanderService,
+    follower: SetpointFollower,
+    console: ConsoleService<CONSOLE_QUEUE>,
+    commander_dropped: u32,
+    /// A start request is with the mission task; its outcome has not come back yet.
+    start_pending: bool,
+    last_uplink: Option<Instant>,
+    dropped_downlinks: u32,
+}
+
+impl Crtp {
+    fn new() -> Self {
+        Self {
+            router: Router::new(PlatformService::new(FIRMWARE_TAG)),
+            param: ParamService::new(MissionParamState::new(MissionParams::SEED, ARENA_CELLS)),
+            log: LogService::new(),
+            mem: MemService,
+            commander: CommanderService::new(),
+            follower: SetpointFollower::new(),
+            console: ConsoleService::new(),
+            commander_dropped: 0,
+            start_pending: false,
+            last_uplink: None,
+            dropped_downlinks: 0,
+        }
+    }
+
+    /// Queues a console line.
+    fn console(&mut self, text: &str) {
+        self.console.print(text);
+    }
+
+    /// Hands the commander's new setpoint to the control task, if one arrived and no mission runs.
+    fn apply_commander(&mut self) {
+        let Some((command, received_us)) = self.commander.take_fresh() else {
+            return;
+        };
+        if MISSION_RUNNING.load(Ordering::Acquire) || self.start_pending {
+            return;
+        }
+        let estimate = fast_status().estimate;
+        if let Some(setpoint) = self.follower.to_setpoint(&command, received_us, &estimate)
+            && FAST_INPUTS
+                .try_send(FastInput::Commander(setpoint, received_us))
+                .is_err()
+        {
+            // The next packet (cflib sends them at 10–100 Hz) carries the same intent.
+            self.commander_dropped = self.commander_dropped.saturating_add(1);
+        }
+    }
+
+    /// One uplink CRTP packet: returns the one downlink packet it may carry.
+    fn on_uplink(&mut self, bytes: &[u8], now: Instant) -> Option<CrtpPacket> {
+        self.last_uplink = Some(now);
+        {
+            let store = self.param.store_mut();
+            store.flying = fast_status().supervisor.flying;
+            store.decks_ok = DECKS_OK.load(Ordering::Acquire);
+        }
+        let before = self.param.store().start;
+        self.commander.set_now(now.as_micros());
+        let reply = {
+            let [mut rpyt, mut generic] = self.commander.ports();
+            let mut services: [&mut dyn Service; 6] = [
+                &mut self.param,
+                &mut self.log,
+                &mut self.mem,
+                &mut rpyt,
+                &mut generic,
+                &mut self.console,
+            ];
+            self.router.handle_uplink(bytes, &mut services)
+        };
+        self.apply_commander();
+        let after = self.param.store().start;
+        match (before, after) {
+            (0, 1) => {
+                let params = self.param.store().params;
+                if MISSION_REQUESTS.try_send(MissionRequest::Start(params)).is_ok() {
+                    self.start_pending = true;
+                } else {
+                    self.revert_start("mission.start refused: the mission task is busy\n");
+                }
+            }
+            (1, 0) if MISSION_REQUESTS.try_send(MissionRequest::Abort).is_err() => {
+                warn!("abort request dropped (queue full)");
+            }
+            _ => {}
+        }
+        reply
+    }
+
+    fn revert_start(&mut self, line: &str) {
+        self.param.store_mut().start = 0;
+        self.param.notify(ID_START);
+        warn!("{}", line.trim_end());
+        self.console(line);
+    }
+
+    /// Everything that is not a reply: start outcomes, the end of a mission, parameter updates and refusal
+    /// lines, due log data.
+    fn housekeeping(&mut self, now: Instant) {
+        if let Some(outcome) = START_OUTCOME.try_take() {
+            self.start_pending = false;
+            if let Err(e) = outcome {
+                let mut line: String<64> = String::new();
+                let _ = writeln!(line, "mission.start refused by the flight core: {e:?}");
+                self.revert_start(&line);
+            }
+        }
+        if !self.start_pending && self.param.store().start == 1 && !MISSION_RUNNING.load(Ordering::Acquire) {
+            // The mission ended (or never ran): interfaces.md §5 wants mission.start back at 0.
+            self.param.store_mut().start = 0;
+            self.param.notify(ID_START);
+        }
+        while let Some(p) = self.param.next_notification() {
+            if self.router.enqueue(p).is_err() {
+                self.dropped_downlinks = self.dropped_downlinks.saturating_add(1);
+            }
+        }
+        while let Some(note) = self.param.take_refusal() {
+            let line = Params::console_line(&note);
+            self.console(&line);
+        }
+        if self
+            .last_uplink
+            .is_some_and(|t| now.saturating_duration_since(t) > LINK_TIMEOUT)
+        {
+            info!("radio link silent: log blocks stopped");
+            self.log.reset();
+            self.last_uplink = None;
+        }
+        self.console.flush();
+        while self.router.pending() < ROUTER_QUEUE / 2
+            && let Some(p) = self.console.next_packet()
+        {
+            let _ = self.router.enqueue(p);
+        }
+        let state = log_state();
+        let now_ms = now.as_millis() as u32;
+        while let Some(p) = self.log.tick(now_ms, &state) {
+            if self.router.enqueue(p).is_err() {
+                self.dropped_downlinks = self.dropped_downlinks.saturating_add(1);
+                break;
+            }
+        }
+    }
+}
+
+/// What one received syslink packet asks to send back.
+fn on_syslink(crtp: &mut Crtp, packet: &SyslinkPacket, now: Instant) -> Option<SyslinkPacket> {
+    match packet.kind {
+        kind::RADIO_RAW => {
+            let reply = crtp.on_uplink(&packet.payload, now)?;
+            let mut bytes = [0u8; 32];
+            let n = reply.to_bytes(&mut bytes);
+            SyslinkPacket::radio_raw(&bytes[..n]).ok()
+        }
+        kind::PM_BATTERY_STATE => {
+            if let Ok(battery) = BatteryState::parse(packet) {
+                // Dropped if the control task is behind; the next report comes 10 ms later.
+                let _ = FAST_INPUTS.try_send(FastInput::Battery(battery.vbat));
+                update_log(|s| s.flight.vbat_v = battery.vbat);
+            }
+            None
+        }
+        kind::PM_SHUTDOWN_REQUEST => {
+            // The nRF powers everything off 100 ms after the request unless acknowledged; the motors stop now.
+            fault("power-off requested by the nRF (button)");
+            Some(SyslinkPacket::pm_shutdown_ack())
+        }
+        _ => None,
+    }
+}
+
+/// The radio task: boot sequence, then receive, dispatch and answer forever.
+#[embassy_executor::task]
+pub async fn radio_task(mut uart: SyslinkUart, settings: RadioSettings) {
+    match settings.boot_packets() {
+        Ok(packets) => {
+            for p in &packets {
+                if let Err(e) = uart.send(p).await {
+                    warn!("syslink boot packet {=u8:#x} not sent: {}", p.kind, e);
+                }
+            }
+        }
+        Err(_) => warn!("radio settings out of range: nRF keeps its own"),
+    }
+    if let Err(e) = uart.send(&SyslinkPacket::pm_battery_autoupdate()).await {
+        warn!("PM_BATTERY_AUTOUPDATE not sent: {}", e);
+    }
+    let mut crtp = Crtp::new();
+    let mut decoder = SyslinkDecoder::new();
+    let mut chunk = [0u8; 64];
+    let mut ready_sent = false;
+    let mut rx_errors = 0u32;
+    loop {
+        if !ready_sent && BOOTED.load(Ordering::Acquire) {
+            match uart.send(&SyslinkPacket::radio_ready()).await {
+                Ok(()) => info!("RADIO_READY sent: the nRF opens its receiver"),
+                Err(e) => warn!("RADIO_READY not sent: {}", e),
+            }
+            ready_sent = true;
+        }
+        let n = match with_timeout(Duration::from_millis(10), uart.rx.read(&mut chunk)).await {
+            Ok(Ok(n)) => n,
+            Ok(Err(e)) => {
+                rx_errors = rx_errors.saturating_add(1);
+                if rx_errors.is_power_of_two() {
+                    warn!("syslink RX error {} ({} so far)", e, rx_errors);
+                }
+                0
+            }
+            Err(_) => 0,
+        };
+        let now = Instant::now();
+        for &byte in &chunk[..n] {
+            let mut event = decoder.push(byte);
+            while let Some(result) = event {
+                if let Ok(packet) = result {
+                    let section = LOAD.begin(Level::Io, cycles());
+                    let answer = on_syslink(&mut crtp, &packet, now);
+                    LOAD.end(section, cycles());
+                    if let Some(answer) = answer
+                        && let Err(e) = uart.send(&answer).await
+                    {
+                        warn!("syslink answer not sent: {}", e);
+                    }
+                }
+                event = decoder.poll();
+            }
+        }
+        let section = LOAD.begin(Level::Io, cycles());
+        crtp.housekeeping(now);
+        LOAD.end(section, cycles());
+    }
+}

@@ -246,6 +246,7 @@ mod fw {
                 interrupt::UART4.set_priority(control::PRIORITY);
                 let ctrl = control::EXECUTOR.start(interrupt::UART4);
                 spawn_send(&ctrl, "control_task", control::control_task(stab, imu, drdy, motors));
+                board::CONTROL_RUNNING.store(true, Ordering::Release);
             }
             (Err(_), _) => board::fault("stabilizer: invalid configuration"),
             _ => {}

@@ -16,11 +16,11 @@ use cfnav::dstar::ARENA_QUEUE;
 use cfnav::flight::{FlightConfig, MissionCommand, Navigator};
 use cfnav::map::ARENA_CELLS;
 use defmt::{info, warn};
-use embassy_time::{Duration, Ticker};
+use embassy_time::{Duration, Ticker, Timer};
 
 use super::{
-    DECKS_OK, FAST_INPUTS, FastInput, LOAD, MISSION_REQUESTS, MISSION_RUNNING, MissionRequest, NAV_INPUTS, NavInput,
-    START_OUTCOME, cycles, fast_status, now_us, update_log, yield_now,
+    CONTROL_STEPS, DECKS_OK, FAST_INPUTS, FastInput, LOAD, MISSION_REQUESTS, MISSION_RUNNING, MissionRequest,
+    NAV_INPUTS, NavInput, START_OUTCOME, cycles, fast_status, now_us, update_log, yield_now,
 };
 
 /// The navigator sized for the firmware's arena.
@@ -68,7 +68,11 @@ pub async fn mission_task(nav: &'static mut FwNavigator) {
                 MissionRequest::Start(params) => {
                     let outcome = nav.start(params, &fast_status());
                     match outcome {
-                        Ok(command) => started = Some(command),
+                        Ok(command) => {
+                            started = Some(command);
+                            // Before the outcome goes out, so the radio never sees "started, not running".
+                            MISSION_RUNNING.store(true, Ordering::Release);
+                        }
                         Err(e) => warn!("mission start refused: {}", defmt::Debug2Format(&e)),
                     }
                     START_OUTCOME.signal(outcome.map(|_| ()));
@@ -83,9 +87,18 @@ pub async fn mission_task(nav: &'static mut FwNavigator) {
             }
         }
         LOAD.end(section, cycles());
-        // The start message must reach the stabilizer before the first mission setpoint.
+        // The start message must reach the stabilizer before the first mission tick: the tick reads the
+        // re-anchored estimate. Wait until the control loop has run a few steps since it was queued.
         if let Some(command) = started {
             FAST_INPUTS.send(FastInput::Mission(command)).await;
+            let queued_at = CONTROL_STEPS.load(Ordering::Acquire);
+            // Bounded: with the control loop down (a fault) nothing flies anyway.
+            for _ in 0..50 {
+                if CONTROL_STEPS.load(Ordering::Acquire).wrapping_sub(queued_at) >= 2 {
+                    break;
+                }
+                Timer::after_millis(1).await;
+            }
             info!("mission started");
         }
 

@@ -114,6 +114,8 @@ pub static FAULT: AtomicBool = AtomicBool::new(false);
 pub static MISSION_RUNNING: AtomicBool = AtomicBool::new(false);
 /// Both decks the mission needs answered their probes.
 pub static DECKS_OK: AtomicBool = AtomicBool::new(false);
+/// The control task was started (the watchdog then wants [`CONTROL_STEPS`] to advance).
+pub static CONTROL_RUNNING: AtomicBool = AtomicBool::new(false);
 /// Control steps run since boot (the watchdog is fed only while this advances).
 pub static CONTROL_STEPS: AtomicU32 = AtomicU32::new(0);
 

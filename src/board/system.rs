@@ -9,7 +9,7 @@ use embassy_stm32::wdg::IndependentWatchdog;
 use embassy_time::{Duration, Ticker};
 
 use super::control::TIMING;
-use super::{BOOTED, CONTROL_STEPS, CPU_HZ, LOAD, cycles, update_log};
+use super::{BOOTED, CONTROL_RUNNING, CONTROL_STEPS, CPU_HZ, LOAD, cycles, update_log};
 
 /// IWDG timeout, µs. Stock uses ≈188 ms (`crazyflie-hardware.md` §2); this firmware's longest thread-mode
 /// step is a planner slice of `planner_budget` expansions (≈ 40 ms worst case, BENCHMARKS.md), so 250 ms
@@ -19,8 +19,9 @@ pub const WATCHDOG_TIMEOUT_US: u32 = 250_000;
 pub const WATCHDOG_PET: Duration = Duration::from_millis(50);
 
 /// Feeds the IWDG from thread mode (the lowest priority: a stuck planner or a starved thread mode resets
-/// the MCU), and only while the control loop makes progress once booted (a dead IMU or a stuck control
-/// executor resets too; the reset leaves the motor pins unpowered).
+/// the MCU), and, once the control loop was started, only while it makes progress (an IMU that stops or a
+/// stuck control executor resets too; the reset leaves the motor pins unpowered). If the control loop never
+/// started (a boot fault), the watchdog is fed so the fault stays on the LEDs instead of a reset loop.
 #[embassy_executor::task]
 pub async fn watchdog_task(mut wdg: IndependentWatchdog<'static, IWDG>) {
     wdg.unleash();
@@ -29,7 +30,8 @@ pub async fn watchdog_task(mut wdg: IndependentWatchdog<'static, IWDG>) {
     loop {
         ticker.next().await;
         let steps = CONTROL_STEPS.load(Ordering::Relaxed);
-        if !BOOTED.load(Ordering::Acquire) || steps != last_steps {
+        let control_expected = BOOTED.load(Ordering::Acquire) && CONTROL_RUNNING.load(Ordering::Acquire);
+        if !control_expected || steps != last_steps {
             wdg.pet();
         }
         last_steps = steps;

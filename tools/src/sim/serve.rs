@@ -135,6 +135,30 @@ struct Radio {
 }
 
 impl Radio {
+    /// The radio of a drone flying `world`, answering on `socket`.
+    fn new(socket: UdpSocket, world: &World) -> Self {
+        Self {
+            socket,
+            client: None,
+            last_uplink: Instant::now(),
+            router: Router::new(PlatformService::new(FIRMWARE_TAG)),
+            param: ParamService::new(MissionParamState::new(mission_params(world), SIM_CELLS)),
+            log: LogService::new(),
+            mem: MemService,
+            commander: CommanderService::new(),
+            follower: SetpointFollower::new(),
+            // The sim's flight core auto-arms and has no supervisor reset.
+            supervisor: SupervisorPortService::new(SupervisorPortConfig {
+                auto_arm: true,
+                can_recover: false,
+            }),
+            console: ConsoleService::new(),
+            commander_refused: 0,
+            last_commander_note_us: None,
+            send_errors: 0,
+        }
+    }
+
     fn send_to(&mut self, bytes: &[u8], to: SocketAddr) {
         if let Err(e) = self.socket.send_to(bytes, to) {
             self.send_errors += 1;
@@ -357,26 +381,7 @@ pub fn serve(world: &World, port: u16, speed: f64) -> Result<(), String> {
         .set_nonblocking(true)
         .map_err(|e| format!("cannot make the UDP socket non-blocking: {e}"))?;
     let mut drone = SimDrone::new(world, world.sim.seed, &Faults::default())?;
-    let mut radio = Radio {
-        socket,
-        client: None,
-        last_uplink: Instant::now(),
-        router: Router::new(PlatformService::new(FIRMWARE_TAG)),
-        param: ParamService::new(MissionParamState::new(mission_params(world), SIM_CELLS)),
-        log: LogService::new(),
-        mem: MemService,
-        commander: CommanderService::new(),
-        follower: SetpointFollower::new(),
-        // The sim's flight core auto-arms and has no supervisor reset.
-        supervisor: SupervisorPortService::new(SupervisorPortConfig {
-            auto_arm: true,
-            can_recover: false,
-        }),
-        console: ConsoleService::new(),
-        commander_refused: 0,
-        last_commander_note_us: None,
-        send_errors: 0,
-    };
+    let mut radio = Radio::new(socket, world);
     eprintln!(
         "serving CRTP on udp://127.0.0.1:{port} ({} at {speed}× real time); write mission.start = 1 to fly",
         world.name
@@ -451,5 +456,165 @@ pub fn serve(world: &World, port: u16, speed: f64) -> Result<(), String> {
         if drone.tick() >= target {
             std::thread::sleep(Duration::from_micros(500));
         }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    //! The server's wiring of the commander, supervisor and console services into the simulated drone,
+    //! driven through `on_datagram` with packets laid out as cflib 0.1.34 packs them.
+
+    use super::*;
+
+    struct Bench {
+        world: World,
+        drone: SimDrone,
+        radio: Radio,
+        client: UdpSocket,
+        from: SocketAddr,
+    }
+
+    impl Bench {
+        fn new() -> Self {
+            let world = World::default_world();
+            let drone = SimDrone::new(&world, 7, &Faults::default()).unwrap();
+            let socket = UdpSocket::bind("127.0.0.1:0").unwrap();
+            let radio = Radio::new(socket, &world);
+            let client = UdpSocket::bind("127.0.0.1:0").unwrap();
+            client.set_read_timeout(Some(Duration::from_millis(200))).unwrap();
+            let from = client.local_addr().unwrap();
+            Self {
+                world,
+                drone,
+                radio,
+                client,
+                from,
+            }
+        }
+
+        /// One uplink packet `[header, data…]` (cflib header: port << 4 | 0x0C | channel).
+        fn uplink(&mut self, port: u8, channel: u8, data: &[u8]) {
+            let mut bytes = vec![(port << 4) | 0x0C | channel];
+            bytes.extend_from_slice(data);
+            self.radio.on_datagram(&bytes, self.from, &mut self.drone);
+        }
+
+        /// cflib `send_hover_setpoint(vx, vy, yawrate, z)`: port 7 ch 0, `<Bffff` (10, …).
+        fn hover(&mut self, z_m: f32) {
+            let mut data = vec![10u8];
+            for v in [0.0f32, 0.0, 0.0, z_m] {
+                data.extend_from_slice(&v.to_le_bytes());
+            }
+            self.uplink(7, 0, &data);
+        }
+
+        fn step_ms(&mut self, ms: u64) {
+            for _ in 0..ms {
+                self.drone.step(&self.world);
+                if self.radio.supervisor.poll(now_us(&self.drone)) {
+                    self.radio.apply_supervisor(&mut self.drone);
+                }
+            }
+        }
+
+        /// Hover setpoints every 20 ms for `ms` milliseconds.
+        fn hover_for(&mut self, z_m: f32, ms: u64) {
+            for _ in 0..ms / 20 {
+                self.hover(z_m);
+                self.step_ms(20);
+            }
+        }
+
+        /// The next datagram the client received on `port`, skipping others.
+        fn received(&self, port: u8) -> Vec<u8> {
+            let mut buf = [0u8; 64];
+            loop {
+                let n = self.client.recv(&mut buf).expect("a reply");
+                if buf[0] >> 4 == port {
+                    return buf[..n].to_vec();
+                }
+            }
+        }
+    }
+
+    #[test]
+    fn hover_setpoints_fly_the_drone_and_an_emergency_stop_latches() {
+        let mut b = Bench::new();
+        b.step_ms(1500); // estimator settles on the ground
+        b.hover_for(0.5, 4000);
+        let z = b.drone.core.estimate().position_m[2];
+        assert!(b.drone.core.supervisor().flying, "hover setpoints took off");
+        assert!((z - 0.5).abs() < 0.1, "hovering at {z} m");
+
+        // Supervisor bitfield: armed, auto-armed, can fly, flying (bits 1, 2, 3, 4).
+        b.uplink(9, 0, &[0x0C]);
+        let reply = b.received(9);
+        assert_eq!(reply[1], 0x8C);
+        let bits = u16::from_le_bytes([reply[2], reply[3]]);
+        assert_eq!(bits & 0b1_1110, 0b1_1110, "{bits:#06x}");
+
+        // cflib send_emergency_stop(): port 9 ch 1 (0x03,).
+        b.uplink(9, 1, &[0x03]);
+        assert_eq!(b.drone.core.setpoint(), Setpoint::Stop);
+        b.hover_for(0.5, 500);
+        assert_eq!(
+            b.drone.core.setpoint(),
+            Setpoint::Stop,
+            "later setpoints are replaced by Stop"
+        );
+        assert_eq!(b.drone.core.duty(), cfnav::types::MotorDuty::default(), "motors off");
+        b.uplink(9, 0, &[0x0C]);
+        let reply = b.received(9);
+        let bits = u16::from_le_bytes([reply[2], reply[3]]);
+        assert!(bits & (1 << 6) != 0, "locked bit after the emergency stop: {bits:#06x}");
+    }
+
+    #[test]
+    fn the_emergency_stop_watchdog_fires_without_keepalives() {
+        let mut b = Bench::new();
+        b.step_ms(100);
+        // cflib send_emergency_stop_watchdog(): port 9 ch 1 (0x04,).
+        b.uplink(9, 1, &[0x04]);
+        b.step_ms(900);
+        b.uplink(9, 1, &[0x04]);
+        b.step_ms(1000);
+        assert!(!b.radio.supervisor.emergency_stopped(), "kept alive");
+        b.step_ms(2);
+        assert!(
+            b.radio.supervisor.emergency_stopped(),
+            "1000 ms after the last keepalive"
+        );
+        // mission.start = 1 (param write, port 2 ch 2: id u16 LE, u8) is refused afterwards.
+        b.uplink(2, 2, &[0, 0, 1]);
+        assert_eq!(b.radio.param.store().start, 0);
+        assert_eq!(b.drone.core.mission_state().code(), 0, "no mission started");
+    }
+
+    #[test]
+    fn rpyt_with_thrust_is_not_flown_and_says_so() {
+        let mut b = Bench::new();
+        b.step_ms(100);
+        // cflib send_setpoint(0, 0, 0, 0) then (0, 0, 0, 40000): port 3, `<fffH`.
+        let rpyt = |thrust: u16| {
+            let mut d = Vec::new();
+            for v in [0.0f32, 0.0, 0.0] {
+                d.extend_from_slice(&v.to_le_bytes());
+            }
+            d.extend_from_slice(&thrust.to_le_bytes());
+            d
+        };
+        b.uplink(3, 0, &rpyt(0));
+        assert_eq!(b.drone.core.setpoint(), Setpoint::Stop, "thrust 0 is a stop");
+        b.uplink(3, 0, &rpyt(40000));
+        assert_eq!(b.drone.core.setpoint(), Setpoint::Stop);
+        let mut text = String::new();
+        while !text.ends_with('\n') {
+            let p = b.received(0);
+            text.push_str(std::str::from_utf8(&p[1..]).unwrap());
+        }
+        assert!(text.contains("not flown"), "{text}");
+        b.step_ms(100);
+        assert_eq!(b.drone.core.duty(), cfnav::types::MotorDuty::default(), "motors off");
+        assert!(!b.drone.core.supervisor().flying);
     }
 }

@@ -385,6 +385,14 @@ async fn connect(args: &StartArgs, printer: &Printer) -> Result<Arc<Crazyflie>, 
             None => DirTocCache::disabled(),
         }
     };
+    if !["udp://", "radio://", "usb://"]
+        .iter()
+        .any(|scheme| uri.starts_with(scheme))
+    {
+        return Err(Failure(format!(
+            "{uri}: not a link URI this tool knows: radio://N/CHANNEL/RATE/ADDRESS, usb://N or udp://HOST:PORT"
+        )));
+    }
     if let Some(rest) = uri.strip_prefix("radio://") {
         // crazyflie-link 0.5.1 needs all four parts (its docs call the address optional, its parser does not).
         if rest.trim_end_matches('/').split(['/', '?']).take(4).count() != 4 {
@@ -899,6 +907,14 @@ mod tests {
             &["mission", "start", "--uri", "u", "--toc-cache", "d", "--no-toc-cache"],
         ] {
             assert!(parse(bad).is_err(), "{bad:?}");
+        }
+    }
+
+    #[test]
+    fn unknown_or_incomplete_uris_are_exit_2() {
+        for uri in ["foo://x", "127.0.0.1:19850", "radio://0/80/2M", "udp://127.0.0.1"] {
+            let a = parse(&["mission", "start", "--uri", uri, "--no-toc-cache"]).unwrap();
+            assert_eq!(run_start(&a), EXIT_ERROR, "{uri}");
         }
     }
 

@@ -12,6 +12,9 @@
 //! Commander (ports 3 and 7): each accepted setpoint is mapped by [`SetpointFollower`] and handed to the
 //! control task with its arrival time, once, and only while no mission runs (as `cfnav sim --serve` does).
 //! Console (port 0): refusal notes and firmware messages through [`ConsoleService`].
+//! Supervisor (port 9): state bits from the stabilizer's verdict; arming cannot be changed (auto-arming, as
+//! the stock Crazyflie 2.1); an emergency stop (command or its watchdog) cuts the motors at once and is
+//! latched until reset like a fault (stock: Locked, reboot required); a running mission is aborted.
 //!
 //! `mission.start` writes become [`MissionRequest`]s for the mission task; a refusal by the flight core
 //! comes back on [`START_OUTCOME`] and is reverted (`mission.start` back to 0, VALUE_UPDATED, console line),
@@ -32,6 +35,7 @@ use cfnav::radio::log_registry::FirmwareLogState;
 use cfnav::radio::mem::MemService;
 use cfnav::radio::param::ParamService;
 use cfnav::radio::registry::{ID_START, MissionParamState};
+use cfnav::radio::supervisor_port::{SupervisorPortConfig, SupervisorPortService, SupervisorStatus};
 use cfnav::radio::syslink::{BatteryState, MAX_FRAME, SyslinkDecoder, SyslinkPacket, encode, kind};
 use defmt::{info, warn};
 use embassy_stm32::exti::ExtiInput;
@@ -41,8 +45,8 @@ use embassy_time::{Duration, Instant, with_timeout};
 use heapless::String;
 
 use super::{
-    BOOTED, DECKS_OK, FAST_INPUTS, FastInput, LOAD, MISSION_REQUESTS, MISSION_RUNNING, MissionRequest, START_OUTCOME,
-    cycles, fast_status, fault, log_state, update_log,
+    BOOTED, DECKS_OK, FAST_INPUTS, FAULT, FastInput, LOAD, MISSION_REQUESTS, MISSION_RUNNING, MissionRequest,
+    START_OUTCOME, cycles, fast_status, fault, log_state, update_log,
 };
 
 /// Firmware version the platform service reports.
@@ -100,6 +104,7 @@ struct Crtp {
     commander: CommanderService,
     follower: SetpointFollower,
     console: ConsoleService<CONSOLE_QUEUE>,
+    supervisor: SupervisorPortService,
     commander_dropped: u32,
     /// A start request is with the mission task; its outcome has not come back yet.
     start_pending: bool,
@@ -117,6 +122,10 @@ impl Crtp {
             commander: CommanderService::new(),
             follower: SetpointFollower::new(),
             console: ConsoleService::new(),
+            supervisor: SupervisorPortService::new(SupervisorPortConfig {
+                auto_arm: true,
+                can_recover: false,
+            }),
             commander_dropped: 0,
             start_pending: false,
             last_uplink: None,
@@ -158,14 +167,23 @@ impl Crtp {
         }
         let before = self.param.store().start;
         self.commander.set_now(now.as_micros());
+        self.supervisor.set_now(now.as_micros());
+        let running = MISSION_RUNNING.load(Ordering::Acquire);
+        self.supervisor.set_status(SupervisorStatus {
+            output: fast_status().supervisor,
+            mission_running: running,
+            mission_finished: !running && log_state().flight.mission_state != 0,
+            decks_ok: DECKS_OK.load(Ordering::Acquire),
+        });
         let reply = {
             let [mut rpyt, mut generic] = self.commander.ports();
-            let mut services: [&mut dyn Service; 6] = [
+            let mut services: [&mut dyn Service; 7] = [
                 &mut self.param,
                 &mut self.log,
                 &mut self.mem,
                 &mut rpyt,
                 &mut generic,
+                &mut self.supervisor,
                 &mut self.console,
             ];
             self.router.handle_uplink(bytes, &mut services)
@@ -173,6 +191,9 @@ impl Crtp {
         self.apply_commander();
         let after = self.param.store().start;
         match (before, after) {
+            (0, 1) if FAULT.load(Ordering::Acquire) => {
+                self.revert_start("mission.start refused: a fault is recorded (red LEDs); power-cycle\n");
+            }
             (0, 1) => {
                 let params = self.param.store().params;
                 if MISSION_REQUESTS.try_send(MissionRequest::Start(params)).is_ok() {
@@ -189,6 +210,17 @@ impl Crtp {
         reply
     }
 
+    /// Emergency stop: motors off now, latched until reset; a running mission is aborted so its state ends.
+    fn emergency_stop(&mut self) {
+        fault("emergency stop (supervisor port)");
+        let _ = MISSION_REQUESTS.try_send(MissionRequest::Abort);
+        if self.param.store().start != 0 {
+            self.param.store_mut().start = 0;
+            self.param.notify(ID_START);
+        }
+        self.console("emergency stop: motors stopped; power-cycle to fly again\n");
+    }
+
     fn revert_start(&mut self, line: &str) {
         self.param.store_mut().start = 0;
         self.param.notify(ID_START);
@@ -199,6 +231,10 @@ impl Crtp {
     /// Everything that is not a reply: start outcomes, the end of a mission, parameter updates and refusal
     /// lines, due log data.
     fn housekeeping(&mut self, now: Instant) {
+        let fired = self.supervisor.poll(now.as_micros());
+        if fired || self.supervisor.take_requests().emergency_stop {
+            self.emergency_stop();
+        }
         if let Some(outcome) = START_OUTCOME.try_take() {
             self.start_pending = false;
             if let Err(e) = outcome {

@@ -20,7 +20,8 @@
 //! the rest of that line (up to its newline) is dropped and counted once: the client may then see the line's
 //! first packets without an end. Nothing already queued is ever discarded.
 //!
-//! Memory: `N` × 31 bytes for the queue + 31 for the packet being filled (16 packets ≈ 530 bytes).
+//! Memory: `N` + 1 packet buffers of 30 bytes plus a length each, and the queue's indices: 720 bytes for
+//! `N` = 16 on the 64-bit host (less on the MCU, where lengths are 4 bytes).
 
 use core::fmt;
 

@@ -52,7 +52,7 @@
 //! crashed, upright and [`SupervisorPortConfig::can_recover`] → success and [`SupervisorRequests::recover`]
 //! raised (the caller must reset the supervisor); otherwise refused.
 //!
-//! Memory: about 80 bytes.
+//! Memory: 56 bytes (measured on the 64-bit host).
 
 use super::crtp::{CrtpPacket, Service};
 use crate::supervisor::{Reason, SupervisorFlags, SupervisorOutput, SupervisorState};

@@ -172,36 +172,21 @@ pub struct SupervisorPortService {
 }
 
 impl SupervisorPortService {
-    /// A service at boot: no status yet (all bits from a default [`SupervisorStatus`]), not armed, no
+    /// A service at boot: no status yet (a default verdict, Idle; decks assumed present), not armed, no
     /// emergency stop, watchdog off.
-    pub const fn new(config: SupervisorPortConfig) -> Self {
+    pub fn new(config: SupervisorPortConfig) -> Self {
         Self {
             config,
             status: SupervisorStatus {
-                output: SupervisorOutput {
-                    state: SupervisorState::Idle,
-                    motors_allowed: false,
-                    flying: false,
-                    level_out: false,
-                    battery_low: false,
-                    battery_v_filtered: 0.0,
-                    reason: Reason::None,
-                    flags: SupervisorFlags(0),
-                },
-                mission_running: false,
-                mission_finished: false,
                 decks_ok: true,
+                ..SupervisorStatus::default()
             },
             now_us: 0,
             arm_level: false,
             estop_latched: false,
             watchdog_last_us: None,
-            requests: SupervisorRequests {
-                arm: None,
-                recover: false,
-                emergency_stop: false,
-            },
-            stats: SupervisorPortStats { handled: 0, refused: 0 },
+            requests: SupervisorRequests::default(),
+            stats: SupervisorPortStats::default(),
         }
     }
 

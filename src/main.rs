@@ -165,7 +165,8 @@ mod fw {
         let wdg = IndependentWatchdog::new(p.IWDG, system::WATCHDOG_TIMEOUT_US);
         spawn(&spawner, "watchdog_task", system::watchdog_task(wdg));
 
-        // The navigator first, while the stack is shallow (it is built on the stack, then moved to CCM).
+        // The navigator first, while the stack is shallow (today the compiler builds it in place in CCM; the
+        // largest stack frame of the image is 13 KB, see BENCHMARKS.md §6).
         let config = FlightConfig::default();
         let Some(navigator) = mission::take_navigator(&config) else {
             board::fault("navigator: invalid configuration");
@@ -176,7 +177,7 @@ mod fw {
         interrupt::UART5.set_priority(IO_PRIORITY);
         let io = EXECUTOR_IO.start(interrupt::UART5);
 
-        // Deck bus: config block, Multi-ranger probe.
+        // Deck bus: config block, then both decks' rangers (then owned by the deck task).
         let mut i2c_config = i2c::Config::default();
         i2c_config.frequency = Hertz(400_000);
         let mut deck_i2c = I2c::new(p.I2C1, p.PB6, p.PB7, p.DMA1_CH6, p.DMA1_CH0, Irqs, i2c_config);
@@ -188,6 +189,8 @@ mod fw {
         // Syslink.
         let mut uart_config = usart::Config::default();
         uart_config.baudrate = 1_000_000;
+        // RX pulled up as stock (`uart_syslink.c`): an idle line while the nRF boots reads as idle, not as breaks.
+        uart_config.rx_pull = Pull::Up;
         match Uart::new(p.USART6, p.PC7, p.PC6, p.DMA2_CH7, p.DMA2_CH1, Irqs, uart_config) {
             Ok(uart) => {
                 let (tx, rx) = uart.split();

@@ -239,7 +239,7 @@ pub struct MissionConfig {
 impl Default for MissionConfig {
     fn default() -> Self {
         Self {
-            inflation_radius_m: 0.2,
+            inflation_radius_m: 0.25,
             // Drone radius 0.06 m + 0.09 m for estimate and tracking errors at the slower speed.
             narrow_inflation_radius_m: 0.15,
             narrow_speed_m_s: 0.2,
@@ -375,7 +375,7 @@ const WAYPOINT_CAPACITY: usize = 48;
 const CHANGED_CAPACITY: usize = 512;
 const PAD_EDGES: usize = 48;
 const REFINE_LINES: u8 = 3;
-const REFINE_STAGES: u8 = 4;
+const REFINE_STAGES: u8 = 6;
 /// Search lines stop this far from mapped obstacles and arena walls, m: the drone's radius (0.06 m), the
 /// estimate's drift over a search (≈ 5 cm) and tracking overshoot at a line's end.
 const SEARCH_CLEARANCE_M: f32 = 0.18;
@@ -1218,7 +1218,7 @@ impl<const CELLS: usize, const QUEUE: usize> Mission<CELLS, QUEUE> {
                     // crossings half a minute apart disagree by more than the pad detection error.
                     self.pad.flush();
                     let c = self.pad.estimate().map(|e| (e.x, e.y)).unwrap_or(centre);
-                    if stage + 1 == 2 {
+                    if (stage + 1) % 2 == 0 {
                         self.pad.reset();
                     }
                     Search::Refine {

@@ -21,6 +21,7 @@ pub mod flight;
 pub mod grid;
 pub mod map;
 pub mod mission;
+pub mod mission_start;
 pub mod pad;
 pub mod path;
 pub mod queue;

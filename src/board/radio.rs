@@ -27,6 +27,7 @@ use cfnav::config_block::RadioSettings;
 use cfnav::cpu_load::Level;
 use cfnav::map::ARENA_CELLS;
 use cfnav::mission::MissionParams;
+use cfnav::mission_start::{StartDecision, StartTracker};
 use cfnav::radio::commander::{CommanderService, SetpointFollower};
 use cfnav::radio::console::ConsoleService;
 use cfnav::radio::crtp::{CrtpPacket, PlatformService, Router, Service};
@@ -106,8 +107,8 @@ struct Crtp {
     console: ConsoleService<CONSOLE_QUEUE>,
     supervisor: SupervisorPortService,
     commander_dropped: u32,
-    /// A start request is with the mission task; its outcome has not come back yet.
-    start_pending: bool,
+    /// `mission.start` requests in flight.
+    start: StartTracker,
     last_uplink: Option<Instant>,
     dropped_downlinks: u32,
 }
@@ -127,7 +128,7 @@ impl Crtp {
                 can_recover: false,
             }),
             commander_dropped: 0,
-            start_pending: false,
+            start: StartTracker::new(),
             last_uplink: None,
             dropped_downlinks: 0,
         }
@@ -143,7 +144,7 @@ impl Crtp {
         let Some((command, received_us)) = self.commander.take_fresh() else {
             return;
         };
-        if MISSION_RUNNING.load(Ordering::Acquire) || self.start_pending {
+        if MISSION_RUNNING.load(Ordering::Acquire) || self.start.pending() {
             return;
         }
         let estimate = fast_status().estimate;
@@ -190,22 +191,20 @@ impl Crtp {
         };
         self.apply_commander();
         let after = self.param.store().start;
-        match (before, after) {
-            (0, 1) if FAULT.load(Ordering::Acquire) => {
-                self.revert_start("mission.start refused: a fault is recorded (red LEDs); power-cycle\n");
-            }
-            (0, 1) => {
+        let fault = FAULT.load(Ordering::Acquire);
+        match self.start.on_write(before, after, fault) {
+            StartDecision::RequestStart => {
                 let params = self.param.store().params;
-                if MISSION_REQUESTS.try_send(MissionRequest::Start(params)).is_ok() {
-                    self.start_pending = true;
-                } else {
-                    self.revert_start("mission.start refused: the mission task is busy\n");
+                let queued = MISSION_REQUESTS.try_send(MissionRequest::Start(params)).is_ok();
+                if let Some(reason) = self.start.request_queued(queued) {
+                    self.revert_start(reason);
                 }
             }
-            (1, 0) if MISSION_REQUESTS.try_send(MissionRequest::Abort).is_err() => {
+            StartDecision::RequestAbort if MISSION_REQUESTS.try_send(MissionRequest::Abort).is_err() => {
                 warn!("abort request dropped (queue full)");
             }
-            _ => {}
+            StartDecision::Refuse(reason) => self.revert_start(reason),
+            StartDecision::RequestAbort | StartDecision::None => {}
         }
         reply
     }
@@ -235,15 +234,18 @@ impl Crtp {
         if fired || self.supervisor.take_requests().emergency_stop {
             self.emergency_stop();
         }
-        if let Some(outcome) = START_OUTCOME.try_take() {
-            self.start_pending = false;
-            if let Err(e) = outcome {
-                let mut line: String<64> = String::new();
-                let _ = writeln!(line, "mission.start refused by the flight core: {e:?}");
-                self.revert_start(&line);
-            }
+        if let Some(outcome) = START_OUTCOME.try_take()
+            && self.start.on_outcome(outcome.is_ok())
+            && let Err(e) = outcome
+        {
+            let mut line: String<64> = String::new();
+            let _ = writeln!(line, "mission.start refused by the flight core: {e:?}");
+            self.revert_start(&line);
         }
-        if !self.start_pending && self.param.store().start == 1 && !MISSION_RUNNING.load(Ordering::Acquire) {
+        if self
+            .start
+            .must_clear(self.param.store().start, MISSION_RUNNING.load(Ordering::Acquire))
+        {
             // The mission ended (or never ran): interfaces.md §5 wants mission.start back at 0.
             self.param.store_mut().start = 0;
             self.param.notify(ID_START);

@@ -39,6 +39,11 @@
 //!    at least `min_step_m` below the level before, and the level after matches the level before (same
 //!    floor on both sides). Unpaired edges (a line that ends or turns on the pad, a spurious step) never
 //!    enter the estimate.
+//!    6b. **Turn-backs**: an `Enter` followed by an `Exit` with the opposite heading, both on the same side of
+//!    the pad (within 5 cm along the travel), is a line that ended on the pad and came back (next to a
+//!    wall the search cannot fly across). It fixes the centre along the travel as that side moved half of
+//!    `pad_size_m` inwards, and enters the fit as a crossing flagged [`Crossing::turn_back`]; a pad of
+//!    another size shifts it by half the difference.
 //! 7. **Centre**: a crossing fixes the centre only *along* its chord: for a square pad, the chord's
 //!    midpoint has the centre's coordinate along the chord direction `d`, whatever the line's offset.
 //!    Across the chord it only says "within half a pad of this line". So the centre `c` minimises
@@ -91,6 +96,8 @@ const COS_MAX_HEADING_ERROR: f32 = 0.9397;
 /// Travel between the edges of a crossing may exceed the chord by 5 % + 2 cm (position noise) at most.
 const TRAVEL_SLACK_RATIO: f32 = 1.05;
 const TRAVEL_SLACK_M: f32 = 0.02;
+/// A turn-back's two edges must lie on one pad side: their separation along the travel direction, m.
+const TURN_BACK_SIDE_TOLERANCE_M: f32 = 0.05;
 
 /// The heading at an edge is measured over this many bins before it (~2 cm): recent enough to notice a
 /// turn just before the edge, long enough to average position noise.
@@ -132,6 +139,11 @@ pub struct Crossing {
     pub step_m: f32,
     /// Whether the last centre fit kept this crossing.
     pub inlier: bool,
+    /// A *turn-back* half crossing: the drone entered the pad, turned back on it and left over the same
+    /// side (a search line cut short by a wall). Both edges lie on one side, so only the pad size places
+    /// the centre: `exit` is the mean edge point moved `pad_size_m` inwards, which makes [`Self::midpoint`]
+    /// the side's point moved half a pad inwards.
+    pub turn_back: bool,
 }
 
 impl Crossing {
@@ -808,7 +820,7 @@ impl<const EDGES: usize> PadDetector<EDGES> {
             EdgeKind::Enter => self.pending_enter = Some(det),
             EdgeKind::Exit => {
                 if let Some(enter) = self.pending_enter.take()
-                    && let Some(crossing) = self.pair(&enter, &det)
+                    && let Some(crossing) = self.pair(&enter, &det).or_else(|| self.turn_back(&enter, &det))
                 {
                     if self.crossings.push(crossing).is_err() {
                         self.dropped = self.dropped.saturating_add(1);
@@ -873,6 +885,44 @@ impl<const EDGES: usize> PadDetector<EDGES> {
             exit: (exit.edge.x, exit.edge.y),
             step_m: height,
             inlier: true,
+            turn_back: false,
+        })
+    }
+
+    /// The half crossing made by entering the pad and leaving it over the same side after turning back
+    /// (module docs, step 6b), if `enter` then `exit` is one: the headings are opposite, both edges lie on one
+    /// line across the travel direction, the travel in between is at most a pad width there and back, and
+    /// the levels are those of a pad on a flat floor.
+    fn turn_back(&self, enter: &Detection, exit: &Detection) -> Option<Crossing> {
+        let cfg = &self.config;
+        let d = enter.heading;
+        let back = exit.heading;
+        if d.0 * back.0 + d.1 * back.1 > -COS_MAX_HEADING_ERROR {
+            return None;
+        }
+        let (dx, dy) = (exit.edge.x - enter.edge.x, exit.edge.y - enter.edge.y);
+        if libm::fabsf(d.0 * dx + d.1 * dy) > TURN_BACK_SIDE_TOLERANCE_M {
+            return None;
+        }
+        // In, to the line's end, across to the next line (at most a pad width) and back out.
+        if exit.odo - enter.odo > (2.0 * cfg.max_chord_ratio + 1.0) * cfg.pad_size_m + TRAVEL_SLACK_M {
+            return None;
+        }
+        let height = enter.level_before - exit.level_before;
+        if height.is_nan() || height < cfg.min_step_m {
+            return None;
+        }
+        if libm::fabsf(exit.level_after - enter.level_before) > cfg.step_match_m + 0.5 * height {
+            return None;
+        }
+        let side = (0.5 * (enter.edge.x + exit.edge.x), 0.5 * (enter.edge.y + exit.edge.y));
+        let inwards = (side.0 + cfg.pad_size_m * d.0, side.1 + cfg.pad_size_m * d.1);
+        (inwards.0.is_finite() && inwards.1.is_finite()).then_some(Crossing {
+            enter: side,
+            exit: inwards,
+            step_m: height,
+            inlier: true,
+            turn_back: true,
         })
     }
 

@@ -406,7 +406,8 @@ fn spikes_make_no_edges() {
 #[test]
 fn half_seen_pad_does_not_lock_on_a_wrong_centre() {
     // The sweep's border runs through the pad's centre: the lines that reach the pad end on it, so only
-    // one direction has complete crossings. The other coordinate is unknown; the detector must not lock.
+    // one direction has complete crossings. The other coordinate comes only from the turn-backs on the
+    // pad (one side + the pad size): the detector may lock, but only on the true centre.
     let sweep = SweepConfig::default();
     let mut locked = 0;
     for seed in 0..400 {
@@ -427,7 +428,55 @@ fn half_seen_pad_does_not_lock_on_a_wrong_centre() {
             assert!(e <= 0.03, "seed {seed}: locked {:.1} cm from the centre", 100.0 * e);
         }
     }
-    assert_eq!(locked, 0, "a half-seen pad must not lock");
+    println!("half-seen pad: {locked} of 400 locked, all within 3 cm");
+}
+
+#[test]
+fn turn_backs_fix_the_centre_next_to_a_wall() {
+    // Lines towards a wall end on the pad (0.1 m short of its far side) and come back on the next line:
+    // across x only turn-backs measure the centre; y lines cross the pad fully.
+    let mut turn_back_locks = 0;
+    for seed in 0..100 {
+        let mut rng = SmallRng::seed_from_u64(seed);
+        let truth = (1.0 + rng.random_range(-0.02..0.02), 1.0 + rng.random_range(-0.05..0.05));
+        let world = World::pad_at(truth);
+        let end_x = truth.0 + 0.5 * PAD_SIDE_M - 0.1;
+        let mut path = Vec::new();
+        for (k, dy) in [-0.08f32, 0.0, 0.08].iter().enumerate() {
+            let (a, b) = ((0.5, 1.0 + dy), (end_x, 1.0 + dy));
+            if k % 2 == 0 {
+                path.extend([a, b]);
+            } else {
+                path.extend([b, a]);
+            }
+        }
+        for (k, dx) in [-0.08f32, 0.0, 0.08].iter().enumerate() {
+            let (a, b) = ((0.92 + dx, 0.6), (0.92 + dx, 1.4));
+            if k % 2 == 0 {
+                path.extend([a, b]);
+            } else {
+                path.extend([b, a]);
+            }
+        }
+        let mut det = PadDetector::<EDGES>::new(PadConfig::default()).expect("config");
+        fly(&mut det, &world, &path, &mut rng);
+        det.flush();
+        let turn_backs = det.crossings().iter().filter(|c| c.turn_back && c.inlier).count();
+        assert!(turn_backs >= 1, "seed {seed}: no turn-back in {:?}", det.crossings());
+        let est = det.estimate().expect("an estimate");
+        assert!(
+            (est.x - truth.0).abs() <= 0.03 && (est.y - truth.1).abs() <= 0.02,
+            "seed {seed}: estimate ({:.3}, {:.3}) vs truth ({:.3}, {:.3})",
+            est.x,
+            est.y,
+            truth.0,
+            truth.1
+        );
+        if det.locked() {
+            turn_back_locks += 1;
+        }
+    }
+    println!("pad next to a wall: {turn_back_locks} of 100 locked");
 }
 
 #[test]

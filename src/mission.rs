@@ -379,6 +379,8 @@ const REFINE_STAGES: u8 = 6;
 /// Search lines stop this far from mapped obstacles and arena walls, m: the drone's radius (0.06 m), the
 /// estimate's drift over a search (≈ 5 cm) and tracking overshoot at a line's end.
 const SEARCH_CLEARANCE_M: f32 = 0.18;
+/// Within this distance of the leg's target the navigating drone already feeds the pad detector, m.
+const PAD_LOOKOUT_RADIUS_M: f32 = 0.8;
 /// How far [`Mission::clearance`] looks, m.
 const CLEARANCE_HORIZON_M: f32 = 0.3;
 /// Sampling step along a search line for the clearance check, m.
@@ -592,7 +594,12 @@ impl<const CELLS: usize, const QUEUE: usize> Mission<CELLS, QUEUE> {
     /// pitch, 3 cm away); the detector is given that spot, computed from the attitude estimate, so edges
     /// land where the step really is.
     pub fn on_zrange(&mut self, range: RangeReading, state: &StateEstimate) {
-        let searching = matches!(self.phase, Phase::Search(_) | Phase::Approach { .. });
+        // The pad lies near the leg's target, so the last stretch of navigation often flies straight over
+        // it: feeding the detector from there on can give the first crossing before the search begins.
+        let (tx, ty) = self.leg_target();
+        let near_target = matches!(self.phase, Phase::Navigate)
+            && libm::hypotf(state.position_m[0] - tx, state.position_m[1] - ty) < PAD_LOOKOUT_RADIUS_M;
+        let searching = near_target || matches!(self.phase, Phase::Search(_) | Phase::Approach { .. });
         if let (true, Some(r)) = (searching, range) {
             let down = body_to_arena([0.0, 0.0, -1.0], state.attitude_rad);
             let (sx, sy) = (state.position_m[0] + r * down[0], state.position_m[1] + r * down[1]);
@@ -1018,7 +1025,7 @@ impl<const CELLS: usize, const QUEUE: usize> Mission<CELLS, QUEUE> {
         let arena = ArenaBounds::new(self.params.arena_m.0, self.params.arena_m.1, 0.15);
         let here = (state.position_m[0], state.position_m[1]);
         self.sweep = LawnmowerSweep::new(centre, here, &self.config.sweep, &arena).ok();
-        self.pad.reset();
+        // The detector keeps what it saw on the approach (it was reset when the leg began).
         let search = Search::Coarse {
             step: 0,
             reverse: false,

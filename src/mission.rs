@@ -379,6 +379,8 @@ const REFINE_STAGES: u8 = 6;
 /// Search lines stop this far from mapped obstacles and arena walls, m: the drone's radius (0.06 m), the
 /// estimate's drift over a search (≈ 5 cm) and tracking overshoot at a line's end.
 const SEARCH_CLEARANCE_M: f32 = 0.18;
+/// Descent rate of an emergency landing without a usable estimate, m/s.
+const FAULT_DESCENT_SPEED_M_S: f32 = 0.5;
 /// Within this distance of the leg's target the navigating drone already feeds the pad detector, m.
 const PAD_LOOKOUT_RADIUS_M: f32 = 0.8;
 /// How far [`Mission::clearance`] looks, m.
@@ -767,10 +769,17 @@ impl<const CELLS: usize, const QUEUE: usize> Mission<CELLS, QUEUE> {
                     self.phase = Phase::Ended(then);
                     return Setpoint::Stop;
                 }
+                // Without a usable estimate the horizontal velocity is no longer observed and drifts (a few
+                // cm/s after the brake): the sooner the drone is down, the less it slides.
+                let descent = if then == MissionState::EstimatorFault {
+                    self.fault_descent_speed(state)
+                } else {
+                    self.descent_speed(state)
+                };
                 Setpoint::Descend {
                     x_m: lx,
                     y_m: ly,
-                    vz_m_s: -self.descent_speed(state),
+                    vz_m_s: -descent,
                     yaw_rad: self.heading,
                 }
             }
@@ -795,6 +804,17 @@ impl<const CELLS: usize, const QUEUE: usize> Mission<CELLS, QUEUE> {
             0.5 * self.config.descent_speed_m_s
         } else {
             self.config.descent_speed_m_s
+        }
+    }
+
+    /// Descent rate after the estimate was lost, m/s: [`FAULT_DESCENT_SPEED_M_S`] down to 0.1 m above the
+    /// surface, then the normal soft touchdown.
+    fn fault_descent_speed(&self, state: &StateEstimate) -> f32 {
+        let above = state.position_m[2] - state.surface_height_m;
+        if above > 0.1 {
+            FAULT_DESCENT_SPEED_M_S
+        } else {
+            self.descent_speed(state)
         }
     }
 

@@ -379,6 +379,10 @@ const REFINE_STAGES: u8 = 6;
 /// Search lines stop this far from mapped obstacles and arena walls, m: the drone's radius (0.06 m), the
 /// estimate's drift over a search (≈ 5 cm) and tracking overshoot at a line's end.
 const SEARCH_CLEARANCE_M: f32 = 0.18;
+/// Speed at a waypoint where the path turns by 90° or more, m/s.
+const CORNER_MIN_SPEED_M_S: f32 = 0.15;
+/// Speed allowed per metre of distance before a waypoint, on top of its corner speed, 1/s.
+const CORNER_APPROACH_GAIN: f32 = 1.5;
 /// Descent rate of an emergency landing without a usable estimate, m/s.
 const FAULT_DESCENT_SPEED_M_S: f32 = 0.5;
 /// Within this distance of the leg's target the navigating drone already feeds the pad detector, m.
@@ -1010,7 +1014,9 @@ impl<const CELLS: usize, const QUEUE: usize> Mission<CELLS, QUEUE> {
                 } else {
                     self.params.speed_m_s
                 };
-                let mut speed = cruise.min(libm::sqrtf(2.0 * 0.8 * to_goal)).min(0.3 + 2.0 * d);
+                let mut speed = cruise
+                    .min(libm::sqrtf(2.0 * 0.8 * to_goal))
+                    .min(self.corner_speed(cruise, (x, y), (tx, ty)) + CORNER_APPROACH_GAIN * d);
                 if d > 0.05 {
                     // Face the direction of travel, sweeping the heading ±SCAN_AMPLITUDE so the front ranger also
                     // sees obstacles diagonally ahead (a wall's end beside the path is otherwise invisible to
@@ -1038,6 +1044,23 @@ impl<const CELLS: usize, const QUEUE: usize> Mission<CELLS, QUEUE> {
             z_m: self.params.height_m,
             yaw_rad: self.heading,
         }
+    }
+
+    /// How fast to pass the waypoint `target` (reached from `here`), m/s: the cruise speed if the path goes on
+    /// straight, down to [`CORNER_MIN_SPEED_M_S`] for a turn of 90° or more. A path turns where it rounds an
+    /// obstacle (usually a wall end the four beams saw late), so a fast corner overshoots towards it.
+    fn corner_speed(&self, cruise: f32, here: (f32, f32), target: (f32, f32)) -> f32 {
+        let Some(next) = self.waypoints.get(2).map(|c| self.shape.center_of(*c)) else {
+            return cruise;
+        };
+        let a = (target.0 - here.0, target.1 - here.1);
+        let b = (next.0 - target.0, next.1 - target.1);
+        let (la, lb) = (libm::hypotf(a.0, a.1), libm::hypotf(b.0, b.1));
+        if !(la > 1e-3 && lb > 1e-3) {
+            return cruise;
+        }
+        let cos_turn = ((a.0 * b.0 + a.1 * b.1) / (la * lb)).clamp(0.0, 1.0);
+        CORNER_MIN_SPEED_M_S + (cruise - CORNER_MIN_SPEED_M_S).max(0.0) * cos_turn
     }
 
     fn begin_search(&mut self, state: &StateEstimate) -> Setpoint {

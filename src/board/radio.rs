@@ -30,7 +30,8 @@ use cfnav::mission::MissionParams;
 use cfnav::mission_start::{StartDecision, StartTracker};
 use cfnav::radio::commander::{CommanderService, SetpointFollower};
 use cfnav::radio::console::ConsoleService;
-use cfnav::radio::crtp::{CrtpPacket, PlatformService, Router, Service};
+use cfnav::radio::crtp::{CrtpPacket, PlatformService, Router};
+use cfnav::radio::endpoint::EndpointServices;
 use cfnav::radio::log::LogService;
 use cfnav::radio::log_registry::FirmwareLogState;
 use cfnav::radio::mem::MemService;
@@ -177,17 +178,15 @@ impl Crtp {
             decks_ok: DECKS_OK.load(Ordering::Acquire),
         });
         let reply = {
-            let [mut rpyt, mut generic] = self.commander.ports();
-            let mut services: [&mut dyn Service; 7] = [
-                &mut self.param,
-                &mut self.log,
-                &mut self.mem,
-                &mut rpyt,
-                &mut generic,
-                &mut self.supervisor,
-                &mut self.console,
-            ];
-            self.router.handle_uplink(bytes, &mut services)
+            EndpointServices {
+                param: &mut self.param,
+                log: &mut self.log,
+                mem: &mut self.mem,
+                commander: &mut self.commander,
+                supervisor: &mut self.supervisor,
+                console: &mut self.console,
+            }
+            .handle_uplink(&mut self.router, bytes)
         };
         self.apply_commander();
         let after = self.param.store().start;

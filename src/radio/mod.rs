@@ -24,6 +24,7 @@
 pub mod commander;
 pub mod console;
 pub mod crtp;
+pub mod endpoint;
 pub mod log;
 pub mod log_registry;
 pub mod mem;

@@ -32,7 +32,8 @@ use std::time::{Duration, Instant};
 
 use cfnav::radio::commander::{Command, CommanderService, SetpointFollower};
 use cfnav::radio::console::ConsoleService;
-use cfnav::radio::crtp::{CrtpPacket, NULL_HEADER, PlatformService, Router, Service, is_null_header};
+use cfnav::radio::crtp::{CrtpPacket, NULL_HEADER, PlatformService, Router, is_null_header};
+use cfnav::radio::endpoint::EndpointServices;
 use cfnav::radio::log::LogService;
 use cfnav::radio::log_registry::FlightLogState;
 use cfnav::radio::mem::MemService;
@@ -310,17 +311,15 @@ impl Radio {
         self.supervisor.set_now(now_us(drone));
         self.supervisor.set_status(supervisor_status(drone));
         let reply = {
-            let [mut rpyt, mut generic] = self.commander.ports();
-            let mut services: [&mut dyn Service; 7] = [
-                &mut self.param,
-                &mut self.log,
-                &mut self.mem,
-                &mut rpyt,
-                &mut generic,
-                &mut self.supervisor,
-                &mut self.console,
-            ];
-            self.router.handle_uplink(bytes, &mut services)
+            EndpointServices {
+                param: &mut self.param,
+                log: &mut self.log,
+                mem: &mut self.mem,
+                commander: &mut self.commander,
+                supervisor: &mut self.supervisor,
+                console: &mut self.console,
+            }
+            .handle_uplink(&mut self.router, bytes)
         };
         if let Some(reply) = reply {
             self.send(&reply);

@@ -17,16 +17,19 @@
 //! - **Navigate**: the four horizontal ranges update the [`OccupancyGrid`] (freed along each beam, the end
 //!   cell marked); the cells whose inflated state changed go to D\* Lite, which repairs its plan with an
 //!   expansion budget per tick; the path is shortened by line of sight, and the drone flies towards its
-//!   first waypoint at cruise speed (slowing into the goal), through [`ReactiveAvoidance`] (repulsion,
-//!   smoothing, speed clamp near obstacles).
-//! - **No path**: hover and keep mapping (false obstacles clear, the plan repairs itself) for
-//!   [`MissionConfig::no_path_wait_s`]; then land where it is and end with [`MissionState::NoPath`].
-//! - **Search**: a coarse lawnmower pass around the nominal goal until the [`PadDetector`] has a first
-//!   crossing; then short refinement stages centred on the latest estimate — three lines across the first
-//!   crossing (which fixes the other coordinate), then three along it, then once more each way — until the
-//!   detector locks. If the
-//!   pattern ends without a lock the drone lands on the best estimate (or the nominal point) and the
-//!   mission ends with [`MissionState::PadNotFound`] after flying the rest of the round trip.
+//!   first waypoint at cruise speed (slowing into the goal, and into a waypoint where the path turns
+//!   sharply), through [`ReactiveAvoidance`] (repulsion, smoothing, speed clamp near obstacles).
+//! - **No path**: once per leg, plan again with [`MissionConfig::narrow_inflation_radius_m`] and fly at
+//!   [`MissionConfig::narrow_speed_m_s`]; if that fails too, hover and keep mapping (false obstacles clear,
+//!   the plan repairs itself) for [`MissionConfig::no_path_wait_s`]; then land where it is and end with
+//!   [`MissionState::NoPath`].
+//! - **Search** (the detector already listens on the last 0.8 m of navigation; every search line stops
+//!   0.18 m short of mapped obstacles and the arena walls): a coarse lawnmower pass around the nominal goal
+//!   until the [`PadDetector`] has a first crossing; then short refinement stages centred on the latest
+//!   estimate — three lines across the first crossing (which fixes the other coordinate), then three along
+//!   it, three rounds in all with a fresh detector every round (the estimate drifts) — until the detector
+//!   locks. If the pattern ends without a lock the drone lands on the best estimate (or the nominal point)
+//!   and the mission ends with [`MissionState::PadNotFound`] after flying the rest of the round trip.
 //! - **Land**: hover over the pad centre until settled, descend at a controlled rate; the supervisor
 //!   detects the touchdown and stops the motors, which the mission sees as `landed`.
 //!

@@ -26,12 +26,17 @@
 //! - **Search** (the detector already listens on the last 0.8 m of navigation; every search line stops
 //!   0.18 m short of mapped obstacles and the arena walls): a coarse lawnmower pass around the nominal goal
 //!   until the [`PadDetector`] has a first crossing; then short refinement stages centred on the latest
-//!   estimate — three lines across the first crossing (which fixes the other coordinate), then three along
-//!   it, three rounds in all with a fresh detector every round (the estimate drifts) — until the detector
-//!   locks. If the pattern ends without a lock the drone lands on the best estimate (or the nominal point)
-//!   and the mission ends with [`MissionState::PadNotFound`] after flying the rest of the round trip.
-//! - **Land**: hover over the pad centre until settled, descend at a controlled rate; the supervisor
-//!   detects the touchdown and stops the motors, which the mission sees as `landed`.
+//!   estimate — lines across the first crossing (which fix the other coordinate), then lines along it,
+//!   four rounds in all with a fresh detector every round (the estimate drifts) — until the detector
+//!   locks. A line ends as soon as it gave a crossing (its rest only costs time), and in the first round a
+//!   stage ends once its direction has two inlier crossings (two across plus the first crossing and one
+//!   along can already lock); later rounds fly all three lines of a stage. If the pattern ends without a
+//!   lock the drone lands on the best estimate (or the nominal point) and the mission ends with
+//!   [`MissionState::PadNotFound`] after flying the rest of the round trip.
+//! - **Land**: hover over the pad centre until settled, descend at
+//!   [`MissionConfig::high_descent_speed_m_s`] down to 0.2 m above the surface and slower below it (the
+//!   flow-only position drifts ≈ 1 cm/√s, so the time from the last crossing to touchdown is landing
+//!   error); the supervisor detects the touchdown and stops the motors, which the mission sees as `landed`.
 //!
 //! Memory: the grid (`CELLS + 12` B), the planner (`4·CELLS + 10·QUEUE` B), a path buffer and the small
 //! detectors: about 50 KB for the 6 × 3 m arena. Cost per tick: one bounded planner slice
@@ -219,8 +224,11 @@ pub struct MissionConfig {
     pub search_speed_m_s: f32,
     /// Climb rate for take-off, m/s.
     pub climb_speed_m_s: f32,
-    /// Descent rate for landing, m/s (positive number).
+    /// Descent rate for landing in the last 0.2 m above the surface, m/s (positive number; half of it in the
+    /// last 8 cm).
     pub descent_speed_m_s: f32,
+    /// Descent rate for landing higher than 0.2 m above the surface, m/s (at least `descent_speed_m_s`).
+    pub high_descent_speed_m_s: f32,
     /// Settle over the pad this long before descending, s.
     pub settle_s: f32,
     /// Horizontal error to the pad centre accepted before descending, m.
@@ -254,7 +262,8 @@ impl Default for MissionConfig {
             search_speed_m_s: 0.5,
             climb_speed_m_s: 0.4,
             descent_speed_m_s: 0.2,
-            settle_s: 0.6,
+            high_descent_speed_m_s: 0.4,
+            settle_s: 0.3,
             settle_tolerance_m: 0.03,
             pause_s: 2.0,
             sweep: SweepConfig {
@@ -363,13 +372,15 @@ enum Search {
     /// `reverse` flies the current line from its second waypoint.
     Coarse { step: usize, reverse: bool },
     /// Refinement: stage 0 = lines across the first crossing, stage 1 = lines along it; `line` of 3,
-    /// `end` = 0 going to the line's start, 1 to its end.
+    /// `end` = 0 going to the line's start, 1 to its end; `crossings_before` = the detector's crossings
+    /// when the line began (a new one ends the line early).
     Refine {
         stage: u8,
         line: u8,
         end: u8,
         centre: (f32, f32),
         first_along_x: bool,
+        crossings_before: u8,
     },
 }
 
@@ -378,7 +389,7 @@ const WAYPOINT_CAPACITY: usize = 48;
 const CHANGED_CAPACITY: usize = 512;
 const PAD_EDGES: usize = 48;
 const REFINE_LINES: u8 = 3;
-const REFINE_STAGES: u8 = 6;
+const REFINE_STAGES: u8 = 8;
 /// Search lines stop this far from mapped obstacles and arena walls, m: the drone's radius (0.06 m), the
 /// estimate's drift over a search (≈ 5 cm) and tracking overshoot at a line's end.
 const SEARCH_CLEARANCE_M: f32 = 0.18;
@@ -800,17 +811,21 @@ impl<const CELLS: usize, const QUEUE: usize> Mission<CELLS, QUEUE> {
         }
     }
 
-    /// Slower close to the surface below, for a soft touchdown; once (nearly) down, ask for a fast descent,
-    /// which the controller can only answer by dropping the thrust well below hover: that is what the
-    /// supervisor's touchdown detection waits for.
+    /// Fast from cruise height, slower close to the surface below, for a soft touchdown; once (nearly) down,
+    /// ask for a fast descent, which the controller can only answer by dropping the thrust well below hover:
+    /// that is what the supervisor's touchdown detection waits for. The time spent descending is time the
+    /// flow-only position drifts off the pad centre (≈ 1 cm/√s), so only the last centimetres are slow.
     fn descent_speed(&self, state: &StateEstimate) -> f32 {
         let above = state.position_m[2] - state.surface_height_m;
+        let d = self.config.descent_speed_m_s;
         if above < 0.04 {
-            3.0 * self.config.descent_speed_m_s
-        } else if above < 0.15 {
-            0.5 * self.config.descent_speed_m_s
+            3.0 * d
+        } else if above < 0.08 {
+            0.5 * d
+        } else if above < 0.2 {
+            d
         } else {
-            self.config.descent_speed_m_s
+            self.config.high_descent_speed_m_s.max(d)
         }
     }
 
@@ -1180,6 +1195,7 @@ impl<const CELLS: usize, const QUEUE: usize> Mission<CELLS, QUEUE> {
                         end: 0,
                         centre,
                         first_along_x: libm::fabsf(dx) >= libm::fabsf(dy),
+                        crossings_before: self.pad.crossings().len().min(usize::from(u8::MAX)) as u8,
                     };
                     self.phase = Phase::Search(refine);
                     return self.search(refine, state, _dt_s);
@@ -1209,6 +1225,7 @@ impl<const CELLS: usize, const QUEUE: usize> Mission<CELLS, QUEUE> {
                 end,
                 centre,
                 first_along_x,
+                crossings_before,
             } => {
                 if stage >= REFINE_STAGES {
                     self.pad.flush();
@@ -1244,13 +1261,17 @@ impl<const CELLS: usize, const QUEUE: usize> Mission<CELLS, QUEUE> {
                 let (first, second) = if line % 2 == 0 { (a, b) } else { (b, a) };
                 let wp = if end == 0 { first } else { second };
                 let (sp, reached) = self.fly_to(state, wp);
-                let next = if !reached {
+                let crossings_now = self.pad.crossings().len().min(usize::from(u8::MAX)) as u8;
+                // A line has done its job once it gave a crossing: its remaining length only costs time.
+                let line_done = end == 1 && (reached || crossings_now > crossings_before);
+                let next = if !reached && !line_done {
                     Search::Refine {
                         stage,
                         line,
                         end,
                         centre,
                         first_along_x,
+                        crossings_before,
                     }
                 } else if end == 0 {
                     Search::Refine {
@@ -1259,19 +1280,22 @@ impl<const CELLS: usize, const QUEUE: usize> Mission<CELLS, QUEUE> {
                         end: 1,
                         centre,
                         first_along_x,
+                        crossings_before: crossings_now,
                     }
-                } else if line + 1 < REFINE_LINES {
+                } else if line + 1 < REFINE_LINES && (stage >= 2 || self.inlier_crossings(along_x) < 2) {
                     Search::Refine {
                         stage,
                         line: line + 1,
                         end: 0,
                         centre,
                         first_along_x,
+                        crossings_before: crossings_now,
                     }
                 } else {
-                    // Next stage, centred on the detector's best estimate so far. After the first round the
-                    // detector starts afresh: the position estimate drifts (≈ 1 cm/√s on flow alone), so
-                    // crossings half a minute apart disagree by more than the pad detection error.
+                    // Next stage (this direction has its two crossings, or its lines are flown), centred on
+                    // the detector's best estimate so far. After the first round the detector starts
+                    // afresh: the position estimate drifts (≈ 1 cm/√s on flow alone), so crossings half a
+                    // minute apart disagree by more than the pad detection error.
                     self.pad.flush();
                     let c = self.pad.estimate().map(|e| (e.x, e.y)).unwrap_or(centre);
                     if (stage + 1) % 2 == 0 {
@@ -1283,12 +1307,25 @@ impl<const CELLS: usize, const QUEUE: usize> Mission<CELLS, QUEUE> {
                         end: 0,
                         centre: c,
                         first_along_x,
+                        crossings_before: self.pad.crossings().len().min(usize::from(u8::MAX)) as u8,
                     }
                 };
                 self.phase = Phase::Search(next);
                 sp
             }
         }
+    }
+
+    /// Inlier crossings the detector holds that run along x (`along_x`) or along y.
+    fn inlier_crossings(&self, along_x: bool) -> usize {
+        self.pad
+            .crossings()
+            .iter()
+            .filter(|c| {
+                let (dx, dy) = c.direction();
+                c.inlier && (libm::fabsf(dx) >= libm::fabsf(dy)) == along_x
+            })
+            .count()
     }
 
     /// The `k`-th line of the coarse pattern, lines taken centre-out within each pass of the lawnmower

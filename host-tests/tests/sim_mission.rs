@@ -147,24 +147,62 @@ fn fly(world: &World, faults: Faults) -> cfnav_tools::sim::runner::RunReport {
     run(world, &options).expect("runs").report
 }
 
+/// The default world under ten noise seeds: every flight completes without a collision on both pads, the
+/// landings meet the accuracy goal as a distribution (median ≤ 3 cm, 95 % ≤ 6 cm; one landing is one
+/// draw of the flow-only drift, so a single landing against the p95 bound would fail one run in ten), and the
+/// estimator stays within its stated bounds.
 #[test]
 fn default_world_completes_and_the_estimator_stays_close_to_the_truth() {
-    let r = fly(&World::default_world(), Faults::default());
-    println!("{r:?}");
-    assert_eq!(r.outcome, "completed", "{r:?}");
-    assert_eq!(r.collisions, 0);
-    assert_eq!(r.landings.len(), 2);
-    assert!(
-        r.landings.iter().all(|l| l.on_pad && l.error_m < 0.06),
-        "{:?}",
-        r.landings
+    let world = World::default_world();
+    let mut errors = Vec::new();
+    let mut rms = Vec::new();
+    for seed in 1..=10 {
+        let mut options = RunOptions::for_world(&world);
+        options.seed = seed;
+        let r = run(&world, &options).expect("runs").report;
+        println!("seed {seed}: {:?} s, landings {:?}", r.mission_time_s, r.landings);
+        assert_eq!(r.outcome, "completed", "seed {seed}: {r:?}");
+        assert_eq!(r.collisions, 0, "seed {seed}");
+        assert_eq!(r.landings.len(), 2, "seed {seed}");
+        assert!(r.landings.iter().all(|l| l.on_pad), "seed {seed}: {:?}", r.landings);
+        errors.extend(r.landings.iter().map(|l| l.error_m));
+        // Stated bounds for flow-only navigation (no absolute position fix, the drift a random walk of the
+        // flow noise, so the worst of ten seeds is about twice the median): see BENCHMARKS.md.
+        assert!(
+            r.rms_estimate_error_m < 0.2,
+            "seed {seed}: rms {}",
+            r.rms_estimate_error_m
+        );
+        rms.push(r.rms_estimate_error_m);
+        assert!(
+            r.max_estimate_error_m < 0.35,
+            "seed {seed}: max {}",
+            r.max_estimate_error_m
+        );
+        // Height above the surface below; the worst instants are the pad edges (a step is judged over three
+        // ranges, 75 ms) and the re-anchoring on leaving the home pad.
+        assert!(
+            r.max_height_error_m < 0.15,
+            "seed {seed}: height {}",
+            r.max_height_error_m
+        );
+    }
+    rms.sort_by(f32::total_cmp);
+    let median_rms = 0.5 * (rms[4] + rms[5]);
+    println!(
+        "default world, ten seeds: median RMS estimate error {:.1} cm",
+        median_rms * 100.0
     );
-    // Stated bounds for flow-only navigation (no absolute position fix): see BENCHMARKS.md.
-    assert!(r.rms_estimate_error_m < 0.15, "rms {}", r.rms_estimate_error_m);
-    assert!(r.max_estimate_error_m < 0.35, "max {}", r.max_estimate_error_m);
-    // Height above the surface below; the worst instants are the pad edges (a step is judged over three
-    // ranges, 75 ms) and the re-anchoring on leaving the home pad.
-    assert!(r.max_height_error_m < 0.15, "height {}", r.max_height_error_m);
+    assert!(median_rms < 0.1, "median RMS estimate error {median_rms} m");
+    errors.sort_by(f32::total_cmp);
+    let median = 0.5 * (errors[9] + errors[10]);
+    let within_6_cm = errors.iter().filter(|e| **e <= 0.06).count();
+    println!(
+        "default world, 20 landings: median {:.1} cm, {within_6_cm} of 20 within 6 cm",
+        median * 100.0
+    );
+    assert!(median <= 0.03, "median landing error {median} m");
+    assert!(within_6_cm >= 19, "landing errors {errors:?}");
 }
 
 #[test]

@@ -260,7 +260,7 @@ impl Default for MissionConfig {
             no_path_wait_s: 5.0,
             goal_tolerance_m: 0.15,
             search_speed_m_s: 0.5,
-            climb_speed_m_s: 0.6,
+            climb_speed_m_s: 0.4,
             descent_speed_m_s: 0.2,
             high_descent_speed_m_s: 0.4,
             settle_s: 0.3,

@@ -33,7 +33,8 @@
 //!   along can already lock); later rounds fly all three lines of a stage. If the pattern ends without a
 //!   lock the drone lands on the best estimate (or the nominal point) and the mission ends with
 //!   [`MissionState::PadNotFound`] after flying the rest of the round trip.
-//! - **Land**: hover over the pad centre until settled, descend at
+//! - **Land**: fly back over the pad centre (a velocity profile down to 6 cm from it, then position hold),
+//!   hover until settled, descend at
 //!   [`MissionConfig::high_descent_speed_m_s`] down to 0.2 m above the surface and slower below it (the
 //!   flow-only position drifts ≈ 1 cm/√s, so the time from the last crossing to touchdown is landing
 //!   error); the supervisor detects the touchdown and stops the motors, which the mission sees as `landed`.
@@ -390,6 +391,9 @@ const CHANGED_CAPACITY: usize = 512;
 const PAD_EDGES: usize = 48;
 const REFINE_LINES: u8 = 3;
 const REFINE_STAGES: u8 = 8;
+/// Over the pad, within this of its centre the approach holds position; farther it flies a velocity
+/// profile towards it, m.
+const APPROACH_HOLD_RADIUS_M: f32 = 0.06;
 /// Search lines stop this far from mapped obstacles and arena walls, m: the drone's radius (0.06 m), the
 /// estimate's drift over a search (≈ 5 cm) and tracking overshoot at a line's end.
 const SEARCH_CLEARANCE_M: f32 = 0.18;
@@ -738,6 +742,20 @@ impl<const CELLS: usize, const QUEUE: usize> Mission<CELLS, QUEUE> {
                         x: px,
                         y: py,
                         settled_since,
+                    };
+                }
+                if err > APPROACH_HOLD_RADIUS_M {
+                    // Far from the centre (the lock comes mid-line, the drone still moving away): a firm
+                    // velocity profile brings it back faster than the position loop's gentle step response.
+                    let speed = self
+                        .config
+                        .search_speed_m_s
+                        .min(2.0 * (err - 0.5 * APPROACH_HOLD_RADIUS_M));
+                    return Setpoint::Velocity {
+                        vx_m_s: speed * (px - x) / err,
+                        vy_m_s: speed * (py - y) / err,
+                        z_m: self.params.height_m,
+                        yaw_rad: self.heading,
                     };
                 }
                 Setpoint::Position {

@@ -274,6 +274,9 @@ pub struct EstimatorConfig {
     /// A surface within this of the floor is the floor: `surface_height_m` snaps to exactly 0 (and the
     /// difference goes to the height). Default 0.015.
     pub snap_m: f32,
+    /// A step down to within this of a surface the drone stepped up from (the floor included) returns to
+    /// that surface exactly, m: over many pad crossings the blurred edges' errors would add up. Default 0.04.
+    pub level_return_m: f32,
     /// An implied surface this far below the floor means the height is wrong, m. Default 0.03.
     pub below_floor_m: f32,
     /// Height-update gate, in standard deviations of the innovation. Default 3.
@@ -340,6 +343,7 @@ impl Default for EstimatorConfig {
             tof_max_range_m: 5.0,
             step_min_m: 0.01,
             snap_m: 0.015,
+            level_return_m: 0.04,
             below_floor_m: 0.03,
             surface_gate_sigma: 3.0,
             surface_gate_min_m: 0.008,
@@ -398,6 +402,7 @@ impl EstimatorConfig {
             tof_max_range_m: pos(self.tof_max_range_m, d.tof_max_range_m).min(d.tof_max_range_m),
             step_min_m: pos(self.step_min_m, d.step_min_m),
             snap_m: nonneg(self.snap_m, d.snap_m),
+            level_return_m: nonneg(self.level_return_m, d.level_return_m),
             below_floor_m: nonneg(self.below_floor_m, d.below_floor_m),
             surface_gate_sigma: pos(self.surface_gate_sigma, d.surface_gate_sigma),
             surface_gate_min_m: nonneg(self.surface_gate_min_m, d.surface_gate_min_m),
@@ -429,6 +434,7 @@ impl EstimatorConfig {
         Params {
             step_min: self.step_min_m,
             snap: self.snap_m,
+            return_tol: self.level_return_m,
             floor_tol: self.below_floor_m,
             gate_sigma: self.surface_gate_sigma,
             gate_min: self.surface_gate_min_m,

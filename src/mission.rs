@@ -391,6 +391,8 @@ const CHANGED_CAPACITY: usize = 512;
 const PAD_EDGES: usize = 48;
 const REFINE_LINES: u8 = 3;
 const REFINE_STAGES: u8 = 8;
+/// Yaw rate while hovering with no path, rad/s (a quarter turn, all four beams' gaps, in 2 s).
+const NO_PATH_TURN_RATE_RAD_S: f32 = 0.8;
 /// Over the pad, within this of its centre the approach holds position; farther it flies a velocity
 /// profile towards it, m.
 const APPROACH_HOLD_RADIUS_M: f32 = 0.06;
@@ -712,6 +714,10 @@ impl<const CELLS: usize, const QUEUE: usize> Mission<CELLS, QUEUE> {
                         y: hy,
                         then: MissionState::NoPath,
                     };
+                } else {
+                    // Turn while waiting: the four beams sweep all round, and a beam through an opening frees
+                    // the cells that an obstacle mapped from a drifted estimate still blocks there.
+                    self.heading = wrap_angle(self.heading + NO_PATH_TURN_RATE_RAD_S * dt_s);
                 }
                 Setpoint::Position {
                     x_m: hx,

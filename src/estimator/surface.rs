@@ -39,7 +39,16 @@
 //! | otherwise (a jump `z` could explain) | a height error: re-anchor `z` |
 //!
 //! (`step_sigma`·σ_z: a height error that large is improbable, so the jump is the surface; right after a
-//! step the height has coasted and its grown σ_z proves nothing, so any plateau continues the step.)
+//! step the height has coasted and its grown σ_z proves nothing, so any plateau continues the step — except
+//! a clear step the other way, which is a new step: a 30 cm pad crossed at 0.5 m/s is left within the
+//! settling time.)
+//!
+//! **Levels.** The tracker remembers the surfaces it stepped *up* from (at most `LEVELS`, never two
+//! within `return_tol` of each other or of the floor). A step down to within `return_tol` of the floor
+//! or of a remembered level lands on that level exactly, and what the plateau says beyond it re-anchors
+//! the height like a height error (else the next plateau would say the same and the height would never be
+//! corrected). Without this, each crossing's blurred edges left a few millimetres in the surface, and a
+//! pad search's dozens of crossings added them up until the drone flew a pad's height lower than asked.
 //!
 //! "Re-anchor" inflates `P_zz` by the jump² and the vertical-velocity variance by (jump / 1 s)², so that
 //! the plateau's values pull `z` onto the new level at once, and a velocity error behind the jump is
@@ -116,6 +125,8 @@ pub enum SurfaceEvent {
 pub(crate) struct Params {
     pub step_min: f32,
     pub snap: f32,
+    /// A step down to within this of a level the tracker stepped up from returns to that level exactly.
+    pub return_tol: f32,
     pub floor_tol: f32,
     pub gate_sigma: f32,
     pub gate_min: f32,
@@ -172,7 +183,15 @@ pub(crate) struct SurfaceTracker {
     /// Ranges that never reached the filter (inside transitions).
     pub discarded: u32,
     pub last_event: SurfaceEvent,
+    /// The surfaces the tracker stepped *up* from, oldest first (the floor, 0, is implicit): flying off an
+    /// object returns to the level the drone came from, exactly, so the errors of a step's blurred edges do
+    /// not add up over many crossings of a pad.
+    levels: [f32; LEVELS],
+    n_levels: usize,
 }
+
+/// Remembered levels (objects on objects, nested this deep, are rare).
+const LEVELS: usize = 4;
 
 impl SurfaceTracker {
     pub(crate) const fn new(s: f32) -> Self {
@@ -189,12 +208,51 @@ impl SurfaceTracker {
             last_step_m: 0.0,
             discarded: 0,
             last_event: SurfaceEvent::None,
+            levels: [0.0; LEVELS],
+            n_levels: 0,
         }
+    }
+
+    /// Where a surface stepping down to `level` lands: the nearest level it stepped up from within
+    /// `return_tol` (the latest such, forgetting the ones above it), the floor within `max(snap,
+    /// return_tol)`, else `level` itself. Returns the surface and the remembered levels left.
+    fn returned_level(&self, level: f32, p: &Params) -> (f32, usize) {
+        // The floor first, then the oldest level: a level is only remembered when none within the
+        // tolerance is (see `remember_level`), so at most one matches, and the lowest is the one that
+        // cannot have crept.
+        if level <= p.snap.max(p.return_tol) {
+            return (0.0, 0);
+        }
+        for i in 0..self.n_levels.min(LEVELS) {
+            if (level - self.levels[i]).abs() <= p.return_tol {
+                return (self.levels[i], i);
+            }
+        }
+        (level.max(0.0), self.n_levels)
+    }
+
+    /// The surface stepped up from `from`: remember it, unless the floor or a remembered level is within the
+    /// return tolerance of it (a creeping blurred edge must not stack near-copies); drops the oldest if full.
+    fn remember_level(&mut self, from: f32, p: &Params) {
+        let known = from <= p.return_tol
+            || self.levels[..self.n_levels.min(LEVELS)]
+                .iter()
+                .any(|l| (l - from).abs() <= p.return_tol);
+        if known {
+            return;
+        }
+        if self.n_levels >= LEVELS {
+            self.levels.copy_within(1.., 0);
+            self.n_levels = LEVELS - 1;
+        }
+        self.levels[self.n_levels] = from;
+        self.n_levels += 1;
     }
 
     /// Start over on a known surface (a reset on the pad): counters are kept.
     pub(crate) fn reset(&mut self, s: f32) {
         self.s = if s.is_finite() { s.max(0.0) } else { 0.0 };
+        self.n_levels = 0;
         self.clear();
     }
 
@@ -264,7 +322,16 @@ impl SurfaceTracker {
                     self.s = level.max(0.0);
                     if self.s <= p.snap {
                         self.s = 0.0;
+                        self.n_levels = 0;
                         self.settle_left = 0;
+                    } else if self.last_step_m < 0.0 {
+                        // The tail of a step down: back on a level the drone came from ends it.
+                        let (back, n) = self.returned_level(level, p);
+                        if n < self.n_levels || back == 0.0 {
+                            self.s = back;
+                            self.n_levels = n;
+                            self.settle_left = 0;
+                        }
                     }
                     self.pop_oldest();
                     self.discarded = self.discarded.saturating_add(1);
@@ -428,6 +495,7 @@ impl SurfaceTracker {
 
     /// Classify a plateau at `level` (module docs), empty the ring and say what the filter must do.
     fn conclude(&mut self, level: f32, p_zz: f32, p: &Params, how: Conclusion) -> Plan {
+        let mut snapped = false;
         let var = self.mean_var();
         let jump = level - self.s;
         let settling = self.settle_left > 0;
@@ -457,26 +525,54 @@ impl SurfaceTracker {
             plan.inflate_vz = level * level / (REANCHOR_TIME_S * REANCHOR_TIME_S);
         } else if (z_known && jump.abs() >= p.step_min) || settling {
             // A step; or, right after one, the rest of it (the height coasted meanwhile, so its grown
-            // uncertainty says nothing about this jump).
-            let new_s = if level.abs() <= p.snap { 0.0 } else { level.max(0.0) };
+            // uncertainty says nothing about this jump). A clear step the other way is a new step, not the
+            // rest of the last one: a pad crossed at 0.5 m/s is left within the settling time.
+            let reverses = z_known && jump.abs() >= p.step_min && jump * self.last_step_m < 0.0;
+            let level_before = self.s;
+            let continues = settling && !reverses;
+            let new_s = if level.abs() <= p.snap {
+                0.0
+            } else if level < self.s && !(continues && self.last_step_m > 0.0) {
+                // A step down (not the tail of a step up settling lower): back to a level it came from?
+                let (back, n) = self.returned_level(level, p);
+                self.n_levels = n;
+                back
+            } else {
+                if !continues && level > self.s {
+                    self.remember_level(self.s, p);
+                }
+                level.max(0.0)
+            };
+            if new_s == 0.0 {
+                self.n_levels = 0;
+            }
             self.last_event = if new_s == 0.0 {
                 SurfaceEvent::StepToFloor
             } else {
                 SurfaceEvent::Step
             };
-            if !settling {
+            if !continues {
                 self.steps = self.steps.saturating_add(1);
                 self.last_step_m = new_s - self.s;
             } else {
                 self.last_step_m += new_s - self.s;
             }
             self.s = new_s;
+            // Snapped onto the floor or back onto a level it came from: what the plateau says beyond that
+            // level is a height error, and re-anchors the height (else the next plateau would say the same
+            // again, and the height would never be corrected).
+            let residual = level - new_s;
+            if (new_s == 0.0 || new_s < level_before) && residual != level - level_before {
+                snapped = true;
+                plan.inflate_var = residual * residual;
+                plan.inflate_vz = residual * residual / (REANCHOR_TIME_S * REANCHOR_TIME_S);
+            }
         } else {
             self.last_event = SurfaceEvent::HeightError;
             plan.inflate_var = jump * jump;
             plan.inflate_vz = jump * jump / (REANCHOR_TIME_S * REANCHOR_TIME_S);
         }
-        let settle = if self.last_event == SurfaceEvent::Step {
+        let settle = if self.last_event == SurfaceEvent::Step && !snapped {
             p.settle
         } else {
             0

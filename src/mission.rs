@@ -18,7 +18,16 @@
 //!   cell marked); the cells whose inflated state changed go to D\* Lite, which repairs its plan with an
 //!   expansion budget per tick; the path is shortened by line of sight, and the drone flies towards its
 //!   first waypoint at cruise speed (slowing into the goal, and into a waypoint where the path turns
-//!   sharply), through [`ReactiveAvoidance`] (repulsion, smoothing, speed clamp near obstacles).
+//!   sharply), through [`ReactiveAvoidance`] (repulsion, smoothing, and a speed clamp on the approach
+//!   towards each ranger's obstacle: flying along a wall is not slowed, flying into one is). The planner
+//!   treats unknown space as free, so a path may graze a box no beam has seen: where the path ahead passes
+//!   within 0.15 m of an *unobserved region* (an unknown cell among unknown or occupied neighbours, see
+//!   [`OccupancyGrid::is_unobserved_region`]), the drone slows (0.2 m/s there, 1 m/s more per metre of
+//!   observed path before it) and, instead of sweeping its heading, turns the front, left or right beam
+//!   (whichever needs the least turn) towards the first such cell until a beam has looked into it. The
+//!   heading slows the drone only when it lags the actual velocity by more than the sweep's amplitude.
+//!   A nominal goal inside the inflated margin of something mapped is replaced by the nearest free cell
+//!   within 0.3 m (the search starts there).
 //! - **No path**: once per leg, plan again with [`MissionConfig::narrow_inflation_radius_m`] and fly at
 //!   [`MissionConfig::narrow_speed_m_s`]; if that fails too, hover and keep mapping (false obstacles clear,
 //!   the plan repairs itself) for [`MissionConfig::no_path_wait_s`]; then land where it is and end with
@@ -409,6 +418,8 @@ const UNOBSERVED_MIN_NEIGHBOURS: u8 = 5;
 const UNOBSERVED_MIN_SPEED_M_S: f32 = 0.2;
 /// Speed allowed per metre of observed path before an unobserved region, 1/s.
 const UNOBSERVED_APPROACH_GAIN: f32 = 1.0;
+/// Largest turn away from the direction of travel to look at an unobserved region, rad.
+const LOOK_MAX_OFFSET_RAD: f32 = 0.8;
 /// Heading sweep while navigating: amplitude, rad, and period, s.
 const SCAN_AMPLITUDE_RAD: f32 = 0.6;
 const SCAN_PERIOD_S: f32 = 2.0;
@@ -1043,7 +1054,7 @@ impl<const CELLS: usize, const QUEUE: usize> Mission<CELLS, QUEUE> {
                 let mut speed = cruise
                     .min(libm::sqrtf(2.0 * 0.8 * to_goal))
                     .min(self.corner_speed(cruise, (x, y), (tx, ty)) + CORNER_APPROACH_GAIN * d);
-                let observed = self.observed_ahead_m((x, y), (tx, ty));
+                let (observed, unobserved_cell) = self.observed_ahead_m((x, y), (tx, ty));
                 speed = speed.min(UNOBSERVED_MIN_SPEED_M_S + UNOBSERVED_APPROACH_GAIN * observed);
                 if d > 0.05 {
                     // Face the direction of travel, sweeping the heading ±SCAN_AMPLITUDE so the front ranger also
@@ -1051,7 +1062,13 @@ impl<const CELLS: usize, const QUEUE: usize> Mission<CELLS, QUEUE> {
                     // four beams until the drone is abeam of it); fly only as fast as the ranger looks ahead.
                     let phase = 2.0 * core::f32::consts::PI * (now as f32 * 1e-6) / SCAN_PERIOD_S;
                     let travel = libm::atan2f(dy, dx);
-                    self.heading = wrap_angle(travel + SCAN_AMPLITUDE_RAD * libm::sinf(phase));
+                    self.heading = match unobserved_cell {
+                        // An unobserved region beside the path ahead: instead of sweeping (whose phase may
+                        // look the other way all along the approach), point the beam that needs the least
+                        // turn (front, left or right) at it, so it is seen before the drone is there.
+                        Some(cell) => Self::look_at_heading(travel, (x, y), cell),
+                        None => wrap_angle(travel + SCAN_AMPLITUDE_RAD * libm::sinf(phase)),
+                    };
                     // The front beam must look where the drone actually goes: judge the heading against the
                     // velocity (which turns smoothly) rather than the new target's direction.
                     let (vx, vy) = (state.velocity_m_s[0], state.velocity_m_s[1]);
@@ -1104,10 +1121,21 @@ impl<const CELLS: usize, const QUEUE: usize> Mission<CELLS, QUEUE> {
     /// the path passes within [`UNOBSERVED_CLEARANCE_M`] of a region no beam has looked into, m (at most
     /// [`UNOBSERVED_LOOKAHEAD_M`]). The planner treats unknown space as free, so a path may graze a box the
     /// four beams have not seen yet; the drone slows there until the sweep has looked.
-    fn observed_ahead_m(&self, here: (f32, f32), target: (f32, f32)) -> f32 {
+    /// Also returns the centre of the unobserved cell found first, if any, for a beam to look at.
+    fn observed_ahead_m(&self, here: (f32, f32), target: (f32, f32)) -> (f32, Option<(f32, f32)>) {
         const STEP_M: f32 = CELL_SIZE_M;
         let reach = libm::ceilf(UNOBSERVED_CLEARANCE_M / CELL_SIZE_M) as i32;
-        let suspicious = |p: (f32, f32)| {
+        // Only what lies ahead matters: regions beside and behind the drone were passed already.
+        let (ux, uy) = {
+            let (dx, dy) = (target.0 - here.0, target.1 - here.1);
+            let d = libm::hypotf(dx, dy);
+            if d > 1e-3 { (dx / d, dy / d) } else { (0.0, 0.0) }
+        };
+        let ahead = |x: i32, y: i32| {
+            let (cx, cy) = self.shape.center_of(Cell::new(x as u16, y as u16));
+            (cx - here.0) * ux + (cy - here.1) * uy >= 0.0
+        };
+        let suspicious = |p: (f32, f32)| -> Option<(f32, f32)> {
             let cx = libm::floorf(p.0 / CELL_SIZE_M) as i32;
             let cy = libm::floorf(p.1 / CELL_SIZE_M) as i32;
             for y in cy.saturating_sub(reach)..=cy.saturating_add(reach) {
@@ -1119,15 +1147,16 @@ impl<const CELLS: usize, const QUEUE: usize> Mission<CELLS, QUEUE> {
                     let dx = (x0 - p.0).max(p.0 - (x0 + CELL_SIZE_M)).max(0.0);
                     let dy = (y0 - p.1).max(p.1 - (y0 + CELL_SIZE_M)).max(0.0);
                     if dx * dx + dy * dy <= UNOBSERVED_CLEARANCE_M * UNOBSERVED_CLEARANCE_M
+                        && ahead(x, y)
                         && self
                             .grid
                             .is_unobserved_region(Cell::new(x as u16, y as u16), UNOBSERVED_MIN_NEIGHBOURS)
                     {
-                        return true;
+                        return Some(self.shape.center_of(Cell::new(x as u16, y as u16)));
                     }
                 }
             }
-            false
+            None
         };
         let corners = core::iter::once(target).chain(self.waypoints.iter().skip(2).map(|c| self.shape.center_of(*c)));
         let mut from = here;
@@ -1142,11 +1171,11 @@ impl<const CELLS: usize, const QUEUE: usize> Mission<CELLS, QUEUE> {
             while offset <= length {
                 let s = travelled + offset;
                 if s > UNOBSERVED_LOOKAHEAD_M {
-                    return UNOBSERVED_LOOKAHEAD_M;
+                    return (UNOBSERVED_LOOKAHEAD_M, None);
                 }
                 let t = if length > 1e-6 { offset / length } else { 0.0 };
-                if suspicious((from.0 + t * (to.0 - from.0), from.1 + t * (to.1 - from.1))) {
-                    return s;
+                if let Some(cell) = suspicious((from.0 + t * (to.0 - from.0), from.1 + t * (to.1 - from.1))) {
+                    return (s, Some(cell));
                 }
                 offset += STEP_M;
             }
@@ -1154,7 +1183,20 @@ impl<const CELLS: usize, const QUEUE: usize> Mission<CELLS, QUEUE> {
             travelled += length;
             from = to;
         }
-        UNOBSERVED_LOOKAHEAD_M
+        (UNOBSERVED_LOOKAHEAD_M, None)
+    }
+
+    /// The heading within [`LOOK_MAX_OFFSET_RAD`] of `travel` that points the front, left or right beam
+    /// (whichever needs the least turn away from `travel`) from `here` at `point`, rad.
+    fn look_at_heading(travel: f32, here: (f32, f32), point: (f32, f32)) -> f32 {
+        let bearing = libm::atan2f(point.1 - here.1, point.0 - here.0);
+        let offset = [0.0, core::f32::consts::FRAC_PI_2, -core::f32::consts::FRAC_PI_2]
+            .into_iter()
+            .map(|beam| wrap_angle(bearing - beam - travel))
+            .fold(core::f32::consts::PI, |best, o| {
+                if libm::fabsf(o) < libm::fabsf(best) { o } else { best }
+            });
+        wrap_angle(travel + offset.clamp(-LOOK_MAX_OFFSET_RAD, LOOK_MAX_OFFSET_RAD))
     }
 
     fn begin_search(&mut self, state: &StateEstimate) -> Setpoint {

@@ -20,8 +20,10 @@
 //!    velocity;
 //! 4. **exponential smoothing** with time constant `τ` (`α = 1 − e^(−dt/τ)`, exact for any `dt`);
 //! 5. a **speed clamp**: the allowed speed falls linearly from the cruise speed at the slow-down distance
-//!    to the minimum speed at `d0`, judged on the nearest valid range. The clamp comes last, so the
-//!    command never exceeds it (up to f32 rounding); the filter's state is the clamped command.
+//!    to the minimum speed at `d0`, judged on the nearest valid range ([`SpeedClamp::Nearest`]), or, per
+//!    ranger, on the speed towards that ranger's obstacle ([`SpeedClamp::TowardsEachRange`]). The clamp
+//!    comes last, so the command never exceeds it (up to f32 rounding); the filter's state is the clamped
+//!    command.
 //!
 //! Non-goals: planning around obstacles (the planner does that on the map), vertical avoidance (the up
 //! ranger is not used), and detecting obstacles the beams miss: four beams see four directions only.
@@ -59,6 +61,21 @@ pub enum AvoidanceMethod {
     /// Virtual force field: `tanh(k·(d0 − d)/d)` per ranger plus damping of the velocity towards
     /// near obstacles.
     VirtualForceField,
+}
+
+/// What the speed clamp (step 5 of the pipeline) limits.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Default)]
+pub enum SpeedClamp {
+    /// The whole speed, by the nearest valid range in any direction (the seed's clamp): a wall beside or
+    /// behind the drone slows it as much as one ahead.
+    #[default]
+    Nearest,
+    /// The speed towards each ranger's obstacle, by that ranger's range: the command is scaled down
+    /// (direction kept) until, for every valid range `d`, its component along that beam is at most
+    /// [`AvoidanceConfig::speed_limit`]`(d)`, and its norm at most the cruise speed. Flying along a wall at
+    /// cruise is then allowed, flying into it is not. Needs the yaw; before a finite yaw was seen it falls
+    /// back to [`SpeedClamp::Nearest`].
+    TowardsEachRange,
 }
 
 /// Tuning of [`ReactiveAvoidance`]. [`Default`] gives the values below; all must be finite.
@@ -100,6 +117,8 @@ pub struct AvoidanceConfig {
     pub slow_down_distance_m: f32,
     /// Ranges above this are "no return", metres. Default 4.0 m: the VL53L1x's long-distance limit.
     pub max_range_m: f32,
+    /// What the speed clamp limits. Default [`SpeedClamp::Nearest`] (the seed's).
+    pub clamp: SpeedClamp,
 }
 
 impl Default for AvoidanceConfig {
@@ -117,6 +136,7 @@ impl Default for AvoidanceConfig {
             min_speed_mps: 0.1,
             slow_down_distance_m: 0.8,
             max_range_m: 4.0,
+            clamp: SpeedClamp::Nearest,
         }
     }
 }
@@ -242,7 +262,8 @@ pub struct AvoidanceCommand {
     pub nearest_m: Option<f32>,
     /// Whether avoidance is engaged (a repulsion or damping acts on the command).
     pub active: bool,
-    /// The speed the clamp allowed this step, m/s.
+    /// The speed the clamp allowed this step, m/s ([`SpeedClamp::TowardsEachRange`]: in the command's
+    /// direction).
     pub speed_limit_mps: f32,
 }
 
@@ -385,8 +406,44 @@ impl ReactiveAvoidance {
             self.last.1 + alpha * (raw.1 - self.last.1),
         );
 
-        let speed_limit_mps = cfg.speed_limit(nearest_m);
-        let out = clamp_speed(smoothed, speed_limit_mps);
+        let (out, speed_limit_mps) = match (cfg.clamp, rotation) {
+            (SpeedClamp::TowardsEachRange, Some((c, s))) => {
+                // The largest scale k ≤ 1 of the smoothed command that keeps its norm within cruise and
+                // its component along every beam with a return within that beam's limit.
+                let smoothed = if smoothed.0.is_finite() && smoothed.1.is_finite() {
+                    smoothed
+                } else {
+                    (0.0, 0.0)
+                };
+                let speed = libm::hypotf(smoothed.0, smoothed.1);
+                let mut k = if speed > cfg.cruise_speed_mps && speed > 0.0 {
+                    cfg.cruise_speed_mps / speed
+                } else {
+                    1.0
+                };
+                for (d, (bx, by)) in valid.iter().zip(BEAMS) {
+                    let Some(d) = d else { continue };
+                    let (ux, uy) = (c * bx - s * by, s * bx + c * by);
+                    let towards = smoothed.0 * ux + smoothed.1 * uy;
+                    let limit = cfg.speed_limit(Some(*d));
+                    if towards > limit {
+                        k = k.min(limit / towards);
+                    }
+                }
+                let out = (smoothed.0 * k, smoothed.1 * k);
+                // The speed this direction was allowed: the command itself when the clamp cut it.
+                let allowed = if k < 1.0 {
+                    libm::hypotf(out.0, out.1)
+                } else {
+                    cfg.cruise_speed_mps
+                };
+                (out, allowed)
+            }
+            _ => {
+                let limit = cfg.speed_limit(nearest_m);
+                (clamp_speed(smoothed, limit), limit)
+            }
+        };
         self.last = out;
 
         AvoidanceCommand {

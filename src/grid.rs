@@ -338,6 +338,38 @@ impl<const CELLS: usize> OccupancyGrid<CELLS> {
             .map_or(0, decode_log_odds)
     }
 
+    /// Whether no evidence lies in a cell: log-odds 0 and not occupied (never crossed nor hit by a beam, or
+    /// its hits and misses cancelled exactly). Cells outside the grid are not unknown (they are the wall).
+    pub fn is_unknown(&self, cell: Cell) -> bool {
+        self.byte(i32::from(cell.x), i32::from(cell.y))
+            .is_some_and(|b| b & OCCUPIED == 0 && decode_log_odds(b) == 0)
+    }
+
+    /// Whether a cell is unknown and at least `min_neighbours` of its eight neighbours are unknown,
+    /// occupied or outside the grid (the wall): the inside or the rim of a region no beam has looked
+    /// into, which may hide an obstacle, as opposed to the one-cell gaps four beams leave between their
+    /// traces in open space (an unknown cell in such a gap has at most two unknown neighbours along it,
+    /// plus the diagonal ones where two gaps meet). O(1).
+    pub fn is_unobserved_region(&self, cell: Cell, min_neighbours: u8) -> bool {
+        if !self.is_unknown(cell) {
+            return false;
+        }
+        let (x, y) = (i32::from(cell.x), i32::from(cell.y));
+        let mut count = 0u8;
+        for dy in -1..=1 {
+            for dx in -1..=1 {
+                if (dx, dy) == (0, 0) {
+                    continue;
+                }
+                let not_free = self
+                    .byte(x + dx, y + dy)
+                    .is_none_or(|b| b & OCCUPIED != 0 || decode_log_odds(b) == 0);
+                count += u8::from(not_free);
+            }
+        }
+        count >= min_neighbours
+    }
+
     /// Folds one range reading into the grid. `from` is the sensor position, `to` the point the beam
     /// reached, both arena-frame metres.
     ///

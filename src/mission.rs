@@ -18,7 +18,16 @@
 //!   cell marked); the cells whose inflated state changed go to D\* Lite, which repairs its plan with an
 //!   expansion budget per tick; the path is shortened by line of sight, and the drone flies towards its
 //!   first waypoint at cruise speed (slowing into the goal, and into a waypoint where the path turns
-//!   sharply), through [`ReactiveAvoidance`] (repulsion, smoothing, speed clamp near obstacles).
+//!   sharply), through [`ReactiveAvoidance`] (repulsion, smoothing, and a speed clamp on the approach
+//!   towards each ranger's obstacle: flying along a wall is not slowed, flying into one is). The planner
+//!   treats unknown space as free, so a path may graze a box no beam has seen: where the path ahead passes
+//!   within 0.15 m of an *unobserved region* (an unknown cell among unknown or occupied neighbours, see
+//!   [`OccupancyGrid::is_unobserved_region`]), the drone slows (0.2 m/s there, 1 m/s more per metre of
+//!   observed path before it) and, instead of sweeping its heading, turns the front, left or right beam
+//!   (whichever needs the least turn) towards the first such cell until a beam has looked into it. The
+//!   heading slows the drone only when it lags the actual velocity by more than the sweep's amplitude.
+//!   A nominal goal inside the inflated margin of something mapped is replaced by the nearest free cell
+//!   within 0.3 m (the search starts there).
 //! - **No path**: once per leg, plan again with [`MissionConfig::narrow_inflation_radius_m`] and fly at
 //!   [`MissionConfig::narrow_speed_m_s`]; if that fails too, hover and keep mapping (false obstacles clear,
 //!   the plan repairs itself) for [`MissionConfig::no_path_wait_s`]; then land where it is and end with
@@ -45,7 +54,7 @@
 
 use heapless::Vec;
 
-use crate::avoidance::{AvoidanceConfig, RangerReadings, ReactiveAvoidance};
+use crate::avoidance::{AvoidanceConfig, RangerReadings, ReactiveAvoidance, SpeedClamp};
 use crate::dstar::{DStarLite, PlanError, PlanStatus};
 use crate::grid::{ChangedCells, OccupancyGrid};
 use crate::map::{CELL_SIZE_M, Cell, GridShape, Traversability};
@@ -290,6 +299,8 @@ impl Default for MissionConfig {
                 danger_distance_m: 0.2,
                 slow_down_distance_m: 0.4,
                 min_speed_mps: 0.2,
+                clamp: SpeedClamp::TowardsEachRange,
+                smoothing_tau_s: 0.1,
                 ..AvoidanceConfig::default()
             },
         }
@@ -411,6 +422,21 @@ const PAD_LOOKOUT_RADIUS_M: f32 = 0.8;
 const CLEARANCE_HORIZON_M: f32 = 0.3;
 /// Sampling step along a search line for the clearance check, m.
 const CLEARANCE_STEP_M: f32 = 0.025;
+/// Look this far along the path for regions no beam has looked into, m.
+const UNOBSERVED_LOOKAHEAD_M: f32 = 0.6;
+/// A path point counts as next to an unobserved region when such a cell lies within this distance, m: the
+/// drone's radius (0.06 m) plus the estimate's drift and tracking error.
+const UNOBSERVED_CLEARANCE_M: f32 = 0.15;
+/// An unknown cell belongs to an unobserved region with at least this many unknown or occupied
+/// neighbours (see [`OccupancyGrid::is_unobserved_region`]).
+const UNOBSERVED_MIN_NEIGHBOURS: u8 = 5;
+/// Speed next to an unobserved region, m/s: slow enough that the sweeping beams look into it before the
+/// drone is there.
+const UNOBSERVED_MIN_SPEED_M_S: f32 = 0.2;
+/// Speed allowed per metre of observed path before an unobserved region, 1/s.
+const UNOBSERVED_APPROACH_GAIN: f32 = 1.0;
+/// Largest turn away from the direction of travel to look at an unobserved region, rad.
+const LOOK_MAX_OFFSET_RAD: f32 = 0.8;
 /// Heading sweep while navigating: amplitude, rad, and period, s.
 const SCAN_AMPLITUDE_RAD: f32 = 0.6;
 const SCAN_PERIOD_S: f32 = 2.0;
@@ -957,8 +983,11 @@ impl<const CELLS: usize, const QUEUE: usize> Mission<CELLS, QUEUE> {
     /// did not finish (keep flying the previous target).
     fn plan(&mut self, state: &StateEstimate) -> Result<Option<(f32, f32)>, ()> {
         let here = self.escape_cell(self.cell_of((state.position_m[0], state.position_m[1])));
-        let goal = self.cell_of(self.leg_target());
-        if self.planner_needs_reset || self.changed.overflowed() {
+        // A nominal goal inside the inflated margin of something mapped (a box beside the pad, a stray
+        // return) would end the leg with no path: plan to the nearest free cell instead; the pad search
+        // starts from there (see [`Self::navigate`]). A goal that moves needs a fresh plan.
+        let goal = self.escape_cell(self.cell_of(self.leg_target()));
+        if self.planner_needs_reset || self.changed.overflowed() || goal != self.planner.goal() {
             if self.planner.reset(self.shape, here, goal).is_err() {
                 return Err(());
             }
@@ -1017,7 +1046,12 @@ impl<const CELLS: usize, const QUEUE: usize> Mission<CELLS, QUEUE> {
         let (x, y) = (state.position_m[0], state.position_m[1]);
         let target_leg = self.leg_target();
         let to_goal = libm::hypotf(target_leg.0 - x, target_leg.1 - y);
-        if to_goal < self.config.goal_tolerance_m {
+        let planned_goal = self.planner.goal();
+        let at_substitute_goal = planned_goal != self.cell_of(target_leg) && {
+            let (gx, gy) = self.shape.center_of(planned_goal);
+            libm::hypotf(gx - x, gy - y) < self.config.goal_tolerance_m
+        };
+        if to_goal < self.config.goal_tolerance_m || (at_substitute_goal && !self.planner_needs_reset) {
             return self.begin_search(state);
         }
         let target = match self.plan(state) {
@@ -1059,15 +1093,32 @@ impl<const CELLS: usize, const QUEUE: usize> Mission<CELLS, QUEUE> {
                 let mut speed = cruise
                     .min(libm::sqrtf(2.0 * 0.8 * to_goal))
                     .min(self.corner_speed(cruise, (x, y), (tx, ty)) + CORNER_APPROACH_GAIN * d);
+                let (observed, unobserved_cell) = self.observed_ahead_m((x, y), (tx, ty));
+                speed = speed.min(UNOBSERVED_MIN_SPEED_M_S + UNOBSERVED_APPROACH_GAIN * observed);
                 if d > 0.05 {
                     // Face the direction of travel, sweeping the heading ±SCAN_AMPLITUDE so the front ranger also
                     // sees obstacles diagonally ahead (a wall's end beside the path is otherwise invisible to
                     // four beams until the drone is abeam of it); fly only as fast as the ranger looks ahead.
                     let phase = 2.0 * core::f32::consts::PI * (now as f32 * 1e-6) / SCAN_PERIOD_S;
                     let travel = libm::atan2f(dy, dx);
-                    self.heading = wrap_angle(travel + SCAN_AMPLITUDE_RAD * libm::sinf(phase));
-                    let misalignment = wrap_angle(travel - state.attitude_rad[2]);
-                    speed *= libm::cosf(misalignment).max(0.0);
+                    self.heading = match unobserved_cell {
+                        // An unobserved region beside the path ahead: instead of sweeping (whose phase may
+                        // look the other way all along the approach), point the beam that needs the least
+                        // turn (front, left or right) at it, so it is seen before the drone is there.
+                        Some(cell) => Self::look_at_heading(travel, (x, y), cell),
+                        None => wrap_angle(travel + SCAN_AMPLITUDE_RAD * libm::sinf(phase)),
+                    };
+                    // The front beam must look where the drone actually goes: judge the heading against the
+                    // velocity (which turns smoothly) rather than the new target's direction.
+                    let (vx, vy) = (state.velocity_m_s[0], state.velocity_m_s[1]);
+                    let moving = if libm::hypotf(vx, vy) > 0.1 {
+                        libm::atan2f(vy, vx)
+                    } else {
+                        travel
+                    };
+                    let misalignment = wrap_angle(moving - state.attitude_rad[2]);
+                    let excess = (libm::fabsf(misalignment) - SCAN_AMPLITUDE_RAD).max(0.0);
+                    speed *= libm::cosf(excess).max(0.0);
                 }
                 if d > 1e-3 {
                     (speed * dx / d, speed * dy / d)
@@ -1103,6 +1154,88 @@ impl<const CELLS: usize, const QUEUE: usize> Mission<CELLS, QUEUE> {
         }
         let cos_turn = ((a.0 * b.0 + a.1 * b.1) / (la * lb)).clamp(0.0, 1.0);
         CORNER_MIN_SPEED_M_S + (cruise - CORNER_MIN_SPEED_M_S).max(0.0) * cos_turn
+    }
+
+    /// How far the drone can fly along its path (from `here` to `target`, then the later waypoints) before
+    /// the path passes within [`UNOBSERVED_CLEARANCE_M`] of a region no beam has looked into, m (at most
+    /// [`UNOBSERVED_LOOKAHEAD_M`]). The planner treats unknown space as free, so a path may graze a box the
+    /// four beams have not seen yet; the drone slows there until the sweep has looked.
+    /// Also returns the centre of the unobserved cell found first, if any, for a beam to look at.
+    fn observed_ahead_m(&self, here: (f32, f32), target: (f32, f32)) -> (f32, Option<(f32, f32)>) {
+        const STEP_M: f32 = CELL_SIZE_M;
+        let reach = libm::ceilf(UNOBSERVED_CLEARANCE_M / CELL_SIZE_M) as i32;
+        // Only what lies ahead matters: regions beside and behind the drone were passed already.
+        let (ux, uy) = {
+            let (dx, dy) = (target.0 - here.0, target.1 - here.1);
+            let d = libm::hypotf(dx, dy);
+            if d > 1e-3 { (dx / d, dy / d) } else { (0.0, 0.0) }
+        };
+        let ahead = |x: i32, y: i32| {
+            let (cx, cy) = self.shape.center_of(Cell::new(x as u16, y as u16));
+            (cx - here.0) * ux + (cy - here.1) * uy >= 0.0
+        };
+        let suspicious = |p: (f32, f32)| -> Option<(f32, f32)> {
+            let cx = libm::floorf(p.0 / CELL_SIZE_M) as i32;
+            let cy = libm::floorf(p.1 / CELL_SIZE_M) as i32;
+            for y in cy.saturating_sub(reach)..=cy.saturating_add(reach) {
+                for x in cx.saturating_sub(reach)..=cx.saturating_add(reach) {
+                    if !self.shape.contains(x, y) {
+                        continue;
+                    }
+                    let (x0, y0) = (x as f32 * CELL_SIZE_M, y as f32 * CELL_SIZE_M);
+                    let dx = (x0 - p.0).max(p.0 - (x0 + CELL_SIZE_M)).max(0.0);
+                    let dy = (y0 - p.1).max(p.1 - (y0 + CELL_SIZE_M)).max(0.0);
+                    if dx * dx + dy * dy <= UNOBSERVED_CLEARANCE_M * UNOBSERVED_CLEARANCE_M
+                        && ahead(x, y)
+                        && self
+                            .grid
+                            .is_unobserved_region(Cell::new(x as u16, y as u16), UNOBSERVED_MIN_NEIGHBOURS)
+                    {
+                        return Some(self.shape.center_of(Cell::new(x as u16, y as u16)));
+                    }
+                }
+            }
+            None
+        };
+        let corners = core::iter::once(target).chain(self.waypoints.iter().skip(2).map(|c| self.shape.center_of(*c)));
+        let mut from = here;
+        let mut travelled = 0.0f32;
+        // Distance along the current segment of the next sample.
+        let mut offset = 0.0f32;
+        for to in corners {
+            let length = libm::hypotf(to.0 - from.0, to.1 - from.1);
+            if !length.is_finite() {
+                break;
+            }
+            while offset <= length {
+                let s = travelled + offset;
+                if s > UNOBSERVED_LOOKAHEAD_M {
+                    return (UNOBSERVED_LOOKAHEAD_M, None);
+                }
+                let t = if length > 1e-6 { offset / length } else { 0.0 };
+                if let Some(cell) = suspicious((from.0 + t * (to.0 - from.0), from.1 + t * (to.1 - from.1))) {
+                    return (s, Some(cell));
+                }
+                offset += STEP_M;
+            }
+            offset -= length;
+            travelled += length;
+            from = to;
+        }
+        (UNOBSERVED_LOOKAHEAD_M, None)
+    }
+
+    /// The heading within [`LOOK_MAX_OFFSET_RAD`] of `travel` that points the front, left or right beam
+    /// (whichever needs the least turn away from `travel`) from `here` at `point`, rad.
+    fn look_at_heading(travel: f32, here: (f32, f32), point: (f32, f32)) -> f32 {
+        let bearing = libm::atan2f(point.1 - here.1, point.0 - here.0);
+        let offset = [0.0, core::f32::consts::FRAC_PI_2, -core::f32::consts::FRAC_PI_2]
+            .into_iter()
+            .map(|beam| wrap_angle(bearing - beam - travel))
+            .fold(core::f32::consts::PI, |best, o| {
+                if libm::fabsf(o) < libm::fabsf(best) { o } else { best }
+            });
+        wrap_angle(travel + offset.clamp(-LOOK_MAX_OFFSET_RAD, LOOK_MAX_OFFSET_RAD))
     }
 
     fn begin_search(&mut self, state: &StateEstimate) -> Setpoint {

@@ -4,6 +4,7 @@ use std::f32::consts::{FRAC_PI_2, PI};
 
 use cfnav::avoidance::{
     AvoidanceCommand, AvoidanceConfig, AvoidanceConfigError, AvoidanceMethod, RangerReadings, ReactiveAvoidance,
+    SpeedClamp,
 };
 use proptest::prelude::*;
 
@@ -264,6 +265,100 @@ fn clamp_applies_to_the_nearest_valid_range() {
         let out = a.step(&RangerReadings::NONE, 0.0, 2.0, 2.0, DT);
         assert!((speed(&out) - cfg.cruise_speed_mps).abs() < 1e-5);
     }
+}
+
+/// Brute-force oracle of [`SpeedClamp::TowardsEachRange`]: the largest scale `k` in [0, 1] (searched on a
+/// 10⁻⁴ grid) for which `k·v` is no faster than cruise and approaches no ranger's obstacle faster than that
+/// ranger's limit. Beam directions come from the yaw written out per ranger (front = yaw, left = yaw + π/2,
+/// back = yaw + π, right = yaw − π/2).
+fn oracle_towards_each_range(cfg: &AvoidanceConfig, ranges: [Option<f32>; 4], yaw: f32, v: (f64, f64)) -> f64 {
+    let offsets = [0.0, PI, FRAC_PI_2, -FRAC_PI_2];
+    let ok = |k: f64| {
+        let (x, y) = (k * v.0, k * v.1);
+        if x.hypot(y) > f64::from(cfg.cruise_speed_mps) + 1e-6 {
+            return false;
+        }
+        ranges.iter().zip(offsets).all(|(r, off)| match r {
+            Some(d) if d.is_finite() && *d >= 0.0 && *d <= cfg.max_range_m => {
+                let a = f64::from(yaw + off);
+                x * a.cos() + y * a.sin() <= f64::from(cfg.speed_limit(Some(*d))) + 1e-6
+            }
+            _ => true,
+        })
+    };
+    (0..=10_000)
+        .rev()
+        .map(|i| f64::from(i) * 1e-4)
+        .find(|k| ok(*k))
+        .unwrap_or(0.0)
+}
+
+/// [`SpeedClamp::TowardsEachRange`] keeps the direction and scales exactly as far down as the brute force
+/// finds necessary: a wall beside the drone no longer slows flight along it, one ahead still does.
+#[test]
+fn towards_each_range_clamp_matches_brute_force() {
+    let cfg = AvoidanceConfig {
+        smoothing_tau_s: 0.0,
+        danger_distance_m: 0.2,
+        slow_down_distance_m: 0.4,
+        min_speed_mps: 0.2,
+        cruise_speed_mps: 0.5,
+        clamp: SpeedClamp::TowardsEachRange,
+        ..AvoidanceConfig::default()
+    };
+    // Along a wall 0.25 m to the left: full cruise (the nearest-range clamp would allow 0.275 m/s).
+    let mut a = avoider(cfg);
+    let out = a.step(&RangerReadings::new(None, None, Some(0.25), None), 0.0, 0.5, 0.0, DT);
+    assert!((out.vx - 0.5).abs() < 1e-6 && out.vy.abs() < 1e-6, "{out:?}");
+    // Into a wall 0.3 m ahead: the limit there (0.35 m/s).
+    let out = a.step(&RangerReadings::new(Some(0.3), None, None, None), 0.0, 0.5, 0.0, DT);
+    assert!((out.vx - 0.35).abs() < 1e-5, "{out:?}");
+
+    let mut rng = 0x2545_f491_4f6c_dd1du64;
+    let mut next = move || {
+        rng ^= rng << 13;
+        rng ^= rng >> 7;
+        rng ^= rng << 17;
+        (rng >> 11) as f64 / (1u64 << 53) as f64
+    };
+    let mut clamped = 0;
+    for _ in 0..3000 {
+        let range = |u: f64, w: f64| (u < 0.7).then_some((0.02 + w * 0.8) as f32);
+        let ranges = [
+            range(next(), next()),
+            range(next(), next()),
+            range(next(), next()),
+            range(next(), next()),
+        ];
+        let yaw = ((next() * 2.0 - 1.0) * std::f64::consts::PI) as f32;
+        let v = ((next() * 2.0 - 1.0) as f32 * 0.8, (next() * 2.0 - 1.0) as f32 * 0.8);
+        // No repulsion: danger distance tiny, so the clamp alone shapes the command.
+        let cfg = AvoidanceConfig {
+            danger_distance_m: 0.01,
+            hysteresis_m: 0.0,
+            ..cfg
+        };
+        let mut a = avoider(cfg);
+        let out = a.step(
+            &RangerReadings::new(ranges[0], ranges[1], ranges[2], ranges[3]),
+            yaw,
+            v.0,
+            v.1,
+            DT,
+        );
+        assert_eq!((out.repulsion_x, out.repulsion_y), (0.0, 0.0), "{ranges:?}");
+        let k = oracle_towards_each_range(&cfg, ranges, yaw, (f64::from(v.0), f64::from(v.1)));
+        let want = (k * f64::from(v.0), k * f64::from(v.1));
+        let context = format!("ranges {ranges:?} yaw {yaw} v {v:?} -> {out:?}, oracle k {k}");
+        // Within the oracle's grid step (10⁻⁴ of |v| ≤ 1.2 m/s) plus f32 rounding.
+        assert!(
+            (f64::from(out.vx) - want.0).abs() < 2e-4 && (f64::from(out.vy) - want.1).abs() < 2e-4,
+            "{context}"
+        );
+        clamped += usize::from(k < 0.999);
+    }
+    // The cases exercise the clamp, not only free flight.
+    assert!(clamped > 1000, "{clamped}");
 }
 
 #[test]

@@ -879,3 +879,100 @@ fn changing_the_inflation_radius_rebuilds_the_layer_and_keeps_the_evidence() {
         }
     }
 }
+
+// ---------------------------------------------------------------------------------------------------------
+// Unknown cells and unobserved regions
+// ---------------------------------------------------------------------------------------------------------
+
+/// `is_unknown` and `is_unobserved_region` against a brute force that knows only the beams' geometry: a
+/// cell is unknown exactly when no beam crossed it (exact segment–square test). Up to two beams with a
+/// return come first and only misses follow, so no touched cell can come back to log-odds 0 (a hit after
+/// at most one miss leaves ≥ 5, which misses never land on 0: 5 → 2 → −1, 8 → 5 …, 16 → 13 … → 1 → −2).
+/// Beams touching a cell only at a corner or edge are redrawn (either answer would be right there).
+#[test]
+fn unknown_cells_and_unobserved_regions_match_brute_force() {
+    let mut rng = SmallRng::seed_from_u64(0x0b5e_12ed);
+    let mut g = grid(14, 9, 2);
+    let shape = g.shape();
+    let (w, h) = (i32::from(shape.width), i32::from(shape.height));
+    let (mut regions, mut lone_unknown) = (0usize, 0usize);
+    for case in 0..400 {
+        assert!(g.reset(shape, 2));
+        let mut changed = Changes::new();
+        let mut touched = vec![false; shape.cells()];
+        let beams = rng.random_range(0..14);
+        let mut shot = 0;
+        while shot < beams {
+            let (a, b) = random_beam(&mut rng, shape);
+            let crossings: Vec<Crossing> = all_cells(shape).map(|c| crossing(a, b, c)).collect();
+            if crossings.contains(&Crossing::Either) {
+                continue;
+            }
+            let hit = shot < 2 && rng.random_range(0..2) == 0;
+            let end = shape.cell_at(b.0, b.1);
+            g.integrate_beam(a, b, hit, &mut changed);
+            for (i, c) in all_cells(shape).enumerate() {
+                touched[i] |= crossings[i] == Crossing::Must || (hit && Some(c) == end);
+            }
+            shot += 1;
+        }
+        let unknown = |x: i32, y: i32| shape.contains(x, y) && !touched[(y * w + x) as usize];
+        for c in all_cells(shape) {
+            let (x, y) = (i32::from(c.x), i32::from(c.y));
+            assert_eq!(g.is_unknown(c), unknown(x, y), "case {case}: {c:?}");
+            let not_free = (-1..=1)
+                .flat_map(|dy| (-1..=1).map(move |dx| (dx, dy)))
+                .filter(|&(dx, dy)| (dx, dy) != (0, 0))
+                .filter(|&(dx, dy)| {
+                    let (nx, ny) = (x + dx, y + dy);
+                    !(0..w).contains(&nx)
+                        || !(0..h).contains(&ny)
+                        || unknown(nx, ny)
+                        || g.is_occupied(Cell::new(nx as u16, ny as u16))
+                })
+                .count() as u8;
+            for min in [0u8, 3, 5, 8, 9] {
+                let want = unknown(x, y) && not_free >= min;
+                assert_eq!(
+                    g.is_unobserved_region(c, min),
+                    want,
+                    "case {case}: {c:?} with {not_free} unknown/occupied/outside neighbours, min {min}"
+                );
+            }
+            regions += usize::from(unknown(x, y) && not_free >= 5);
+            lone_unknown += usize::from(unknown(x, y) && not_free < 5);
+        }
+    }
+    // Both outcomes occur often.
+    assert!(regions > 1000 && lone_unknown > 100, "{regions} {lone_unknown}");
+    // Outside the grid nothing is unknown.
+    assert!(!g.is_unknown(Cell::new(14, 0)) && !g.is_unobserved_region(Cell::new(0, 9), 0));
+}
+
+/// A fan of beams from one point leaves one-cell strips between its traces: those are not unobserved
+/// regions, while the untouched block beyond the fan's end is.
+#[test]
+fn gaps_between_beam_traces_are_not_regions() {
+    let mut g = grid(20, 20, 0);
+    let mut changed = Changes::new();
+    // Horizontal beams along every other row (rows 2, 4, …, 16) from x = 0.05 m to 0.5 m (cells 1 … 9):
+    // rows 3, 5, … between them stay unknown, each such cell with two unknown neighbours in its row and
+    // free cells above and below.
+    for row in (2..=16).step_by(2) {
+        let y = (f32::from(row as u16) + 0.5) * CELL_SIZE_M;
+        g.integrate_beam((0.05 + 0.001, y), (0.5 - 0.001, y), false, &mut changed);
+    }
+    for row in (3..=15).step_by(2) {
+        for x in 2..=8 {
+            let c = Cell::new(x, row);
+            assert!(g.is_unknown(c), "{c:?}");
+            assert!(!g.is_unobserved_region(c, 5), "{c:?} is a gap between traces");
+        }
+    }
+    // Beyond the traces (x ≥ 11) every cell is unknown with unknown neighbours: a region.
+    for y in 1..19 {
+        for x in 11..19 {
+            assert!(g.is_unobserved_region(Cell::new(x, y), 8), "{x} {y}");
+        }
+    }
+}

@@ -299,16 +299,20 @@ fn abort_through_mission_start_0_lands() {
     );
 }
 
-/// The flow deck dies before take-off (the drone lifts off, loses validity a second later and lands) or in
-/// flight: it lands, motors off, without a collision. Known gap: a failure while flying fast past an
-/// obstacle (default world at 10 s, 0.45 m/s next to the cylinder) still slides into it, because the
-/// estimate stops moving before the drone does; that case is listed in BENCHMARKS.md, not asserted here.
-/// The last failure time lies late in the outbound navigation (it reaches the goal at about 19 s); a blind
-/// landing during the pad search can come down on the pad's rim, which the score counts as a collision.
+/// The flow deck dies before take-off (the drone lifts off, loses validity a second later and lands) or at
+/// any time in flight — a sweep of failure times every 2 s over the whole default mission: the drone lands,
+/// motors off, the mission ends `estimator_fault` (or had already completed), and nothing is ever hit in
+/// flight. The known gap, measured here rather than hidden: without flow the horizontal position is
+/// unobserved, so a failure while the drone searches over a pad can bring it down across the pad's rim
+/// (the score counts the body touching the pad's top edge at touchdown as a collision): 2 of these 40
+/// failure times today (8 of 77 in a 1 s sweep, BENCHMARKS.md). The test fails on any other collision, or
+/// if rim touchdowns grow beyond a quarter of the sweep.
 #[test]
 fn flow_deck_failure_lands_safely() {
     let world = World::default_world();
-    for t in [0.5, 5.0, 8.0, 15.0] {
+    let mut rim_touchdowns = 0;
+    let times: Vec<f64> = (0..40).map(|k| 0.5 + 2.0 * f64::from(k)).collect();
+    for &t in &times {
         let r = fly(
             &world,
             Faults {
@@ -316,15 +320,44 @@ fn flow_deck_failure_lands_safely() {
                 ..Faults::default()
             },
         );
-        assert_eq!(
-            (r.outcome, r.reason),
-            ("aborted", Some("estimator_fault")),
-            "at {t} s: {r:?}"
-        );
-        assert_eq!(r.collisions, 0, "at {t} s");
-        assert_eq!(r.landings.len(), 1, "at {t} s");
+        if r.outcome == "completed" {
+            // The mission was over before the failure.
+            assert!(t > 60.0, "at {t} s: {r:?}");
+            continue;
+        }
+        // The mission's own verdict; the score's outcome says `collision` when a rim touchdown happened.
+        let expected = if r.collisions > 0 {
+            "collision"
+        } else {
+            "estimator_fault"
+        };
+        assert_eq!(r.reason, Some(expected), "at {t} s: {r:?}");
+        // Failing on the goal pad, the drone lands there, lifts off for the return (the flow is needed only
+        // above 0.15 m), sees the fault and lands again: one or two landings.
+        assert!(matches!(r.landings.len(), 1 | 2), "at {t} s: {:?}", r.landings);
         assert_eq!(r.mission_state, 204, "at {t} s");
+        for (state, point) in r.collision_states.iter().zip(&r.collision_points) {
+            // Only the blind touchdown (emergency landing, state 40) on a pad's rim: the body at the
+            // pad's top height, its centre within a body radius (6 cm) of the pad's footprint.
+            let on_rim = world.pads.iter().any(|pad| {
+                let dx = ((point[0] - pad.center[0]).abs() - 0.5 * pad.size[0]).max(0.0);
+                let dy = ((point[1] - pad.center[1]).abs() - 0.5 * pad.size[1]).max(0.0);
+                dx.hypot(dy) <= 0.07 && (point[2] - pad.height).abs() < 0.01
+            });
+            assert!(
+                *state == 40 && on_rim,
+                "at {t} s: a collision in state {state} at {point:?}"
+            );
+        }
+        if r.collisions > 0 {
+            rim_touchdowns += 1;
+        }
     }
+    println!(
+        "flow failure at {} times: {rim_touchdowns} touchdowns across a pad's rim, no other collision",
+        times.len()
+    );
+    assert!(rim_touchdowns * 4 <= times.len(), "{rim_touchdowns} rim touchdowns");
 }
 
 #[test]

@@ -268,7 +268,7 @@ impl Default for MissionConfig {
             body_clearance_m: 0.07,
             planner_budget: 4000,
             no_path_wait_s: 5.0,
-            goal_tolerance_m: 0.15,
+            goal_tolerance_m: 0.35,
             search_speed_m_s: 0.5,
             climb_speed_m_s: 0.4,
             descent_speed_m_s: 0.2,

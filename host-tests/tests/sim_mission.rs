@@ -147,16 +147,17 @@ fn fly(world: &World, faults: Faults) -> cfnav_tools::sim::runner::RunReport {
     run(world, &options).expect("runs").report
 }
 
-/// The default world under ten noise seeds: every flight completes without a collision on both pads, the
+/// The default world under forty noise seeds: every flight completes without a collision on both pads, the
 /// landings meet the accuracy goal as a distribution (median ≤ 3 cm, 95 % ≤ 6 cm; one landing is one
-/// draw of the flow-only drift, so a single landing against the p95 bound would fail one run in ten), and the
-/// estimator stays within its stated bounds.
+/// draw of the flow-only drift, so a single landing against the p95 bound would fail one run in ten, and
+/// the median of twenty landings still wanders by ±0.4 cm), and the estimator stays within its stated
+/// bounds.
 #[test]
 fn default_world_completes_and_the_estimator_stays_close_to_the_truth() {
     let world = World::default_world();
     let mut errors = Vec::new();
     let mut rms = Vec::new();
-    for seed in 1..=10 {
+    for seed in 1..=40 {
         let mut options = RunOptions::for_world(&world);
         options.seed = seed;
         let r = run(&world, &options).expect("runs").report;
@@ -188,21 +189,21 @@ fn default_world_completes_and_the_estimator_stays_close_to_the_truth() {
         );
     }
     rms.sort_by(f32::total_cmp);
-    let median_rms = 0.5 * (rms[4] + rms[5]);
+    let median_rms = 0.5 * (rms[19] + rms[20]);
     println!(
-        "default world, ten seeds: median RMS estimate error {:.1} cm",
+        "default world, forty seeds: median RMS estimate error {:.1} cm",
         median_rms * 100.0
     );
     assert!(median_rms < 0.1, "median RMS estimate error {median_rms} m");
     errors.sort_by(f32::total_cmp);
-    let median = 0.5 * (errors[9] + errors[10]);
+    let median = 0.5 * (errors[39] + errors[40]);
     let within_6_cm = errors.iter().filter(|e| **e <= 0.06).count();
     println!(
-        "default world, 20 landings: median {:.1} cm, {within_6_cm} of 20 within 6 cm",
+        "default world, 80 landings: median {:.1} cm, {within_6_cm} of 80 within 6 cm",
         median * 100.0
     );
     assert!(median <= 0.03, "median landing error {median} m");
-    assert!(within_6_cm >= 19, "landing errors {errors:?}");
+    assert!(within_6_cm >= 76, "landing errors {errors:?}");
 }
 
 /// Flights whose pad searches once left the estimator's surface a pad's height too high (each crossing's

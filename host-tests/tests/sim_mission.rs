@@ -338,12 +338,12 @@ fn flow_deck_failure_lands_safely() {
         assert!(matches!(r.landings.len(), 1 | 2), "at {t} s: {:?}", r.landings);
         assert_eq!(r.mission_state, 204, "at {t} s");
         for (state, point) in r.collision_states.iter().zip(&r.collision_points) {
-            // Only the blind touchdown (emergency landing, state 40) on a pad's rim: the body at the
-            // pad's top height, its centre within a body radius (6 cm) of the pad's footprint.
+            // Only the blind touchdown (emergency landing, state 40) across a pad's rim: the body no
+            // higher than the pad's top, its centre within a body radius (6 cm) of the pad's footprint.
             let on_rim = world.pads.iter().any(|pad| {
                 let dx = ((point[0] - pad.center[0]).abs() - 0.5 * pad.size[0]).max(0.0);
                 let dy = ((point[1] - pad.center[1]).abs() - 0.5 * pad.size[1]).max(0.0);
-                dx.hypot(dy) <= 0.07 && (point[2] - pad.height).abs() < 0.01
+                dx.hypot(dy) <= 0.07 && point[2] <= pad.height + 0.01
             });
             assert!(
                 *state == 40 && on_rim,

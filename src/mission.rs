@@ -60,7 +60,7 @@ use crate::grid::{ChangedCells, OccupancyGrid};
 use crate::map::{CELL_SIZE_M, Cell, GridShape, Traversability};
 use crate::pad::{PadConfig, PadDetector};
 use crate::path::{extract_path, simplify};
-use crate::sweep::{ArenaBounds, LawnmowerSweep, SweepConfig};
+use crate::sweep::{ArenaBounds, LawnmowerSweep, SweepAxis, SweepConfig};
 use crate::types::{Micros, MultiRangerSample, RangeReading, Setpoint, StateEstimate, body_to_arena, wrap_angle};
 
 /// The `mission.state` codes (interfaces.md §5): 0 idle, 1..99 phases, 100 completed, ≥ 200 ended without
@@ -1242,7 +1242,18 @@ impl<const CELLS: usize, const QUEUE: usize> Mission<CELLS, QUEUE> {
         let centre = self.leg_target();
         let arena = ArenaBounds::new(self.params.arena_m.0, self.params.arena_m.1, 0.15);
         let here = (state.position_m[0], state.position_m[1]);
-        self.sweep = LawnmowerSweep::new(centre, here, &self.config.sweep, &arena).ok();
+        // The first pass's lines run along the arrival direction: its middle line, through the nominal
+        // point, then starts just behind the drone instead of off to its side.
+        let mut sweep = self.config.sweep;
+        let (vx, vy) = (state.velocity_m_s[0], state.velocity_m_s[1]);
+        if libm::hypotf(vx, vy) > 0.1 {
+            sweep.axis = if libm::fabsf(vx) >= libm::fabsf(vy) {
+                SweepAxis::AlongX
+            } else {
+                SweepAxis::AlongY
+            };
+        }
+        self.sweep = LawnmowerSweep::new(centre, here, &sweep, &arena).ok();
         // The detector keeps what it saw on the approach (it was reset when the leg began).
         let search = Search::Coarse {
             step: 0,

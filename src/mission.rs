@@ -33,7 +33,8 @@
 //!   the plan repairs itself) for [`MissionConfig::no_path_wait_s`]; then land where it is and end with
 //!   [`MissionState::NoPath`].
 //! - **Search** (the detector already listens on the last 0.8 m of navigation; every search line stops
-//!   0.18 m short of mapped obstacles and the arena walls): a coarse lawnmower pass around the nominal goal
+//!   0.18 m short of mapped obstacles and the arena walls; navigation hands over 0.35 m before the nominal
+//!   goal): a coarse lawnmower pass around the nominal goal, its first lines along the arrival direction,
 //!   until the [`PadDetector`] has a first crossing; then short refinement stages centred on the latest
 //!   estimate — lines across the first crossing (which fix the other coordinate), then lines along it,
 //!   four rounds in all with a fresh detector every round (the estimate drifts) — until the detector

@@ -1364,7 +1364,7 @@ impl<const CELLS: usize, const QUEUE: usize> Mission<CELLS, QUEUE> {
                         end: 0,
                         centre,
                         first_along_x: libm::fabsf(dx) >= libm::fabsf(dy),
-                        crossings_before: self.pad.crossings().len().min(usize::from(u8::MAX)) as u8,
+                        crossings_before: self.crossing_count(),
                     };
                     self.phase = Phase::Search(refine);
                     return self.search(refine, state, _dt_s);
@@ -1430,7 +1430,7 @@ impl<const CELLS: usize, const QUEUE: usize> Mission<CELLS, QUEUE> {
                 let (first, second) = if line % 2 == 0 { (a, b) } else { (b, a) };
                 let wp = if end == 0 { first } else { second };
                 let (sp, reached) = self.fly_to(state, wp);
-                let crossings_now = self.pad.crossings().len().min(usize::from(u8::MAX)) as u8;
+                let crossings_now = self.crossing_count();
                 // A line has done its job once it gave a crossing: its remaining length only costs time.
                 let line_done = end == 1 && (reached || crossings_now > crossings_before);
                 let next = if !reached && !line_done {
@@ -1476,13 +1476,18 @@ impl<const CELLS: usize, const QUEUE: usize> Mission<CELLS, QUEUE> {
                         end: 0,
                         centre: c,
                         first_along_x,
-                        crossings_before: self.pad.crossings().len().min(usize::from(u8::MAX)) as u8,
+                        crossings_before: self.crossing_count(),
                     }
                 };
                 self.phase = Phase::Search(next);
                 sp
             }
         }
+    }
+
+    /// Crossings the detector holds (saturating at 255): a line that adds one has done its job.
+    fn crossing_count(&self) -> u8 {
+        u8::try_from(self.pad.crossings().len()).unwrap_or(u8::MAX)
     }
 
     /// Inlier crossings the detector holds that run along x (`along_x`) or along y.

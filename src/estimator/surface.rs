@@ -495,7 +495,7 @@ impl SurfaceTracker {
 
     /// Classify a plateau at `level` (module docs), empty the ring and say what the filter must do.
     fn conclude(&mut self, level: f32, p_zz: f32, p: &Params, how: Conclusion) -> Plan {
-        let mut snapped = false;
+        let mut stepped_down = false;
         let var = self.mean_var();
         let jump = level - self.s;
         let settling = self.settle_left > 0;
@@ -558,12 +558,14 @@ impl SurfaceTracker {
                 self.last_step_m += new_s - self.s;
             }
             self.s = new_s;
-            // Snapped onto the floor or back onto a level it came from: what the plateau says beyond that
-            // level is a height error, and re-anchors the height (else the next plateau would say the same
-            // again, and the height would never be corrected).
+            // A step down (onto the floor, back onto a level it came from, or onto a new lower level) is
+            // complete at once: no settling tail follows it. When it snapped onto a known level, what the
+            // plateau says beyond that level is a height error and re-anchors the height (else the next
+            // plateau would say the same again and the height would never be corrected); onto a new level
+            // the residual is zero.
             let residual = level - new_s;
-            if (new_s == 0.0 || new_s < level_before) && residual != level - level_before {
-                snapped = true;
+            if new_s != level_before && (new_s == 0.0 || new_s < level_before) {
+                stepped_down = true;
                 plan.inflate_var = residual * residual;
                 plan.inflate_vz = residual * residual / (REANCHOR_TIME_S * REANCHOR_TIME_S);
             }
@@ -572,7 +574,7 @@ impl SurfaceTracker {
             plan.inflate_var = jump * jump;
             plan.inflate_vz = jump * jump / (REANCHOR_TIME_S * REANCHOR_TIME_S);
         }
-        let settle = if self.last_event == SurfaceEvent::Step && !snapped {
+        let settle = if self.last_event == SurfaceEvent::Step && !stepped_down {
             p.settle
         } else {
             0

@@ -34,17 +34,21 @@
 //!   [`MissionState::NoPath`].
 //! - **Search** (the detector already listens on the last 0.8 m of navigation; every search line stops
 //!   0.18 m short of mapped obstacles and the arena walls; navigation hands over 0.35 m before the nominal
-//!   goal): a coarse lawnmower pass around the nominal goal, its first lines along the arrival direction,
-//!   until the [`PadDetector`] has a first crossing; then short refinement stages centred on the latest
-//!   estimate — lines across the first crossing (which fix the other coordinate), then lines along it,
-//!   four rounds in all with a fresh detector every round (the estimate drifts) — until the detector
-//!   locks. A line ends as soon as it gave a crossing (its rest only costs time), and in the first round a
-//!   stage ends once its direction has two inlier crossings (two across plus the first crossing and one
-//!   along can already lock); later rounds fly all three lines of a stage. If the pattern ends without a
+//!   goal): a coarse lawnmower pass around the nominal goal, its first lines along the arrival direction
+//!   (a drone already on that line flies on along it instead of turning back to its start), until the
+//!   [`PadDetector`] has a first crossing; then short refinement stages centred on the latest estimate —
+//!   lines across the first crossing (which fix the other coordinate), then lines along it, four rounds
+//!   in all with a fresh detector every round (the estimate drifts) — until the detector locks (three
+//!   inlier crossings covering both directions: usually the first crossing and two lines across it). A
+//!   line ends as soon as it gave a crossing (its rest only costs time), and in the first round a stage
+//!   ends once its direction has two inlier crossings; later rounds fly all three lines of a stage.
+//!   If the pattern ends without a
 //!   lock the drone lands on the best estimate (or the nominal point) and the mission ends with
 //!   [`MissionState::PadNotFound`] after flying the rest of the round trip.
+//! - **Take-off**: climb at [`MissionConfig::climb_speed_m_s`]; navigation takes over 0.1 m above the
+//!   minimum height, and the rest of the climb overlaps the first metres of travel.
 //! - **Land**: fly back over the pad centre (a velocity profile down to 6 cm from it, then position hold),
-//!   hover until settled, descend at
+//!   until within [`MissionConfig::settle_tolerance_m`] and slow, descend at
 //!   [`MissionConfig::high_descent_speed_m_s`] down to 0.2 m above the surface and slower below it (the
 //!   flow-only position drifts ≈ 1 cm/√s, so the time from the last crossing to touchdown is landing
 //!   error); the supervisor detects the touchdown and stops the motors, which the mission sees as `landed`.
@@ -235,12 +239,13 @@ pub struct MissionConfig {
     pub search_speed_m_s: f32,
     /// Climb rate for take-off, m/s.
     pub climb_speed_m_s: f32,
-    /// Descent rate for landing in the last 0.2 m above the surface, m/s (positive number; half of it in the
-    /// last 8 cm).
+    /// Descent rate for landing in the last 0.2 m above the surface, m/s (positive number; three times it
+    /// in the last 4 cm, so the touchdown is detected without a hover in ground contact).
     pub descent_speed_m_s: f32,
     /// Descent rate for landing higher than 0.2 m above the surface, m/s (at least `descent_speed_m_s`).
     pub high_descent_speed_m_s: f32,
-    /// Settle over the pad this long before descending, s.
+    /// Settle over the pad this long before descending, s (0: descend as soon as within the tolerance and
+    /// slower than 5 cm/s; the descent's position hold finishes the centring above 0.2 m).
     pub settle_s: f32,
     /// Horizontal error to the pad centre accepted before descending, m.
     pub settle_tolerance_m: f32,
@@ -274,8 +279,8 @@ impl Default for MissionConfig {
             climb_speed_m_s: 0.4,
             descent_speed_m_s: 0.2,
             high_descent_speed_m_s: 0.4,
-            settle_s: 0.3,
-            settle_tolerance_m: 0.03,
+            settle_s: 0.0,
+            settle_tolerance_m: 0.05,
             pause_s: 2.0,
             sweep: SweepConfig {
                 size_x_m: 1.0,
@@ -286,11 +291,13 @@ impl Default for MissionConfig {
             },
             refine_line_m: 0.5,
             refine_offset_m: 0.08,
-            // Two inlier crossings per direction (8 edges) lock: the refinement flies three lines each way,
-            // and on the simulator's drifting estimate waiting for six inliers (the detector's default 12
-            // edges) mostly ran the pattern out; locks at 8 land as accurately (see BENCHMARKS.md).
+            // Three inlier crossings (6 edges) covering both directions lock: the first crossing and the two
+            // lines across it. Waiting for a second crossing along (8 edges) cost ~2 s per pad and landed no
+            // more accurately: the flow-only estimate drifts ≈ 1 cm/√s, so the longer search loses what the
+            // extra crossing gains (600 worlds: median 2.53 cm, p95 5.49 cm either way, BENCHMARKS.md §5).
             pad: PadConfig {
-                min_edges: 8,
+                min_edges: 6,
+                min_crossings_per_direction: 1,
                 fit_tolerance_m: 0.08,
                 ..PadConfig::default()
             },
@@ -411,6 +418,11 @@ const APPROACH_HOLD_RADIUS_M: f32 = 0.06;
 /// Search lines stop this far from mapped obstacles and arena walls, m: the drone's radius (0.06 m), the
 /// estimate's drift over a search (≈ 5 cm) and tracking overshoot at a line's end.
 const SEARCH_CLEARANCE_M: f32 = 0.18;
+/// Take-off hands over to navigation this far above [`MIN_HEIGHT_M`] (or 5 cm below the cruise height if that
+/// is lower), m.
+const TAKEOFF_HANDOVER_MARGIN_M: f32 = 0.1;
+/// A drone this close to a coarse line, between its ends, flies on along it rather than back to its start, m.
+const ON_LINE_TOLERANCE_M: f32 = 0.1;
 /// Speed at a waypoint where the path turns by 90° or more, m/s.
 const CORNER_MIN_SPEED_M_S: f32 = 0.15;
 /// Speed allowed per metre of distance before a waypoint, on top of its corner speed, 1/s.
@@ -707,7 +719,9 @@ impl<const CELLS: usize, const QUEUE: usize> Mission<CELLS, QUEUE> {
                 self.begin_leg(now, state, Leg::Outbound)
             }
             Phase::TakeOff { x: tx, y: ty, z_target } => {
-                if z >= self.params.height_m - 0.05 {
+                // Navigation takes over once the drone is safely above the minimum height: its setpoints
+                // carry the cruise height, so the last part of the climb overlaps the first metres of travel.
+                if z >= (self.params.height_m - 0.05).min(MIN_HEIGHT_M + TAKEOFF_HANDOVER_MARGIN_M) {
                     self.phase = Phase::Navigate;
                     self.avoidance.reset();
                     return self.navigate(now, state, dt_s);
@@ -871,8 +885,6 @@ impl<const CELLS: usize, const QUEUE: usize> Mission<CELLS, QUEUE> {
         let d = self.config.descent_speed_m_s;
         if above < 0.04 {
             3.0 * d
-        } else if above < 0.08 {
-            0.5 * d
         } else if above < 0.2 {
             d
         } else {
@@ -1380,6 +1392,15 @@ impl<const CELLS: usize, const QUEUE: usize> Mission<CELLS, QUEUE> {
                     reverse
                 };
                 let (first, second) = if reverse { (b, a) } else { (a, b) };
+                let here = (state.position_m[0], state.position_m[1]);
+                // Already on the line between its ends (the first line runs along the arrival, through the
+                // nominal point, and navigation hands over short of it): fly on to its far end instead of
+                // turning back to its start; the stretch behind was covered by the detector on the approach.
+                let step = if step % 2 == 0 && Self::lies_on_segment(here, first, second, ON_LINE_TOLERANCE_M) {
+                    step + 1
+                } else {
+                    step
+                };
                 let wp = if step % 2 == 0 { first } else { second };
                 let (sp, reached) = self.fly_to(state, wp);
                 self.phase = Phase::Search(Search::Coarse {
@@ -1483,6 +1504,20 @@ impl<const CELLS: usize, const QUEUE: usize> Mission<CELLS, QUEUE> {
                 sp
             }
         }
+    }
+
+    /// Whether `p` lies within `tolerance` of the segment `a → b`, between its ends.
+    fn lies_on_segment(p: (f32, f32), a: (f32, f32), b: (f32, f32), tolerance: f32) -> bool {
+        let (ux, uy) = (b.0 - a.0, b.1 - a.1);
+        let length = libm::hypotf(ux, uy);
+        if !(length > 1e-3) {
+            return false;
+        }
+        let (ux, uy) = (ux / length, uy / length);
+        let (px, py) = (p.0 - a.0, p.1 - a.1);
+        let along = px * ux + py * uy;
+        let across = libm::fabsf(px * uy - py * ux);
+        (0.0..length).contains(&along) && across <= tolerance
     }
 
     /// Crossings the detector holds (saturating at 255): a line that adds one has done its job.

@@ -1510,7 +1510,8 @@ impl<const CELLS: usize, const QUEUE: usize> Mission<CELLS, QUEUE> {
     fn lies_on_segment(p: (f32, f32), a: (f32, f32), b: (f32, f32), tolerance: f32) -> bool {
         let (ux, uy) = (b.0 - a.0, b.1 - a.1);
         let length = libm::hypotf(ux, uy);
-        if !(length > 1e-3) {
+        // Also false for a NaN length.
+        if length.is_nan() || length <= 1e-3 {
             return false;
         }
         let (ux, uy) = (ux / length, uy / length);

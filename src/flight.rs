@@ -22,7 +22,7 @@
 //! | [`FlightCore::on_imu`] | 1 kHz (gyro data-ready) | estimator prediction, supervisor, controller → motor duties |
 //! | [`FlightCore::on_flow`] | 100 Hz | estimator flow update |
 //! | [`FlightCore::on_zrange`] | 40 Hz | estimator height update, pad detector |
-//! | [`FlightCore::on_multiranger`] | 10 Hz | mapping, avoidance input |
+//! | [`FlightCore::on_multiranger`] | 10 Hz | wall anchors while holding a place, mapping, avoidance input |
 //! | [`FlightCore::on_battery`] | 100 Hz | battery voltage |
 //! | [`FlightCore::mission_tick`] | 50 Hz | mission state machine → setpoint (bounded planner slice) |
 //!
@@ -45,6 +45,10 @@ use crate::supervisor::{
 use crate::types::{
     FlowSample, ImuSample, Micros, MotorDuty, MultiRangerSample, RangeReading, Setpoint, StateEstimate,
 };
+
+/// Wall anchors are used only while the vertical speed is below this, m/s: a climbing or descending beam
+/// passes the tops of boxes, and its range jumps.
+const HOLD_MAX_CLIMB_M_S: f32 = 0.15;
 
 /// How long commander setpoints keep the idle mission from writing its own (the supervisor's 2 s shutdown
 /// timeout, `crazyflie-hardware.md` §10.1), µs.
@@ -206,6 +210,20 @@ impl Stabilizer {
     pub fn on_zrange(&mut self, range: RangeReading) -> StateEstimate {
         self.estimator.on_zrange(range);
         self.estimator.state()
+    }
+
+    /// 10 Hz: the Multi-ranger's beams. While the commander holds the drone at a place (a position setpoint
+    /// in flight, not climbing or descending) the estimator ties the position to the walls the beams saw
+    /// when the hold began (module `estimator::wall_hold`): hovering, the flow-only estimate would wander
+    /// ≈ 1 cm/√s. The mission's holds (over a pad before landing) last a second or two, and its landings
+    /// measured no better with the anchors (BENCHMARKS.md §5), so a running mission does not use them.
+    pub fn on_multiranger(&mut self, sample: &MultiRangerSample) {
+        let vz = self.estimator.state().velocity_m_s[2];
+        let hold = self.last_supervisor.flying
+            && self.commander_time.is_some()
+            && vz.abs() < HOLD_MAX_CLIMB_M_S
+            && matches!(self.setpoint, Setpoint::Position { .. });
+        self.estimator.on_multiranger(sample, hold);
     }
 
     /// 100 Hz: the battery voltage reported by the power controller, V. Non-finite readings are ignored.
@@ -426,6 +444,7 @@ impl<const CELLS: usize, const QUEUE: usize> FlightCore<CELLS, QUEUE> {
 
     /// 10 Hz: the Multi-ranger's five beams.
     pub fn on_multiranger(&mut self, sample: &MultiRangerSample) {
+        self.stabilizer.on_multiranger(sample);
         let estimate = self.stabilizer.estimate();
         self.navigator.on_multiranger(sample, &estimate);
     }

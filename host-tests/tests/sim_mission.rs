@@ -9,7 +9,16 @@ use cfnav_tools::sim::world::World;
 /// Fly commander setpoints (a function of time) on the default world's start, through the simulator's
 /// lockstep drone, and return the truth trace (t, position) sampled every 10 ms.
 fn fly_commander(seconds: f64, seed: u64, setpoint: impl Fn(f64) -> Setpoint) -> Vec<(f64, [f32; 3])> {
-    let world = World::default_world();
+    fly_commander_in(&World::default_world(), seconds, seed, setpoint)
+}
+
+fn fly_commander_in(
+    world: &World,
+    seconds: f64,
+    seed: u64,
+    setpoint: impl Fn(f64) -> Setpoint,
+) -> Vec<(f64, [f32; 3])> {
+    let world = world.clone();
     let mut drone = SimDrone::new(&world, seed, &Faults::default()).unwrap();
     let mut trace = Vec::new();
     for tick in 0..(seconds * 1000.0) as u64 {
@@ -34,11 +43,10 @@ fn window(trace: &[(f64, [f32; 3])], from: f64, to: f64) -> Vec<[f32; 3]> {
 }
 
 /// The worst per-axis deviation from the mean position over 10 s of hover, and the mean.
-fn hover_deviation(seed: u64) -> ([f32; 3], [f32; 3]) {
-    let world = World::default_world();
+fn hover_deviation(world: &World, seed: u64) -> ([f32; 3], [f32; 3]) {
     let (x0, y0) = (world.mission.start[0], world.mission.start[1]);
     // Stop for 1.5 s (calibration, thrust lock), then hover at 0.5 m above the take-off surface.
-    let trace = fly_commander(16.0, seed, |t| {
+    let trace = fly_commander_in(world, 16.0, seed, |t| {
         if t < 1.5 {
             Setpoint::Stop
         } else {
@@ -57,18 +65,17 @@ fn hover_deviation(seed: u64) -> ([f32; 3], [f32; 3]) {
     (worst, mean)
 }
 
-/// The goal is ±3 cm on each axis for 10 s. Flow-only position drifts as a random walk (the simulated flow
-/// has 1 count of noise per reading, about 1 cm/√s over 10 s), and today only some seeds stay within 3 cm.
-/// This asserts the distribution measured now over ten seeds — height always within ±1 cm, the median
-/// seed's horizontal worst case within ±4.5 cm (3.9 today), no seed beyond ±6 cm — so it cannot get worse unnoticed; the
-/// per-seed figures are in BENCHMARKS.md and the gap to the goal is an open item.
+/// The goal: ±3 cm on each axis for 10 s, with every sensor's noise. Hovering at the default world's start
+/// the Multi-ranger sees the arena's walls 0.6–1.7 m away, and the estimator's wall anchors hold the
+/// position against them (flow alone wanders ≈ 1 cm/√s: see the open-floor test below). Every one of ten
+/// seeds must stay within ±3 cm, and the height within ±1 cm.
 #[test]
 fn hover_holds_within_3_cm_for_10_s_with_sensor_noise() {
     let world = World::default_world();
     let (x0, y0) = (world.mission.start[0], world.mission.start[1]);
     let mut horizontal = Vec::new();
     for seed in 1..=10 {
-        let (worst, mean) = hover_deviation(seed);
+        let (worst, mean) = hover_deviation(&world, seed);
         println!(
             "hover seed {seed}: worst deviation from the mean over 10 s, x/y/z: {:.1} / {:.1} / {:.1} mm",
             worst[0] * 1e3,
@@ -77,7 +84,7 @@ fn hover_holds_within_3_cm_for_10_s_with_sensor_noise() {
         );
         assert!(worst[2] <= 0.01, "seed {seed}: height wandered {} m", worst[2]);
         assert!(
-            worst[0].max(worst[1]) <= 0.06,
+            worst[0].max(worst[1]) <= 0.03,
             "seed {seed}: hover wandered {worst:?} m"
         );
         // It hovers where it was told (the estimate's frame starts at the start point).
@@ -88,9 +95,95 @@ fn hover_holds_within_3_cm_for_10_s_with_sensor_noise() {
         horizontal.push(worst[0].max(worst[1]));
     }
     horizontal.sort_by(f32::total_cmp);
+    println!(
+        "hover by walls: median worst {:.1} mm, worst {:.1} mm",
+        horizontal[5] * 1e3,
+        horizontal[9] * 1e3
+    );
+}
+
+/// The wall anchors are the commander's: a hover fuses wall ranges, a running mission (whose holds over a
+/// pad are short, and whose landings measured no better with them) never does.
+#[test]
+fn wall_anchors_serve_the_commanders_hover_not_the_mission() {
+    let world = World::default_world();
+    let (x0, y0) = (world.mission.start[0], world.mission.start[1]);
+    let mut hover = SimDrone::new(&world, 3, &Faults::default()).unwrap();
+    for tick in 0..8000u64 {
+        if tick.is_multiple_of(20) {
+            let setpoint = if tick < 1500 {
+                Setpoint::Stop
+            } else {
+                Setpoint::Position {
+                    x_m: x0,
+                    y_m: y0,
+                    z_m: 0.5,
+                    yaw_rad: 0.0,
+                }
+            };
+            hover.core.commander_setpoint(setpoint, tick * 1000);
+        }
+        hover.step(&world);
+    }
+    let d = hover.core.estimator().diagnostics();
+    println!(
+        "hover: {} wall ranges fused, {} rejected",
+        d.wall_fused, d.wall_rejected
+    );
+    // Four beams at 10 Hz for the ~5 s of still hover after the climb.
+    assert!(d.wall_fused > 100, "{d:?}");
+
+    let mut mission = SimDrone::new(&world, 3, &Faults::default()).unwrap();
+    let params = cfnav_tools::sim::runner::mission_params(&world);
+    for tick in 0..40_000u64 {
+        if tick == 1000 {
+            mission.core.start_mission(params).expect("starts");
+        }
+        mission.step(&world);
+    }
+    let d = mission.core.estimator().diagnostics();
+    assert_eq!((d.wall_fused, d.wall_rejected), (0, 0), "{d:?}");
+}
+
+/// The same hover in the middle of a 12 × 12 m hall, every wall beyond the Multi-ranger's 4 m: only the
+/// flow observes the position, and the simulated flow noise (1 count per reading) makes it a random walk of
+/// ≈ 1 cm/√s, which the controller follows (it holds the *estimate* within ~1 cm). This is the open-floor
+/// limit, asserted as the distribution measured (median seed within ±4.5 cm, none beyond ±6 cm) so that it
+/// cannot get worse unnoticed; with half the flow noise it halves (BENCHMARKS.md §5).
+#[test]
+fn hover_on_open_floor_drifts_with_the_flow_noise() {
+    let mut world = World::default_world();
+    world.arena.size = [12.0, 12.0];
+    world.mission.start = [6.0, 6.0];
+    world.mission.goal = [7.0, 6.0];
+    world.boxes.clear();
+    world.cylinders.clear();
+    world.pads.truncate(1);
+    world.pads[0].center = [6.0, 6.0];
+    let mut horizontal = Vec::new();
+    for seed in 1..=10 {
+        let (worst, mean) = hover_deviation(&world, seed);
+        println!(
+            "open-floor hover seed {seed}: worst deviation from the mean over 10 s, x/y/z: {:.1} / {:.1} / {:.1} mm",
+            worst[0] * 1e3,
+            worst[1] * 1e3,
+            worst[2] * 1e3
+        );
+        assert!(worst[2] <= 0.01, "seed {seed}: height wandered {} m", worst[2]);
+        assert!(
+            worst[0].max(worst[1]) <= 0.06,
+            "seed {seed}: hover wandered {worst:?} m"
+        );
+        assert!(
+            (mean[0] - 6.0).abs() < 0.1 && (mean[1] - 6.0).abs() < 0.1,
+            "hover at {mean:?}"
+        );
+        horizontal.push(worst[0].max(worst[1]));
+    }
+    horizontal.sort_by(f32::total_cmp);
     let within = horizontal.iter().filter(|w| **w <= 0.03).count();
     println!(
-        "hover: {within} of 10 seeds within ±3 cm; median worst {:.1} mm",
+        "open-floor hover: {within} of 10 seeds within ±3 cm; median worst {:.1} mm",
         horizontal[5] * 1e3
     );
     assert!(horizontal[5] <= 0.045, "median seed {} m", horizontal[5]);

@@ -65,6 +65,7 @@ fn drain_inputs(stab: &mut Stabilizer) {
                 // The mission drains this every 20 ms; if it is full the pad detector loses one reading.
                 let _ = NAV_INPUTS.try_send(NavInput::ZRange(range, estimate));
             }
+            FastInput::MultiRanger(sample) => stab.on_multiranger(&sample),
             FastInput::Battery(volts) => stab.on_battery(volts),
             FastInput::Mission(command) => stab.apply(command),
             FastInput::Commander(setpoint, time) => stab.commander_setpoint(setpoint, time),

@@ -61,6 +61,8 @@ pub enum FastInput {
     Flow(FlowSample),
     /// A downward-range reading (forwarded to the navigator with the new estimate).
     ZRange(RangeReading),
+    /// A Multi-ranger sweep (wall anchors while the commander holds a position).
+    MultiRanger(MultiRangerSample),
     /// Battery voltage from the nRF, V.
     Battery(f32),
     /// A message from the navigator.

@@ -5,7 +5,8 @@
 //!   select on deck IO3 = PB4 (`crazyflie-hardware.md` §5.4), read at 100 Hz → [`FastInput::Flow`]. Its
 //!   VL53L1x height ranger (deck I2C1, moved to 0x6A) → [`FastInput::ZRange`] at 40 Hz.
 //! * Multi-ranger: PCA95x4 expander at 0x20 on I2C1 and five VL53L1x (0x6B..0x6F) →
-//!   [`super::NavInput::MultiRanger`] at 10 Hz, with the latest estimate.
+//!   [`super::NavInput::MultiRanger`] at 10 Hz, with the latest estimate, and [`FastInput::MultiRanger`]
+//!   (the estimator's wall anchors).
 //!
 //! Bring-up order on the deck bus (`cfnav::drivers::multiranger`): the expander holds the five Multi-ranger
 //! sensors in reset first, so only the Flow deck's ranger answers at 0x29; it moves to 0x6A; then the
@@ -232,6 +233,7 @@ pub async fn deck_task(mut i2c: DeckI2c, mut rangers: DeckRangers) {
                 errors = errors.saturating_add(1);
             }
             let sample = outcome.sample;
+            let _ = FAST_INPUTS.try_send(FastInput::MultiRanger(sample));
             // Dropped if the mission is behind (it drains every 20 ms): the next sweep is 100 ms later.
             let _ = NAV_INPUTS.try_send(NavInput::MultiRanger(sample, fast_status().estimate));
             update_log(|s| {

@@ -425,8 +425,10 @@ const TAKEOFF_HANDOVER_MARGIN_M: f32 = 0.1;
 const ON_LINE_TOLERANCE_M: f32 = 0.1;
 /// Speed at a waypoint where the path turns by 90° or more, m/s.
 const CORNER_MIN_SPEED_M_S: f32 = 0.15;
-/// Speed allowed per metre of distance before a waypoint, on top of its corner speed, 1/s.
-const CORNER_APPROACH_GAIN: f32 = 1.5;
+/// Speed allowed per metre of distance before a waypoint, on top of its corner speed, 1/s. (1.5 rounded a
+/// wall end in the `slalom` world at 0.4 m/s with 20 cm of drift and grazed it; 1.2 did not, in 20 noise
+/// seeds, and cost nothing measurable elsewhere: BENCHMARKS.md §5.)
+const CORNER_APPROACH_GAIN: f32 = 1.2;
 /// Descent rate of an emergency landing without a usable estimate, m/s.
 const FAULT_DESCENT_SPEED_M_S: f32 = 0.5;
 /// Within this distance of the leg's target the navigating drone already feeds the pad detector, m.

@@ -18,8 +18,10 @@ use core::panic::PanicInfo;
 use core::sync::atomic::{Ordering, compiler_fence};
 
 use cfnav::dstar::ArenaPlanner;
+use cfnav::estimator::{Estimator, EstimatorConfig};
 use cfnav::grid::OccupancyGrid;
 use cfnav::map::ARENA_CELLS;
+use cfnav::types::{FlowSample, GRAVITY_M_S2, ImuSample, MultiRangerSample};
 use cortex_m_semihosting::{debug, hprintln};
 use qemu_bench::{BOX_CELLS, MAX_STEPS, Meter, Report, SEED_MAP, SENSE_RADIUS, Step, Summary, World, run, summarize};
 
@@ -275,7 +277,77 @@ fn bench() -> Result<(), ()> {
     hprintln!("planner_bytes={}", planner_bytes);
     hprintln!("grid_bytes={}", grid_bytes);
     hprintln!("ram_total_bytes={}", planner_bytes + grid_bytes);
+    estimator_bench(&mut meter)?;
     hprintln!("result=ok");
+    Ok(())
+}
+
+/// The estimator's 10 Hz wall-anchor update against its 100 Hz flow update, hovering 0.5 m above the floor
+/// 1 m from four walls: calibrate at rest, take off (height readings), then one simulated second per reading
+/// kind in the proportions the MCU sees (10 IMU samples per flow reading, 100 per Multi-ranger sweep).
+fn estimator_bench(meter: &mut Icount) -> Result<(), ()> {
+    const RUNS: usize = 20;
+    let mut est = Estimator::new(EstimatorConfig::default());
+    est.reset([1.0, 1.0, 0.0], 0.0);
+    let rest = ImuSample {
+        gyro_rad_s: [0.0; 3],
+        accel_m_s2: [0.0, 0.0, GRAVITY_M_S2],
+    };
+    for k in 0..1500u32 {
+        est.on_imu(&rest, 0.001);
+        if k % 25 == 0 {
+            est.on_zrange(Some(0.0));
+        }
+    }
+    if !est.is_calibrated() {
+        hprintln!("error=estimator_not_calibrated");
+        return Err(());
+    }
+    est.set_flying(true);
+    let flow = FlowSample {
+        dpixel_x: 0,
+        dpixel_y: 0,
+        squal: 140,
+        motion_valid: true,
+        dt_s: 0.01,
+    };
+    let walls = MultiRangerSample {
+        front_m: Some(1.0),
+        back_m: Some(1.0),
+        left_m: Some(1.0),
+        right_m: Some(1.0),
+        up_m: None,
+    };
+    let mut flow_counts = [0u32; RUNS];
+    let mut wall_counts = [0u32; RUNS];
+    for run in 0..RUNS {
+        for k in 0..100u32 {
+            est.on_imu(&rest, 0.001);
+            if k % 10 == 0 {
+                let ((), n) = meter.measure(|| est.on_flow(&flow));
+                if k == 0 {
+                    flow_counts[run] = n;
+                }
+            }
+            if k % 25 == 0 {
+                est.on_zrange(Some(0.5));
+            }
+        }
+        let ((), n) = meter.measure(|| est.on_multiranger(&walls, true));
+        wall_counts[run] = n;
+    }
+    let fused = est.diagnostics().wall_fused;
+    // The first sweep only anchors; every later one fuses four beams.
+    if fused != 4 * (RUNS as u32 - 1) {
+        hprintln!("error=wall_ranges_fused {} of {}", fused, 4 * (RUNS - 1));
+        return Err(());
+    }
+    hprintln!("estimator_wall_ranges_fused={}", fused);
+    print_summary("estimator_on_flow_instructions", summarize(&mut flow_counts[..]));
+    print_summary(
+        "estimator_on_multiranger_instructions",
+        summarize(&mut wall_counts[1..]),
+    );
     Ok(())
 }
 

@@ -1,5 +1,5 @@
-//! Exact Cortex-M4 instruction counts of the firmware's D* Lite planner on the seed scenario (and of the estimator's flow
-//! and wall-anchor updates), under QEMU.
+//! Exact Cortex-M4 instruction counts of the firmware's D* Lite planner on the seed scenario (and of the
+//! estimator's flow and wall-anchor updates), under QEMU.
 //!
 //! On `thumbv7em-none-eabihf` this is a bare-metal program for QEMU's `mps2-an386` (see `src/mcu.rs`, its
 //! runtime `src/rt.rs` with the linker script `qemu-bench.x`, and `run.sh`); on the host it only prints how to run

@@ -163,8 +163,7 @@
 //!
 //! `size_of::<Estimator>()` is 1344 bytes on a 64-bit host (the covariance is 324 of them, the surface
 //! tracker's ranges 108, the wall anchors about 120; the `memory_size` test), a little less on the MCU; no
-//! heap; the prediction's stack frame
-//! holds one 9 × 9 temporary (324 B). Cortex-M4F instructions per call, measured under QEMU (mps2-an386,
+//! heap; the prediction's stack frame holds one 9 × 9 temporary (324 B). Cortex-M4F instructions per call, measured under QEMU (mps2-an386,
 //! `-icount`, release profile with `opt-level = "s"` as the firmware), hovering:
 //!
 //! | call | instructions | per second |
@@ -864,9 +863,10 @@ impl Estimator {
         self.supervise(true);
     }
 
-    /// One reading of the Multi-ranger (10 Hz). While `hold` (the drone is told to stay where it is: a
-    /// position or descend setpoint in flight) the four horizontal beams are fused against the walls they
-    /// saw when the hold began (module `wall_hold`); otherwise the anchors are dropped.
+    /// One reading of the Multi-ranger (10 Hz). While `hold` (the caller's judgement that the drone is told
+    /// to stay where it is; the stabilizer says so while the commander holds a position) the four horizontal
+    /// beams are fused against the walls they saw when the hold began (module `wall_hold`); otherwise the
+    /// anchors are dropped.
     pub fn on_multiranger(&mut self, sample: &MultiRangerSample, hold: bool) {
         if !(hold && self.cfg.wall_hold && self.calibrated && self.airborne) {
             self.walls.clear();

@@ -41,9 +41,11 @@
 //! Memory: [`ReactiveAvoidance`] is 68 bytes (the config, an engaged flag, the last yaw and command).
 //! Complexity: O(1) per step (four rangers, one `expf`, a few `tanhf`/`sinf`/`cosf`).
 
+use crate::types::MultiRangerSample;
+
 /// Body-frame unit vectors of the beams, in the order of [`RangerReadings`]' fields: front, back, left,
 /// right. They form two opposite pairs along orthogonal axes, which the damping relies on.
-const BEAMS: [(f32, f32); 4] = [(1.0, 0.0), (-1.0, 0.0), (0.0, 1.0), (0.0, -1.0)];
+const BEAMS: [(f32, f32); 4] = MultiRangerSample::HORIZONTAL_BEAMS_BODY;
 
 /// Desired speeds above this are scaled down before any arithmetic, so no intermediate can overflow.
 /// It is far above anything a Crazyflie flies; the final clamp brings the command down to cruise anyway.

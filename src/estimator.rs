@@ -872,7 +872,7 @@ impl Estimator {
             self.walls.clear();
             return;
         }
-        let ranges = [sample.front_m, sample.back_m, sample.left_m, sample.right_m];
+        let ranges = sample.horizontal();
         let yaw = euler_from_rot(&quat_to_rot(self.quat))[2];
         let anchors = self.walls.begin(ranges, yaw, [self.pos[0], self.pos[1]]);
         if anchors.iter().all(Option::is_none) {

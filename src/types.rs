@@ -68,6 +68,17 @@ pub struct MultiRangerSample {
     pub up_m: RangeReading,
 }
 
+impl MultiRangerSample {
+    /// Body-frame unit vectors (x, y) of the four horizontal beams, in the order of
+    /// [`MultiRangerSample::horizontal`]: front, back, left, right.
+    pub const HORIZONTAL_BEAMS_BODY: [(f32, f32); 4] = [(1.0, 0.0), (-1.0, 0.0), (0.0, 1.0), (0.0, -1.0)];
+
+    /// The four horizontal readings: front, back, left, right.
+    pub fn horizontal(&self) -> [RangeReading; 4] {
+        [self.front_m, self.back_m, self.left_m, self.right_m]
+    }
+}
+
 /// The vehicle state as the estimator believes it.
 #[derive(Clone, Copy, Debug, Default, PartialEq)]
 pub struct StateEstimate {

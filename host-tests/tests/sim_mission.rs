@@ -9,17 +9,17 @@ use cfnav_tools::sim::world::World;
 /// Fly commander setpoints (a function of time) on the default world's start, through the simulator's
 /// lockstep drone, and return the truth trace (t, position) sampled every 10 ms.
 fn fly_commander(seconds: f64, seed: u64, setpoint: impl Fn(f64) -> Setpoint) -> Vec<(f64, [f32; 3])> {
-    fly_commander_in(&World::default_world(), seconds, seed, setpoint)
+    fly_commander_in(&World::default_world(), seconds, seed, setpoint).0
 }
 
+/// The same on any world; also returns the drone at the end (for its diagnostics).
 fn fly_commander_in(
     world: &World,
     seconds: f64,
     seed: u64,
     setpoint: impl Fn(f64) -> Setpoint,
-) -> Vec<(f64, [f32; 3])> {
-    let world = world.clone();
-    let mut drone = SimDrone::new(&world, seed, &Faults::default()).unwrap();
+) -> (Vec<(f64, [f32; 3])>, SimDrone) {
+    let mut drone = SimDrone::new(world, seed, &Faults::default()).unwrap();
     let mut trace = Vec::new();
     for tick in 0..(seconds * 1000.0) as u64 {
         let t = tick as f64 * 1e-3;
@@ -29,9 +29,26 @@ fn fly_commander_in(
         if tick.is_multiple_of(20) {
             drone.core.commander_setpoint(setpoint(t), tick * 1000);
         }
-        drone.step(&world);
+        drone.step(world);
     }
-    trace
+    (trace, drone)
+}
+
+/// Stop for 1.5 s (calibration, thrust lock), then hold 0.5 m above the world's start.
+fn hover_at_start(world: &World) -> impl Fn(f64) -> Setpoint {
+    let (x0, y0) = (world.mission.start[0], world.mission.start[1]);
+    move |t| {
+        if t < 1.5 {
+            Setpoint::Stop
+        } else {
+            Setpoint::Position {
+                x_m: x0,
+                y_m: y0,
+                z_m: 0.5,
+                yaw_rad: 0.0,
+            }
+        }
+    }
 }
 
 fn window(trace: &[(f64, [f32; 3])], from: f64, to: f64) -> Vec<[f32; 3]> {
@@ -44,20 +61,7 @@ fn window(trace: &[(f64, [f32; 3])], from: f64, to: f64) -> Vec<[f32; 3]> {
 
 /// The worst per-axis deviation from the mean position over 10 s of hover, and the mean.
 fn hover_deviation(world: &World, seed: u64) -> ([f32; 3], [f32; 3]) {
-    let (x0, y0) = (world.mission.start[0], world.mission.start[1]);
-    // Stop for 1.5 s (calibration, thrust lock), then hover at 0.5 m above the take-off surface.
-    let trace = fly_commander_in(world, 16.0, seed, |t| {
-        if t < 1.5 {
-            Setpoint::Stop
-        } else {
-            Setpoint::Position {
-                x_m: x0,
-                y_m: y0,
-                z_m: 0.5,
-                yaw_rad: 0.0,
-            }
-        }
-    });
+    let (trace, _) = fly_commander_in(world, 16.0, seed, hover_at_start(world));
     let hover = window(&trace, 6.0, 16.0);
     let n = hover.len() as f32;
     let mean = [0, 1, 2].map(|i| hover.iter().map(|p| p[i]).sum::<f32>() / n);
@@ -113,24 +117,7 @@ fn hover_holds_within_3_cm_for_10_s_with_sensor_noise() {
 #[test]
 fn wall_anchors_serve_the_commanders_hover_not_the_mission() {
     let world = World::default_world();
-    let (x0, y0) = (world.mission.start[0], world.mission.start[1]);
-    let mut hover = SimDrone::new(&world, 3, &Faults::default()).unwrap();
-    for tick in 0..8000u64 {
-        if tick.is_multiple_of(20) {
-            let setpoint = if tick < 1500 {
-                Setpoint::Stop
-            } else {
-                Setpoint::Position {
-                    x_m: x0,
-                    y_m: y0,
-                    z_m: 0.5,
-                    yaw_rad: 0.0,
-                }
-            };
-            hover.core.commander_setpoint(setpoint, tick * 1000);
-        }
-        hover.step(&world);
-    }
+    let (_, hover) = fly_commander_in(&world, 8.0, 3, hover_at_start(&world));
     let d = hover.core.estimator().diagnostics();
     println!(
         "hover: {} wall ranges fused, {} rejected",

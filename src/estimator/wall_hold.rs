@@ -24,7 +24,7 @@
 //!
 //! Units and frames: metres, radians, arena frame. Memory: four anchors, 80 bytes. Cost: O(1) per reading.
 
-use crate::types::wrap_angle;
+use crate::types::{MultiRangerSample, wrap_angle};
 
 /// Readings beyond this are not anchored, m: the ranger's noise grows with the range, and a far reading
 /// is likelier to be a wall the beam only grazes.
@@ -41,9 +41,6 @@ pub const REANCHOR_AFTER_OUTLIERS: u8 = 3;
 /// `1/cos α` times the movement along the normal, and a gain much above 1 would make the correction
 /// overshoot (at 20°, 6 %).
 pub const MAX_AXIS_OFFSET_RAD: f32 = 0.35;
-
-/// The beams in the order the estimator passes them: front (+x), back (−x), left (+y), right (−y).
-pub const BEAM_DIRECTIONS_BODY: [[f32; 2]; 4] = [[1.0, 0.0], [-1.0, 0.0], [0.0, 1.0], [0.0, -1.0]];
 
 /// One beam's anchor.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -84,8 +81,9 @@ impl WallHold {
         *self = Self::default();
     }
 
-    /// Starts a reading: re-anchors everything after a turn, anchors the beams that have none, and returns
-    /// the anchors to fuse this reading against (beams anchored before it that have a valid reading now).
+    /// Starts a reading (`ranges` in the order of [`MultiRangerSample::horizontal`]): re-anchors everything
+    /// after a turn, anchors the beams that have none, and returns the anchors to fuse this reading against
+    /// (beams anchored before it that have a valid reading now).
     pub fn begin(&mut self, ranges: [Option<f32>; 4], yaw_rad: f32, position_m: [f32; 2]) -> [Option<WallAnchor>; 4] {
         if !(yaw_rad.is_finite() && position_m.iter().all(|p| p.is_finite())) {
             self.clear();
@@ -112,7 +110,7 @@ impl WallHold {
             match (self.anchors[beam], reading) {
                 (Some(anchor), Some(_)) => fuse[beam] = Some(anchor),
                 (None, Some(r)) => {
-                    let [bx, by] = BEAM_DIRECTIONS_BODY[beam];
+                    let (bx, by) = MultiRangerSample::HORIZONTAL_BEAMS_BODY[beam];
                     self.anchors[beam] = Some(WallAnchor {
                         range0_m: r,
                         position0_m: position_m,

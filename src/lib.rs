@@ -10,23 +10,15 @@
 #![no_std]
 #![warn(missing_docs)]
 
-pub mod avoidance;
-pub mod config_block;
-pub mod control;
-pub mod cpu_load;
+// The folders follow the README's module table. Dependencies point one way: `nav`, `landing`, `flight` and
+// `drivers` need only `types`; `mission` composes `nav` and `landing`; `stack` wires `flight` to `mission`;
+// `radio` and `system` speak for all of them. Each folder's `mod.rs` states its own rule.
 pub mod drivers;
-pub mod dstar;
-pub mod estimator;
 pub mod flight;
-pub mod grid;
-pub mod map;
+pub mod landing;
 pub mod mission;
-pub mod mission_start;
-pub mod pad;
-pub mod path;
-pub mod queue;
+pub mod nav;
 pub mod radio;
-pub mod status_led;
-pub mod supervisor;
-pub mod sweep;
+pub mod stack;
+pub mod system;
 pub mod types;

@@ -35,7 +35,7 @@ mod fw {
     use core::sync::atomic::Ordering;
 
     use cfnav::drivers::bmi088::Bmi088;
-    use cfnav::flight::{FlightConfig, Stabilizer};
+    use cfnav::stack::{FlightConfig, Stabilizer};
     use defmt::{error, info, warn};
     use embassy_executor::{SendSpawner, SpawnError, SpawnToken, Spawner};
     use embassy_stm32::exti::{self, ExtiInput};

@@ -1,10 +1,10 @@
 //! Independent oracles for the planner tests: a plain std map and a textbook Dijkstra written from the
-//! movement rules of `shared/spec/interfaces.md` §2, sharing no code with `cfnav::dstar`.
+//! movement rules of `shared/spec/interfaces.md` §2, sharing no code with `cfnav::nav::dstar`.
 
 use std::cmp::Reverse;
 use std::collections::BinaryHeap;
 
-use cfnav::map::{Cell, GridShape, Traversability};
+use cfnav::nav::map::{Cell, GridShape, Traversability};
 
 /// A heap-allocated blocked/free map of any size.
 #[derive(Clone, Debug)]

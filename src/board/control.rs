@@ -5,14 +5,14 @@
 //! Each step: wait for the edge, read gyro + accelerometer (async I2C, ~0.5 ms of bus time during which
 //! lower priorities run), then, without awaiting: drain [`super::FAST_INPUTS`], run
 //! [`Stabilizer::on_imu`], write the motors (zero unless booted, no fault and the supervisor allows them),
-//! publish the [`cfnav::flight::FastStatus`], account the cycles. Motors stop on any fault, on a missing
+//! publish the [`cfnav::stack::FastStatus`], account the cycles. Motors stop on any fault, on a missing
 //! data-ready edge ([`DRDY_TIMEOUT`]) and after [`MAX_IMU_ERRORS`] failed reads in a row.
 
 use core::sync::atomic::Ordering;
 
-use cfnav::cpu_load::{Level, LoopTiming, LoopWindow};
 use cfnav::drivers::bmi088::Bmi088;
-use cfnav::flight::Stabilizer;
+use cfnav::stack::Stabilizer;
+use cfnav::system::cpu_load::{Level, LoopTiming, LoopWindow};
 use defmt::warn;
 use embassy_executor::InterruptExecutor;
 use embassy_stm32::exti::ExtiInput;

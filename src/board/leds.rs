@@ -1,8 +1,8 @@
 //! The five STM32-driven LEDs (`crazyflie-hardware.md` §7, from bitcraze crazyflie-firmware
 //! `src/drivers/interface/led.h`): BLUE_L on PD2 is active high; GREEN_L PC1, RED_L PC0, GREEN_R PC2 and
-//! RED_R PC3 are active low. The patterns are `cfnav::status_led`'s; this task samples them at 40 Hz.
+//! RED_R PC3 are active low. The patterns are `cfnav::system::status_led`'s; this task samples them at 40 Hz.
 
-use cfnav::status_led::{LedFrame, led_frame};
+use cfnav::system::status_led::{LedFrame, led_frame};
 use embassy_stm32::gpio::{Level, Output, Speed};
 use embassy_stm32::{Peri, peripherals};
 use embassy_time::{Instant, Timer};

@@ -11,10 +11,10 @@
 use core::mem::MaybeUninit;
 use core::sync::atomic::{AtomicBool, Ordering};
 
-use cfnav::cpu_load::Level;
-use cfnav::dstar::ARENA_QUEUE;
-use cfnav::flight::{FlightConfig, MissionCommand, Navigator};
-use cfnav::map::ARENA_CELLS;
+use cfnav::nav::dstar::ARENA_QUEUE;
+use cfnav::nav::map::ARENA_CELLS;
+use cfnav::stack::{FlightConfig, MissionCommand, Navigator};
+use cfnav::system::cpu_load::Level;
 use defmt::{info, warn};
 use embassy_time::{Duration, Ticker, Timer};
 

@@ -19,7 +19,7 @@
 //! * [`MISSION_REQUESTS`] / [`START_OUTCOME`]: radio ⇄ mission task (`mission.start` writes).
 //! * [`LOG_STATE`]: what the log service samples; each task writes its own fields.
 //!
-//! Non-goals here: any flight logic (see `cfnav::flight`), any protocol logic (see `cfnav::radio`).
+//! Non-goals here: any flight logic (see `cfnav::stack`), any protocol logic (see `cfnav::radio`).
 //! Memory: the navigator (map + planner, ≈ 47 KB) sits in CCM; everything else is static SRAM (see the
 //! `cfnav firmware` report).
 
@@ -36,11 +36,11 @@ use core::future::poll_fn;
 use core::sync::atomic::{AtomicBool, AtomicU32, Ordering};
 use core::task::Poll;
 
-use cfnav::cpu_load::LoadMeter;
-use cfnav::flight::{FastStatus, MissionCommand, StartError};
 use cfnav::mission::MissionParams;
 use cfnav::radio::log_registry::FirmwareLogState;
-use cfnav::status_led::{BoardStatus, StatusInputs};
+use cfnav::stack::{FastStatus, MissionCommand, StartError};
+use cfnav::system::cpu_load::LoadMeter;
+use cfnav::system::status_led::{BoardStatus, StatusInputs};
 use cfnav::types::{FlowSample, Micros, MultiRangerSample, RangeReading, Setpoint, StateEstimate};
 use defmt::error;
 use embassy_stm32::interrupt::Priority;

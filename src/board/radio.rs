@@ -23,11 +23,8 @@
 use core::fmt::Write as _;
 use core::sync::atomic::Ordering;
 
-use cfnav::config_block::RadioSettings;
-use cfnav::cpu_load::Level;
-use cfnav::map::ARENA_CELLS;
 use cfnav::mission::MissionParams;
-use cfnav::mission_start::{StartDecision, StartTracker};
+use cfnav::nav::map::ARENA_CELLS;
 use cfnav::radio::commander::{CommanderService, SetpointFollower};
 use cfnav::radio::console::ConsoleService;
 use cfnav::radio::crtp::{CrtpPacket, PlatformService, Router};
@@ -39,6 +36,9 @@ use cfnav::radio::param::ParamService;
 use cfnav::radio::registry::{ID_START, MissionParamState};
 use cfnav::radio::supervisor_port::{SupervisorPortConfig, SupervisorPortService, SupervisorStatus};
 use cfnav::radio::syslink::{BatteryState, MAX_FRAME, SyslinkDecoder, SyslinkPacket, encode, kind};
+use cfnav::system::config_block::RadioSettings;
+use cfnav::system::cpu_load::Level;
+use cfnav::system::mission_start::{StartDecision, StartTracker};
 use defmt::{info, warn};
 use embassy_stm32::exti::ExtiInput;
 use embassy_stm32::mode::Async;

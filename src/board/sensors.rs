@@ -17,11 +17,11 @@
 //! mission may only start when every sensor it needs is present *and* has a reader running
 //! ([`super::DECKS_OK`]).
 
-use cfnav::config_block::{EEPROM_I2C_ADDRESS, READ_LEN, RadioSettings};
 use cfnav::drivers::multiranger::{FIRST_ADDRESS, FLOW_DECK_Z_ADDRESS, MultiRanger};
 use cfnav::drivers::pca95x4;
 use cfnav::drivers::pmw3901::Pmw3901;
 use cfnav::drivers::vl53l1x::{RangingConfig, Vl53l1x};
+use cfnav::system::config_block::{EEPROM_I2C_ADDRESS, READ_LEN, RadioSettings};
 use cfnav::types::RangeReading;
 use defmt::{info, warn};
 use embassy_stm32::gpio::Output;

@@ -2,7 +2,7 @@
 
 use core::sync::atomic::Ordering;
 
-use cfnav::cpu_load::{cycles_to_us_u16, percent};
+use cfnav::system::cpu_load::{cycles_to_us_u16, percent};
 use defmt::info;
 use embassy_stm32::peripherals::IWDG;
 use embassy_stm32::wdg::IndependentWatchdog;

@@ -6,7 +6,7 @@
 //! and validity rule.
 //!
 //! Non-goals: no scheduling (the caller reads at 100 Hz), no outlier rejection or filtering (the estimator
-//! gates |dpixel| ≥ 100 counts, SQUAL and dt itself, see `src/estimator.rs`), no frame capture, no
+//! gates |dpixel| ≥ 100 counts, SQUAL and dt itself, see `src/flight/estimator/`), no frame capture, no
 //! chip-select handling (the [`SpiDevice`] owns CS), no VL53L1x (another driver).
 //!
 //! ## Sources

@@ -55,7 +55,7 @@
 //! Memory: 56 bytes (measured on the 64-bit host).
 
 use super::crtp::{CrtpPacket, Service};
-use crate::supervisor::{Reason, SupervisorFlags, SupervisorOutput, SupervisorState};
+use crate::flight::supervisor::{Reason, SupervisorFlags, SupervisorOutput, SupervisorState};
 use crate::types::Micros;
 
 /// Supervisor port (§4.2).

@@ -10,9 +10,9 @@
 use std::hint::black_box;
 use std::time::{Duration, Instant};
 
-use cfnav::dstar::{DStarLite, PlanStatus};
-use cfnav::map::{Cell, GridShape, Traversability};
-use cfnav_tools::plan::{ReplayMap, replay};
+use cfnav::nav::dstar::{DStarLite, PlanStatus};
+use cfnav::nav::map::{Cell, GridShape, Traversability};
+use cfnav_tools::nav::replay::{ReplayMap, replay};
 use criterion::{BatchSize, Criterion};
 use pathfinding::prelude::astar;
 

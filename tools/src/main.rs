@@ -1,7 +1,7 @@
 //! `cfnav`: the host-side tools of the cfnav firmware (simulator, planner replay, firmware image).
 use std::process::ExitCode;
 
-use cfnav_tools::{firmware, mission, plan, sim_cli};
+use cfnav_tools::{firmware, mission, nav, sim};
 use clap::{Parser, Subcommand};
 
 /// cfnav host tools: planner replay, firmware image, simulator.
@@ -15,9 +15,9 @@ struct Cli {
 #[derive(Subcommand)]
 enum Command {
     /// Fly the round-trip mission in the simulator (exit 0 completed, 1 not, 2 bad input).
-    Sim(sim_cli::SimArgs),
+    Sim(sim::cli::SimArgs),
     /// Replay the D* Lite planner on a text map (exit 0 goal reached, 1 no path, 2 bad input).
-    Plan(plan::PlanArgs),
+    Plan(nav::replay::PlanArgs),
     /// Build the release firmware and write the raw image for the radio bootloader.
     Firmware(firmware::FirmwareArgs),
     /// Start a mission on a drone (radio://) or a simulator (udp://) and follow it until it ends.
@@ -34,8 +34,8 @@ fn main() -> ExitCode {
         }
     };
     match cli.command {
-        Command::Sim(args) => sim_cli::run_cli(&args),
-        Command::Plan(args) => plan::run(&args),
+        Command::Sim(args) => sim::cli::run_cli(&args),
+        Command::Plan(args) => nav::replay::run(&args),
         Command::Firmware(args) => firmware::run(&args),
         Command::Mission(args) => mission::run_cli(&args),
     }

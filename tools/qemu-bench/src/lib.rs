@@ -19,8 +19,8 @@
 
 #![no_std]
 
-use cfnav::dstar::{ArenaPlanner, PlanError, PlanStatus, move_cost};
-use cfnav::map::{ARENA_CELLS, Cell, GridShape, Traversability};
+use cfnav::nav::dstar::{ArenaPlanner, PlanError, PlanStatus, move_cost};
+use cfnav::nav::map::{ARENA_CELLS, Cell, GridShape, Traversability};
 
 /// The seed scenario (6 × 3 m at 5 cm).
 pub const SEED_MAP: &str = include_str!("../../../maps/seed.map");

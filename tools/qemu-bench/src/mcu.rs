@@ -17,10 +17,10 @@ use core::mem::size_of;
 use core::panic::PanicInfo;
 use core::sync::atomic::{Ordering, compiler_fence};
 
-use cfnav::dstar::ArenaPlanner;
-use cfnav::estimator::{Estimator, EstimatorConfig};
-use cfnav::grid::OccupancyGrid;
-use cfnav::map::ARENA_CELLS;
+use cfnav::flight::estimator::{Estimator, EstimatorConfig};
+use cfnav::nav::dstar::ArenaPlanner;
+use cfnav::nav::grid::OccupancyGrid;
+use cfnav::nav::map::ARENA_CELLS;
 use cfnav::types::{FlowSample, GRAVITY_M_S2, ImuSample, MultiRangerSample};
 use cortex_m_semihosting::{debug, hprintln};
 use qemu_bench::{BOX_CELLS, MAX_STEPS, Meter, Report, SEED_MAP, SENSE_RADIUS, Step, Summary, World, run, summarize};

@@ -23,8 +23,6 @@
 pub mod progress;
 #[cfg(test)]
 mod sim_tests;
-pub mod toc_cache;
-pub mod udp_link;
 
 use std::collections::HashMap;
 use std::io::IsTerminal;
@@ -40,9 +38,9 @@ use crazyflie_lib::{Crazyflie, Value};
 use futures::StreamExt;
 use tokio::sync::{mpsc, watch};
 
+use crate::radio::toc_cache::DirTocCache;
+use crate::radio::udp_link::UdpLink;
 use progress::{MissionTracker, Outcome, state_name};
-use toc_cache::DirTocCache;
-use udp_link::UdpLink;
 
 /// Exit status: bad input, connection failure, refused write, link lost.
 pub const EXIT_ERROR: u8 = 2;

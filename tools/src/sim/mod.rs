@@ -7,6 +7,7 @@
 //! - [`sensors`]: the drone's sensors as the drivers deliver them (types in `cfnav::types`).
 //! - [`serve`]: `cfnav sim --serve`, the drone in real time behind CRTP over UDP.
 
+pub mod cli;
 pub mod physics;
 pub mod plot;
 pub mod runner;

@@ -338,7 +338,7 @@ impl Figure {
         set: &[bool],
         color: RGBAColor,
     ) -> Result<(), String> {
-        let cell = cfnav::map::CELL_SIZE_M;
+        let cell = cfnav::nav::map::CELL_SIZE_M;
         for row in 0..h {
             let mut col = 0;
             while col < w {

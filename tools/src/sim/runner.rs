@@ -8,8 +8,8 @@
 
 use std::time::Instant;
 
-use cfnav::flight::{FlightConfig, FlightCore};
 use cfnav::mission::{MissionParams, MissionState};
+use cfnav::stack::{FlightConfig, FlightCore};
 use cfnav::types::{MotorDuty, MultiRangerSample, RangeReading};
 use rand::SeedableRng;
 use rand::rngs::SmallRng;
@@ -25,7 +25,7 @@ use super::world::{BODY_RADIUS_M, World};
 /// Grid capacity the simulator flies with: the largest arena the firmware supports (`large-arena`).
 pub const SIM_CELLS: usize = 128 * 64;
 /// Open-list capacity, as on the MCU.
-pub const SIM_QUEUE: usize = cfnav::dstar::ARENA_QUEUE;
+pub const SIM_QUEUE: usize = cfnav::nav::dstar::ARENA_QUEUE;
 /// The flight stack the simulator flies.
 pub type SimCore = FlightCore<SIM_CELLS, SIM_QUEUE>;
 
@@ -458,7 +458,7 @@ pub fn run(world: &World, options: &RunOptions) -> Result<RunResult, String> {
     let grid = mission.grid();
     let shape = grid.shape();
     let believed = (shape.cells() > 0).then(|| {
-        let cells: Vec<cfnav::map::Cell> = (0..shape.cells()).map(|i| shape.cell(i)).collect();
+        let cells: Vec<cfnav::nav::map::Cell> = (0..shape.cells()).map(|i| shape.cell(i)).collect();
         (
             shape.width,
             shape.height,

@@ -64,7 +64,7 @@ use std::fmt;
 use std::ops::Range;
 use std::path::Path;
 
-use cfnav::map::{GridShape, MAX_HEIGHT_CELLS, MAX_WIDTH_CELLS};
+use cfnav::nav::map::{GridShape, MAX_HEIGHT_CELLS, MAX_WIDTH_CELLS};
 use serde::Deserialize;
 use toml::Spanned;
 
@@ -527,7 +527,7 @@ fn finite2(v: [f32; 2]) -> bool {
 
 /// Whether `v` is a whole number of 5 cm cells.
 fn whole_cells(v: f32) -> bool {
-    let cells = f64::from(v) / f64::from(cfnav::map::CELL_SIZE_M);
+    let cells = f64::from(v) / f64::from(cfnav::nav::map::CELL_SIZE_M);
     (cells - cells.round()).abs() < 1e-3
 }
 

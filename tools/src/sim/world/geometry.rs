@@ -2,7 +2,7 @@
 //! surface under a point, pads, and the true occupancy grid. Computed in `f64`, returned in `f32`. Also the
 //! [`crate::sim::physics::Geometry`] the physics and the sensors read.
 
-use cfnav::map::GridShape;
+use cfnav::nav::map::GridShape;
 
 use super::{OCCUPANCY_MIN_HEIGHT_M, World};
 

@@ -1,0 +1,7 @@
+//! Flight (src/flight): the estimator against the simulator's ground truth, the controller and mixer, the
+//! supervisor's safety rules, the wall anchors.
+
+mod control;
+mod estimator;
+mod supervisor;
+mod wall_hold;

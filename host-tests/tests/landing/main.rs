@@ -1,0 +1,4 @@
+//! Landing (src/landing): the pad detector and the lawnmower sweep.
+
+mod pad;
+mod sweep;

@@ -1,0 +1,5 @@
+//! The simulator (tools/src/sim): world files, physics and sensor models, and whole missions flown in it.
+
+mod mission;
+mod physics;
+mod world;

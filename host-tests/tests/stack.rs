@@ -1,0 +1,154 @@
+//! The flight stack split as the MCU runs it: [`Stabilizer`] (interrupt priority) and [`Navigator`] (thread
+//! mode) exchange only small `Copy` messages. Checks the message contract: start refusals leave everything
+//! unchanged, a start re-anchors the estimate and silences the commander hold, the idle mission does not
+//! overwrite a fresh commander setpoint (2 s hold, `crazyflie-hardware.md` §10.1), the commander gating, and
+//! that [`FlightCore`] behaves exactly like the two parts wired by hand with messages delivered at once.
+
+use cfnav::mission::{MissionParams, MissionState};
+use cfnav::nav::dstar::ARENA_QUEUE;
+use cfnav::nav::map::ARENA_CELLS;
+use cfnav::stack::{
+    COMMANDER_HOLD_US, FastStatus, FlightConfig, FlightCore, MissionCommand, Navigator, Stabilizer, StartError,
+};
+use cfnav::types::{ImuSample, Setpoint};
+
+type Nav = Navigator<ARENA_CELLS, ARENA_QUEUE>;
+type Core = FlightCore<ARENA_CELLS, ARENA_QUEUE>;
+
+const LEVEL: ImuSample = ImuSample {
+    gyro_rad_s: [0.0; 3],
+    accel_m_s2: [0.0, 0.0, 9.81],
+};
+
+fn params() -> MissionParams {
+    MissionParams {
+        start_m: (1.0, 1.5),
+        ..MissionParams::SEED
+    }
+}
+
+fn parts() -> (Stabilizer, Box<Nav>) {
+    let config = FlightConfig::default();
+    (
+        Stabilizer::new(&config, (0.5, 0.5), 0.0).unwrap(),
+        Box::new(Nav::new(&config).unwrap()),
+    )
+}
+
+#[test]
+fn messages_are_small_enough_to_copy_under_a_short_lock() {
+    // 168 MHz copies ~1 word per cycle or two: 256 bytes is well under a microsecond.
+    assert!(size_of::<FastStatus>() <= 256, "{}", size_of::<FastStatus>());
+    assert!(size_of::<MissionCommand>() <= 64, "{}", size_of::<MissionCommand>());
+}
+
+#[test]
+fn a_start_refused_for_flying_or_missing_decks_changes_nothing() {
+    let (stab, mut nav) = parts();
+    let mut status = stab.status();
+    status.supervisor.flying = true;
+    assert_eq!(nav.start(params(), &status), Err(StartError::Flying));
+    assert_eq!(nav.state(), MissionState::Idle);
+    nav.set_decks_ok(false);
+    assert_eq!(nav.start(params(), &stab.status()), Err(StartError::DeckMissing));
+    assert_eq!(nav.state(), MissionState::Idle);
+    assert!(!nav.is_running());
+}
+
+#[test]
+fn a_start_anchors_the_estimate_and_forgets_the_commander() {
+    let (mut stab, mut nav) = parts();
+    stab.commander_setpoint(Setpoint::Stop, 1_000);
+    assert_eq!(stab.status().commander_time, Some(1_000));
+    let command = nav.start(params(), &stab.status()).unwrap();
+    assert_eq!(command, MissionCommand::Started { start_m: (1.0, 1.5) });
+    assert!(nav.is_running());
+    // Until the stabilizer gets the message, nothing changed on its side.
+    assert_eq!(stab.estimate().position_m[0], 0.5);
+    stab.apply(command);
+    let p = stab.estimate().position_m;
+    assert_eq!((p[0], p[1], p[2]), (1.0, 1.5, 0.0));
+    assert_eq!(stab.status().commander_time, None);
+    // A second start while running is refused.
+    assert_eq!(nav.start(params(), &stab.status()), Err(StartError::Flying));
+}
+
+#[test]
+fn the_idle_mission_holds_off_while_the_commander_speaks() {
+    let (mut stab, mut nav) = parts();
+    let hover = Setpoint::Position {
+        x_m: 0.5,
+        y_m: 0.5,
+        z_m: 0.4,
+        yaw_rad: 0.0,
+    };
+    stab.commander_setpoint(hover, 10_000);
+    assert_eq!(nav.tick(10_000 + COMMANDER_HOLD_US - 1, &stab.status()), None);
+    assert_eq!(stab.setpoint(), hover);
+    // After the hold, the idle mission asks for Stop again.
+    let cmd = nav.tick(10_000 + COMMANDER_HOLD_US, &stab.status()).unwrap();
+    assert_eq!(
+        cmd,
+        MissionCommand::Setpoint {
+            setpoint: Setpoint::Stop,
+            time: 10_000 + COMMANDER_HOLD_US
+        }
+    );
+    stab.apply(cmd);
+    assert_eq!(stab.setpoint(), Setpoint::Stop);
+}
+
+#[test]
+fn the_core_refuses_commander_setpoints_during_a_mission() {
+    let mut core = Box::new(Core::new(&FlightConfig::default(), (0.5, 0.5), 0.0).unwrap());
+    core.start_mission(params()).unwrap();
+    core.mission_tick(0);
+    let before = core.setpoint();
+    core.commander_setpoint(
+        Setpoint::Velocity {
+            vx_m_s: 1.0,
+            vy_m_s: 0.0,
+            z_m: 0.5,
+            yaw_rad: 0.0,
+        },
+        1_000,
+    );
+    assert_eq!(core.setpoint(), before);
+    assert_eq!(core.stabilizer().status().commander_time, None);
+}
+
+#[test]
+fn the_core_is_the_two_parts_with_messages_delivered_at_once() {
+    let config = FlightConfig::default();
+    let mut core = Box::new(Core::new(&config, (0.5, 0.5), 0.0).unwrap());
+    let (mut stab, mut nav) = parts();
+    core.start_mission(params()).unwrap();
+    let cmd = nav.start(params(), &stab.status()).unwrap();
+    stab.apply(cmd);
+    // Two seconds on the ground at 1 kHz with a 50 Hz mission tick and a few height readings.
+    for tick in 0u64..2000 {
+        let now = tick * 1000;
+        if tick.is_multiple_of(25) {
+            core.on_zrange(Some(0.0));
+            let est = stab.on_zrange(Some(0.0));
+            nav.on_zrange(Some(0.0), &est);
+        }
+        if tick.is_multiple_of(10) {
+            core.on_battery(4.0);
+            stab.on_battery(4.0);
+        }
+        if tick.is_multiple_of(20) {
+            core.mission_tick(now);
+            if let Some(cmd) = nav.tick(now, &stab.status()) {
+                stab.apply(cmd);
+            }
+        }
+        let a = core.on_imu(&LEVEL, now);
+        let b = stab.on_imu(&LEVEL, now);
+        assert_eq!(a, b, "tick {tick}");
+        assert_eq!(core.estimate(), stab.estimate(), "tick {tick}");
+        assert_eq!(core.mission_state(), nav.state(), "tick {tick}");
+    }
+    // The comparison ran on a started mission, not on an idle core.
+    assert_ne!(core.mission_state(), MissionState::Idle);
+}

@@ -1,0 +1,588 @@
+//! The round-trip mission: take off from the home pad, map and plan to the goal, find the goal pad, land on
+//! it, take off again, fly home, find the home pad, land, stop.
+//!
+//! Job: a sans-IO state machine. Each [`Mission::tick`] (20–50 Hz) takes the state estimate and a few
+//! supervisor flags and returns the [`Setpoint`] the controller should fly, plus a [`MissionState`] code for
+//! the `mission.state` log variable. Range data arrive through [`Mission::on_ranges`] (Multi-ranger, 10 Hz:
+//! mapping and avoidance) and [`Mission::on_zrange`] (downward ranger, 40 Hz: the pad detector).
+//!
+//! Non-goals: estimation, control and motor safety (the supervisor cuts motors on touchdown, tumble and
+//! timeouts; the mission only reacts to what it reports).
+//!
+//! Units and frames: arena frame, metres, seconds, radians. While navigating the drone turns to face its
+//! direction of travel, so the front ranger sees what it flies into (four beams are blind diagonally);
+//! elsewhere it keeps the last heading.
+//!
+//! How each phase works:
+//! - **Navigate**: the four horizontal ranges update the [`OccupancyGrid`] (freed along each beam, the end
+//!   cell marked); the cells whose inflated state changed go to D\* Lite, which repairs its plan with an
+//!   expansion budget per tick; the path is shortened by line of sight, and the drone flies towards its
+//!   first waypoint at cruise speed (slowing into the goal, and into a waypoint where the path turns
+//!   sharply), through [`ReactiveAvoidance`] (repulsion, smoothing, and a speed clamp on the approach
+//!   towards each ranger's obstacle: flying along a wall is not slowed, flying into one is). The planner
+//!   treats unknown space as free, so a path may graze a box no beam has seen: where the path ahead passes
+//!   within 0.15 m of an *unobserved region* (an unknown cell among unknown or occupied neighbours, see
+//!   [`OccupancyGrid::is_unobserved_region`]), the drone slows (0.2 m/s there, 1 m/s more per metre of
+//!   observed path before it) and, instead of sweeping its heading, turns the front, left or right beam
+//!   (whichever needs the least turn) towards the first such cell until a beam has looked into it. The
+//!   heading slows the drone only when it lags the actual velocity by more than the sweep's amplitude.
+//!   A nominal goal inside the inflated margin of something mapped is replaced by the nearest free cell
+//!   within 0.3 m (the search starts there).
+//! - **No path**: once per leg, plan again with [`MissionConfig::narrow_inflation_radius_m`] and fly at
+//!   [`MissionConfig::narrow_speed_m_s`]; if that fails too, hover and keep mapping (false obstacles clear,
+//!   the plan repairs itself) for [`MissionConfig::no_path_wait_s`]; then land where it is and end with
+//!   [`MissionState::NoPath`].
+//! - **Search** (the detector already listens on the last 0.8 m of navigation; every search line stops
+//!   0.18 m short of mapped obstacles and the arena walls; navigation hands over 0.35 m before the nominal
+//!   goal): a coarse lawnmower pass around the nominal goal, its first lines along the arrival direction
+//!   (a drone already on that line flies on along it instead of turning back to its start), until the
+//!   [`PadDetector`] has a first crossing; then short refinement stages centred on the latest estimate —
+//!   lines across the first crossing (which fix the other coordinate), then lines along it, four rounds
+//!   in all with a fresh detector every round (the estimate drifts) — until the detector locks (three
+//!   inlier crossings covering both directions: usually the first crossing and two lines across it). A
+//!   line ends as soon as it gave a crossing (its rest only costs time), and in the first round a stage
+//!   ends once its direction has two inlier crossings; later rounds fly all three lines of a stage.
+//!   If the pattern ends without a
+//!   lock the drone lands on the best estimate (or the nominal point) and the mission ends with
+//!   [`MissionState::PadNotFound`] after flying the rest of the round trip.
+//! - **Take-off**: climb at [`MissionConfig::climb_speed_m_s`]; navigation takes over 0.1 m above the
+//!   minimum height, and the rest of the climb overlaps the first metres of travel.
+//! - **Land**: fly back over the pad centre (a velocity profile down to 6 cm from it, then position hold),
+//!   until within [`MissionConfig::settle_tolerance_m`] and slow, descend at
+//!   [`MissionConfig::high_descent_speed_m_s`] down to 0.2 m above the surface and slower below it (the
+//!   flow-only position drifts ≈ 1 cm/√s, so the time from the last crossing to touchdown is landing
+//!   error); the supervisor detects the touchdown and stops the motors, which the mission sees as `landed`.
+//!
+//! Files: [`config`] (parameters, tuning, refusals), `navigate` (legs, planning, avoidance, no-path),
+//! `search` (coarse and refinement lines), `landing` (approach, descent); this file holds the phases and
+//! their transitions.
+//!
+//! Memory: the grid (`CELLS + 12` B), the planner (`4·CELLS + 10·QUEUE` B), a path buffer and the small
+//! detectors: about 50 KB for the 6 × 3 m arena. Cost per tick: one bounded planner slice
+//! ([`MissionConfig::planner_budget`] expansions) plus a path read-off (O(path length)).
+
+use heapless::Vec;
+
+pub mod config;
+mod landing;
+mod navigate;
+mod search;
+
+pub use config::{
+    MAX_HEIGHT_M, MAX_SPEED_M_S, MIN_HEIGHT_M, MissionConfig, MissionConfigError, MissionInputs, MissionParams,
+    StartRefusal,
+};
+
+use crate::landing::pad::PadDetector;
+use crate::landing::sweep::LawnmowerSweep;
+use crate::nav::avoidance::{AvoidanceConfig, RangerReadings, ReactiveAvoidance};
+use crate::nav::dstar::DStarLite;
+use crate::nav::grid::{ChangedCells, OccupancyGrid};
+use crate::nav::map::{Cell, GridShape};
+use crate::types::{Micros, MultiRangerSample, RangeReading, Setpoint, StateEstimate, body_to_arena, wrap_angle};
+
+/// The `mission.state` codes (interfaces.md §5): 0 idle, 1..99 phases, 100 completed, ≥ 200 ended without
+/// completing (the value says why).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[repr(u8)]
+pub enum MissionState {
+    /// Idle and ready for `mission.start`.
+    Idle = 0,
+    /// Started; waiting for a valid state estimate before the motors spin.
+    Preflight = 1,
+    /// Climbing off the home pad.
+    TakeOffOutbound = 10,
+    /// Mapping and planning towards the goal.
+    NavigateToGoal = 11,
+    /// Sweeping around the nominal goal for the goal pad.
+    SearchGoalPad = 12,
+    /// Moving over the goal pad's centre.
+    ApproachGoalPad = 13,
+    /// Descending onto the goal pad.
+    LandOnGoalPad = 14,
+    /// Landed on the goal pad, motors off, pausing.
+    OnGoalPad = 15,
+    /// Climbing off the goal pad.
+    TakeOffReturn = 20,
+    /// Mapping and planning back to the start.
+    NavigateHome = 21,
+    /// Sweeping around the start for the home pad.
+    SearchHomePad = 22,
+    /// Moving over the home pad's centre.
+    ApproachHomePad = 23,
+    /// Descending onto the home pad.
+    LandOnHomePad = 24,
+    /// No path: hovering while the map may still change.
+    NoPathHover = 30,
+    /// Landing where it is, because the mission cannot go on (the final code follows on touchdown).
+    EmergencyLanding = 40,
+    /// Landed on both pads, motors off.
+    Completed = 100,
+    /// Aborted by the user (`mission.start = 0`): landed where it was.
+    Aborted = 200,
+    /// No path to the goal (or home): landed where it was.
+    NoPath = 201,
+    /// A pad was not found: landed on the best estimate or the nominal point, round trip finished.
+    PadNotFound = 202,
+    /// Battery low: landed where it was.
+    BatteryLow = 203,
+    /// The state estimate became unusable (flow or height lost): landed or motors cut.
+    EstimatorFault = 204,
+    /// The supervisor cut the motors (tumble or timeout).
+    Crashed = 205,
+    /// The planner could not run (grid or queue capacity).
+    PlannerFault = 206,
+}
+
+impl MissionState {
+    /// The `mission.state` value.
+    pub fn code(self) -> u8 {
+        self as u8
+    }
+
+    /// Whether the mission has ended (completed or not).
+    pub fn is_final(self) -> bool {
+        self.code() >= 100
+    }
+}
+
+/// Which way the round trip is going.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+enum Leg {
+    Outbound,
+    Return,
+}
+
+#[derive(Clone, Copy, Debug, PartialEq)]
+enum Phase {
+    Idle,
+    Preflight,
+    TakeOff {
+        x: f32,
+        y: f32,
+        z_target: f32,
+    },
+    Navigate,
+    NoPath {
+        since: Micros,
+        x: f32,
+        y: f32,
+    },
+    Search(Search),
+    Approach {
+        x: f32,
+        y: f32,
+        settled_since: Option<Micros>,
+    },
+    Land {
+        x: f32,
+        y: f32,
+    },
+    OnPad {
+        since: Micros,
+    },
+    EmergencyLand {
+        x: f32,
+        y: f32,
+        then: MissionState,
+    },
+    Ended(MissionState),
+}
+
+/// Where the pad search is.
+#[derive(Clone, Copy, Debug, PartialEq)]
+enum Search {
+    /// Flying the coarse lawnmower's lines centre-out: `step` counts line ends flown (two per line),
+    /// `reverse` flies the current line from its second waypoint.
+    Coarse { step: usize, reverse: bool },
+    /// Refinement: stage 0 = lines across the first crossing, stage 1 = lines along it; `line` of 3,
+    /// `end` = 0 going to the line's start, 1 to its end; `crossings_before` = the detector's crossings
+    /// when the line began (a new one ends the line early).
+    Refine {
+        stage: u8,
+        line: u8,
+        end: u8,
+        centre: (f32, f32),
+        first_along_x: bool,
+        crossings_before: u8,
+    },
+}
+
+const PATH_CAPACITY: usize = 512;
+const WAYPOINT_CAPACITY: usize = 48;
+const CHANGED_CAPACITY: usize = 512;
+const PAD_EDGES: usize = 48;
+/// Yaw rate while hovering with no path, rad/s (a quarter turn, all four beams' gaps, in 2 s).
+const NO_PATH_TURN_RATE_RAD_S: f32 = 0.8;
+/// Take-off hands over to navigation this far above [`MIN_HEIGHT_M`] (or 5 cm below the cruise height if that
+/// is lower), m.
+const TAKEOFF_HANDOVER_MARGIN_M: f32 = 0.1;
+/// Within this distance of the leg's target the navigating drone already feeds the pad detector, m.
+const PAD_LOOKOUT_RADIUS_M: f32 = 0.8;
+
+/// See the module documentation.
+pub struct Mission<const CELLS: usize, const QUEUE: usize> {
+    config: MissionConfig,
+    params: MissionParams,
+    shape: GridShape,
+    grid: OccupancyGrid<CELLS>,
+    planner: DStarLite<CELLS, QUEUE>,
+    changed: ChangedCells<CHANGED_CAPACITY>,
+    path: Vec<Cell, PATH_CAPACITY>,
+    waypoints: Vec<Cell, WAYPOINT_CAPACITY>,
+    avoidance: ReactiveAvoidance,
+    pad: PadDetector<PAD_EDGES>,
+    sweep: Option<LawnmowerSweep>,
+    phase: Phase,
+    leg: Leg,
+    last_ranges: RangerReadings,
+    last_tick: Option<Micros>,
+    pad_not_found: bool,
+    planner_needs_reset: bool,
+    /// The heading the drone holds, rad: it turns to face its direction of travel while navigating, so the
+    /// front ranger looks where it is going (four beams see nothing diagonal to them).
+    heading: f32,
+    stats: MissionStats,
+}
+
+/// Counters for logs and the simulator's report.
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct MissionStats {
+    /// Planner repairs after map changes.
+    pub replans: u32,
+    /// Full re-plans (planner resets).
+    pub plans_from_scratch: u32,
+    /// Expansions of the latest repair.
+    pub last_expansions: u32,
+    /// Pad locks: the centre the drone aimed at, per leg (outbound, return).
+    pub pad_centres: [Option<(f32, f32)>; 2],
+}
+
+impl<const CELLS: usize, const QUEUE: usize> Mission<CELLS, QUEUE> {
+    /// An idle mission, if the avoidance and pad-detector configs are valid.
+    pub fn new(config: MissionConfig) -> Result<Self, MissionConfigError> {
+        let avoidance = ReactiveAvoidance::new(config.avoidance).map_err(|_| MissionConfigError::Avoidance)?;
+        let pad = PadDetector::new(config.pad).map_err(|_| MissionConfigError::PadDetector)?;
+        Ok(Self {
+            config,
+            params: MissionParams::SEED,
+            shape: GridShape { width: 1, height: 1 },
+            grid: OccupancyGrid::new(),
+            planner: DStarLite::new(),
+            changed: ChangedCells::new(),
+            path: Vec::new(),
+            waypoints: Vec::new(),
+            avoidance,
+            pad,
+            sweep: None,
+            phase: Phase::Idle,
+            leg: Leg::Outbound,
+            last_ranges: RangerReadings::NONE,
+            last_tick: None,
+            pad_not_found: false,
+            planner_needs_reset: false,
+            heading: 0.0,
+            stats: MissionStats::default(),
+        })
+    }
+
+    /// The `mission.state` code right now.
+    pub fn state(&self) -> MissionState {
+        match self.phase {
+            Phase::Idle => MissionState::Idle,
+            Phase::Preflight => MissionState::Preflight,
+            Phase::TakeOff { .. } => self.by_leg(MissionState::TakeOffOutbound, MissionState::TakeOffReturn),
+            Phase::Navigate => self.by_leg(MissionState::NavigateToGoal, MissionState::NavigateHome),
+            Phase::NoPath { .. } => MissionState::NoPathHover,
+            Phase::Search(_) => self.by_leg(MissionState::SearchGoalPad, MissionState::SearchHomePad),
+            Phase::Approach { .. } => self.by_leg(MissionState::ApproachGoalPad, MissionState::ApproachHomePad),
+            Phase::Land { .. } => self.by_leg(MissionState::LandOnGoalPad, MissionState::LandOnHomePad),
+            Phase::OnPad { .. } => MissionState::OnGoalPad,
+            Phase::EmergencyLand { .. } => MissionState::EmergencyLanding,
+            Phase::Ended(s) => s,
+        }
+    }
+
+    /// Whether a mission is running (started, not ended).
+    pub fn is_running(&self) -> bool {
+        !matches!(self.phase, Phase::Idle | Phase::Ended(_))
+    }
+
+    /// The parameters of the current (or last) mission.
+    pub fn params(&self) -> MissionParams {
+        self.params
+    }
+
+    /// Counters.
+    pub fn stats(&self) -> MissionStats {
+        self.stats
+    }
+
+    /// The occupancy grid the drone has built.
+    pub fn grid(&self) -> &OccupancyGrid<CELLS> {
+        &self.grid
+    }
+
+    /// The current shortened path (cells), start first.
+    pub fn waypoints(&self) -> &[Cell] {
+        &self.waypoints
+    }
+
+    /// The pad detector (edges and estimate, for logs and plots).
+    pub fn pad_detector(&self) -> &PadDetector<PAD_EDGES> {
+        &self.pad
+    }
+
+    /// Start a mission from idle (or after a previous one ended). Refused while one runs or when the
+    /// parameters make no sense; nothing changes then.
+    pub fn start(&mut self, params: MissionParams) -> Result<(), StartRefusal> {
+        if self.is_running() {
+            return Err(StartRefusal::AlreadyRunning);
+        }
+        let shape = params.validate(CELLS)?;
+        if !self.grid.reset(shape, self.full_inflation_cells()) {
+            return Err(StartRefusal::BadArena);
+        }
+        // Avoidance clamps to the cruise speed the user asked for.
+        let avoidance_config = AvoidanceConfig {
+            cruise_speed_mps: params.speed_m_s,
+            min_speed_mps: self.config.avoidance.min_speed_mps.min(params.speed_m_s),
+            ..self.config.avoidance
+        };
+        self.avoidance = ReactiveAvoidance::new(avoidance_config).map_err(|_| StartRefusal::BadSpeed)?;
+        self.params = params;
+        self.shape = shape;
+        self.changed.clear();
+        self.path.clear();
+        self.waypoints.clear();
+        self.avoidance.reset();
+        self.pad.reset();
+        self.sweep = None;
+        self.leg = Leg::Outbound;
+        self.pad_not_found = false;
+        self.planner_needs_reset = true;
+        self.stats = MissionStats::default();
+        self.last_tick = None;
+        self.phase = Phase::Preflight;
+        self.heading = 0.0;
+        Ok(())
+    }
+
+    /// Abort (`mission.start = 0` during a mission): land where it is, then end with
+    /// [`MissionState::Aborted`]. Does nothing when no mission runs.
+    pub fn abort(&mut self, state: &StateEstimate) {
+        match self.phase {
+            Phase::Idle | Phase::Ended(_) => {}
+            Phase::Preflight | Phase::OnPad { .. } => self.phase = Phase::Ended(MissionState::Aborted),
+            _ => {
+                self.phase = Phase::EmergencyLand {
+                    x: state.position_m[0],
+                    y: state.position_m[1],
+                    then: MissionState::Aborted,
+                }
+            }
+        }
+    }
+
+    /// A Multi-ranger reading (10 Hz): map it while flying, keep it for avoidance.
+    pub fn on_ranges(&mut self, ranges: &MultiRangerSample, state: &StateEstimate) {
+        self.last_ranges = RangerReadings::new(ranges.front_m, ranges.back_m, ranges.left_m, ranges.right_m);
+        let airborne = matches!(
+            self.phase,
+            Phase::TakeOff { .. } | Phase::Navigate | Phase::NoPath { .. } | Phase::Search(_) | Phase::Approach { .. }
+        );
+        // Beams only map the arena once the drone flies above pads and low clutter.
+        if !airborne || state.position_m[2] < 0.8 * self.params.height_m || !state.valid {
+            return;
+        }
+        let (x, y, yaw) = (state.position_m[0], state.position_m[1], state.attitude_rad[2]);
+        self.grid
+            .mark_free_disc((x, y), self.config.body_clearance_m, &mut self.changed);
+        let beams = [
+            (ranges.front_m, 0.0),
+            (ranges.back_m, core::f32::consts::PI),
+            (ranges.left_m, core::f32::consts::FRAC_PI_2),
+            (ranges.right_m, -core::f32::consts::FRAC_PI_2),
+        ];
+        for (range, offset) in beams {
+            let Some(d) = range.filter(|d| d.is_finite() && *d > 0.02) else {
+                continue;
+            };
+            let (length, hit) = if d <= self.config.max_mapping_range_m {
+                (d, true)
+            } else {
+                (self.config.max_mapping_range_m, false)
+            };
+            let heading = yaw + offset;
+            let end = (x + length * libm::cosf(heading), y + length * libm::sinf(heading));
+            self.grid.integrate_beam((x, y), end, hit, &mut self.changed);
+        }
+    }
+
+    /// A downward-range reading (40 Hz): the pad detector's input while searching and approaching.
+    ///
+    /// The ranger looks along body −z, so a tilted drone measures a spot beside itself (at 0.4 m and 4° of
+    /// pitch, 3 cm away); the detector is given that spot, computed from the attitude estimate, so edges
+    /// land where the step really is.
+    pub fn on_zrange(&mut self, range: RangeReading, state: &StateEstimate) {
+        // The pad lies near the leg's target, so the last stretch of navigation often flies straight over
+        // it: feeding the detector from there on can give the first crossing before the search begins.
+        let (tx, ty) = self.leg_target();
+        let near_target = matches!(self.phase, Phase::Navigate)
+            && libm::hypotf(state.position_m[0] - tx, state.position_m[1] - ty) < PAD_LOOKOUT_RADIUS_M;
+        let searching = near_target || matches!(self.phase, Phase::Search(_) | Phase::Approach { .. });
+        if let (true, Some(r)) = (searching, range) {
+            let down = body_to_arena([0.0, 0.0, -1.0], state.attitude_rad);
+            let (sx, sy) = (state.position_m[0] + r * down[0], state.position_m[1] + r * down[1]);
+            if sx.is_finite() && sy.is_finite() {
+                self.pad.update(r, sx, sy);
+            }
+        }
+    }
+
+    /// One mission step (20–50 Hz): returns the setpoint to fly.
+    pub fn tick(&mut self, now: Micros, state: &StateEstimate, inputs: &MissionInputs) -> Setpoint {
+        let dt_s = match self.last_tick {
+            Some(t) if now > t => ((now - t) as f32 * 1e-6).min(0.2),
+            _ => 0.02,
+        };
+        self.last_tick = Some(now);
+        let (x, y, z) = (state.position_m[0], state.position_m[1], state.position_m[2]);
+
+        // Conditions that end or divert any flying phase.
+        if self.is_running() && !matches!(self.phase, Phase::Preflight | Phase::OnPad { .. }) {
+            if inputs.crashed {
+                self.phase = Phase::Ended(MissionState::Crashed);
+                return Setpoint::Stop;
+            }
+            if !state.valid && !matches!(self.phase, Phase::EmergencyLand { .. }) {
+                // Without a usable estimate nothing can be flown safely; descend blind at the last known spot
+                // and let the supervisor's touchdown or timeout stop the motors.
+                self.phase = Phase::EmergencyLand {
+                    x,
+                    y,
+                    then: MissionState::EstimatorFault,
+                };
+            } else if inputs.battery_low && !matches!(self.phase, Phase::EmergencyLand { .. } | Phase::Land { .. }) {
+                self.phase = Phase::EmergencyLand {
+                    x,
+                    y,
+                    then: MissionState::BatteryLow,
+                };
+            }
+        }
+
+        match self.phase {
+            Phase::Idle | Phase::Ended(_) => Setpoint::Stop,
+            Phase::Preflight => {
+                if inputs.crashed {
+                    self.phase = Phase::Ended(MissionState::Crashed);
+                    return Setpoint::Stop;
+                }
+                if !state.valid || !inputs.armed {
+                    return Setpoint::Stop;
+                }
+                self.begin_leg(now, state, Leg::Outbound)
+            }
+            Phase::TakeOff { x: tx, y: ty, z_target } => {
+                // Navigation takes over once the drone is safely above the minimum height: its setpoints
+                // carry the cruise height, so the last part of the climb overlaps the first metres of travel.
+                if z >= (self.params.height_m - 0.05).min(MIN_HEIGHT_M + TAKEOFF_HANDOVER_MARGIN_M) {
+                    self.phase = Phase::Navigate;
+                    self.avoidance.reset();
+                    return self.navigate(now, state, dt_s);
+                }
+                let target = (z_target + self.config.climb_speed_m_s * dt_s).min(self.params.height_m);
+                self.phase = Phase::TakeOff {
+                    x: tx,
+                    y: ty,
+                    z_target: target,
+                };
+                Setpoint::Position {
+                    x_m: tx,
+                    y_m: ty,
+                    z_m: target,
+                    yaw_rad: self.heading,
+                }
+            }
+            Phase::Navigate => self.navigate(now, state, dt_s),
+            Phase::NoPath { since, x: hx, y: hy } => {
+                match self.plan(state) {
+                    Ok(Some(_)) => {
+                        self.phase = Phase::Navigate;
+                        return self.navigate(now, state, dt_s);
+                    }
+                    Ok(None) => {}
+                    Err(()) => {}
+                }
+                if (now.saturating_sub(since)) as f32 * 1e-6 > self.config.no_path_wait_s {
+                    self.phase = Phase::EmergencyLand {
+                        x: hx,
+                        y: hy,
+                        then: MissionState::NoPath,
+                    };
+                } else {
+                    // Turn while waiting: the four beams sweep all round, and a beam through an opening frees
+                    // the cells that an obstacle mapped from a drifted estimate still blocks there.
+                    self.heading = wrap_angle(self.heading + NO_PATH_TURN_RATE_RAD_S * dt_s);
+                }
+                Setpoint::Position {
+                    x_m: hx,
+                    y_m: hy,
+                    z_m: self.params.height_m,
+                    yaw_rad: self.heading,
+                }
+            }
+            Phase::Search(search) => self.search(search, state, dt_s),
+            Phase::Approach {
+                x: px,
+                y: py,
+                settled_since,
+            } => self.approach(now, state, (px, py), settled_since),
+            Phase::Land { x: px, y: py } => self.land(state, inputs, (px, py), now),
+            Phase::OnPad { since } => {
+                if inputs.crashed {
+                    self.phase = Phase::Ended(MissionState::Crashed);
+                    return Setpoint::Stop;
+                }
+                if (now.saturating_sub(since)) as f32 * 1e-6 >= self.config.pause_s && inputs.armed && state.valid {
+                    return self.begin_leg(now, state, Leg::Return);
+                }
+                Setpoint::Stop
+            }
+            Phase::EmergencyLand { x: lx, y: ly, then } => {
+                if inputs.landed {
+                    self.phase = Phase::Ended(then);
+                    return Setpoint::Stop;
+                }
+                // Without a usable estimate the horizontal velocity is no longer observed and drifts (a few
+                // cm/s after the brake): the sooner the drone is down, the less it slides.
+                let descent = if then == MissionState::EstimatorFault {
+                    self.fault_descent_speed(state)
+                } else {
+                    self.descent_speed(state)
+                };
+                Setpoint::Descend {
+                    x_m: lx,
+                    y_m: ly,
+                    vz_m_s: -descent,
+                    yaw_rad: self.heading,
+                }
+            }
+        }
+    }
+
+    fn by_leg(&self, outbound: MissionState, back: MissionState) -> MissionState {
+        match self.leg {
+            Leg::Outbound => outbound,
+            Leg::Return => back,
+        }
+    }
+
+    fn leg_index(&self) -> usize {
+        match self.leg {
+            Leg::Outbound => 0,
+            Leg::Return => 1,
+        }
+    }
+}

@@ -1,0 +1,399 @@
+//! The navigation leg, from take-off to the pad search: the drone's cell and the map's changes go to D\* Lite
+//! one bounded slice per tick, the path is shortened, and the next waypoint becomes a velocity through the
+//! reactive avoidance, slowed into corners and next to regions no beam has looked into. Also the no-path
+//! fallbacks (the narrow margin, the escape from an inflated cell). The rules are in the
+//! [mission's documentation](super); this file holds their arithmetic.
+
+use super::{Leg, Mission, Phase};
+use crate::nav::dstar::{PlanError, PlanStatus};
+use crate::nav::map::{CELL_SIZE_M, Cell, GridShape, Traversability};
+use crate::nav::path::{extract_path, simplify};
+use crate::types::{Micros, Setpoint, StateEstimate, wrap_angle};
+
+/// Speed at a waypoint where the path turns by 90° or more, m/s.
+const CORNER_MIN_SPEED_M_S: f32 = 0.15;
+/// Speed allowed per metre of distance before a waypoint, on top of its corner speed, 1/s. (1.5 rounded a
+/// wall end in the `slalom` world at 0.4 m/s with 20 cm of drift and grazed it; 1.2 did not, in 20 noise
+/// seeds, and cost nothing measurable elsewhere: BENCHMARKS.md §5.)
+const CORNER_APPROACH_GAIN: f32 = 1.2;
+/// Look this far along the path for regions no beam has looked into, m.
+const UNOBSERVED_LOOKAHEAD_M: f32 = 0.6;
+/// A path point counts as next to an unobserved region when such a cell lies within this distance, m: the
+/// drone's radius (0.06 m) plus the estimate's drift and tracking error.
+const UNOBSERVED_CLEARANCE_M: f32 = 0.15;
+/// An unknown cell belongs to an unobserved region with at least this many unknown or occupied
+/// neighbours (see [`OccupancyGrid::is_unobserved_region`]).
+const UNOBSERVED_MIN_NEIGHBOURS: u8 = 5;
+/// Speed next to an unobserved region, m/s: slow enough that the sweeping beams look into it before the
+/// drone is there.
+const UNOBSERVED_MIN_SPEED_M_S: f32 = 0.2;
+/// Speed allowed per metre of observed path before an unobserved region, 1/s.
+const UNOBSERVED_APPROACH_GAIN: f32 = 1.0;
+/// Largest turn away from the direction of travel to look at an unobserved region, rad.
+const LOOK_MAX_OFFSET_RAD: f32 = 0.8;
+/// Heading sweep while navigating: amplitude, rad, and period, s.
+const SCAN_AMPLITUDE_RAD: f32 = 0.6;
+const SCAN_PERIOD_S: f32 = 2.0;
+
+/// A map whose blocked cells grow by one cell (8-neighbourhood): the margin shortcuts keep.
+struct Dilated<'a, M: Traversability>(&'a M);
+
+impl<M: Traversability> Traversability for Dilated<'_, M> {
+    fn shape(&self) -> GridShape {
+        self.0.shape()
+    }
+
+    fn is_blocked(&self, x: i32, y: i32) -> bool {
+        (-1..=1).any(|dy| (-1..=1).any(|dx| self.0.is_blocked(x + dx, y + dy)))
+    }
+}
+
+impl<const CELLS: usize, const QUEUE: usize> Mission<CELLS, QUEUE> {
+    /// The leg's target: the nominal goal going out, the start coming back.
+    pub(super) fn leg_target(&self) -> (f32, f32) {
+        match self.leg {
+            Leg::Outbound => self.params.goal_m,
+            Leg::Return => self.params.start_m,
+        }
+    }
+
+    pub(super) fn begin_leg(&mut self, _now: Micros, state: &StateEstimate, leg: Leg) -> Setpoint {
+        self.leg = leg;
+        self.restore_full_inflation();
+        self.planner_needs_reset = true;
+        self.pad.reset();
+        self.sweep = None;
+        self.avoidance.reset();
+        let (x, y) = (state.position_m[0], state.position_m[1]);
+        let z_target = state.position_m[2].max(0.0);
+        self.phase = Phase::TakeOff { x, y, z_target };
+        Setpoint::Position {
+            x_m: x,
+            y_m: y,
+            z_m: z_target,
+            yaw_rad: self.heading,
+        }
+    }
+
+    pub(super) fn full_inflation_cells(&self) -> u8 {
+        libm::ceilf(self.config.inflation_radius_m / CELL_SIZE_M).clamp(0.0, 16.0) as u8
+    }
+
+    pub(super) fn narrow_inflation_cells(&self) -> u8 {
+        libm::ceilf(self.config.narrow_inflation_radius_m / CELL_SIZE_M).clamp(0.0, 16.0) as u8
+    }
+
+    /// Whether the planner currently uses the narrow no-path fallback margin.
+    pub(super) fn narrow(&self) -> bool {
+        self.grid.inflation_radius_cells() < self.full_inflation_cells()
+    }
+
+    /// Back to the full margin (a new leg plans with it first).
+    pub(super) fn restore_full_inflation(&mut self) {
+        let full = self.full_inflation_cells();
+        if self.grid.inflation_radius_cells() != full {
+            self.grid.set_inflation_radius(full, &mut self.changed);
+        }
+    }
+
+    pub(super) fn cell_of(&self, p: (f32, f32)) -> Cell {
+        let max_x = (self.shape.width.saturating_sub(1)) as f32;
+        let max_y = (self.shape.height.saturating_sub(1)) as f32;
+        let cx = libm::floorf(p.0 / CELL_SIZE_M).clamp(0.0, max_x);
+        let cy = libm::floorf(p.1 / CELL_SIZE_M).clamp(0.0, max_y);
+        // NaN clamps to NaN; `as` turns it into 0, a valid cell.
+        Cell::new(cx as u16, cy as u16)
+    }
+
+    /// The drone's cell for planning: itself, or, when inflation has swallowed it (it flew a little close to
+    /// a wall), the nearest free cell within 0.3 m, so the plan leads out instead of reporting no path.
+    pub(super) fn escape_cell(&self, here: Cell) -> Cell {
+        if !self.grid.is_blocked(here) {
+            return here;
+        }
+        let (hx, hy) = (i32::from(here.x), i32::from(here.y));
+        for radius in 1..=6i32 {
+            let mut best: Option<(i32, Cell)> = None;
+            for dy in -radius..=radius {
+                for dx in -radius..=radius {
+                    if dx.abs() != radius && dy.abs() != radius {
+                        continue;
+                    }
+                    let (x, y) = (hx + dx, hy + dy);
+                    if !self.shape.contains(x, y) {
+                        continue;
+                    }
+                    let c = Cell::new(x as u16, y as u16);
+                    let d = dx * dx + dy * dy;
+                    if !self.grid.is_blocked(c) && best.is_none_or(|(bd, _)| d < bd) {
+                        best = Some((d, c));
+                    }
+                }
+            }
+            if let Some((_, c)) = best {
+                return c;
+            }
+        }
+        here
+    }
+
+    /// Feed map changes and the drone's cell to the planner and run one budgeted slice.
+    /// `Ok(Some(target))`: a path exists, fly towards `target`; `Ok(None)`: no path; `Err(())`: the slice
+    /// did not finish (keep flying the previous target).
+    pub(super) fn plan(&mut self, state: &StateEstimate) -> Result<Option<(f32, f32)>, ()> {
+        let here = self.escape_cell(self.cell_of((state.position_m[0], state.position_m[1])));
+        // A nominal goal inside the inflated margin of something mapped (a box beside the pad, a stray
+        // return) would end the leg with no path: plan to the nearest free cell instead; the pad search
+        // starts from there (see [`Self::navigate`]). A goal that moves needs a fresh plan.
+        let goal = self.escape_cell(self.cell_of(self.leg_target()));
+        if self.planner_needs_reset || self.changed.overflowed() || goal != self.planner.goal() {
+            if self.planner.reset(self.shape, here, goal).is_err() {
+                return Err(());
+            }
+            self.changed.clear();
+            self.planner_needs_reset = false;
+            self.stats.plans_from_scratch += 1;
+        } else {
+            if self.planner.set_start(here).is_err() {
+                self.planner_needs_reset = true;
+                return Err(());
+            }
+            if !self.changed.is_empty() {
+                if self.planner.cells_changed(&self.grid, self.changed.as_slice()).is_err() {
+                    self.planner_needs_reset = true;
+                    return Err(());
+                }
+                self.changed.clear();
+                self.stats.replans += 1;
+            }
+        }
+        match self.planner.compute(&self.grid, self.config.planner_budget) {
+            Ok(PlanStatus::Found { .. }) => {
+                self.stats.last_expansions = self.planner.expansions();
+                if extract_path(&self.planner, &self.grid, &mut self.path).is_err() {
+                    self.planner_needs_reset = true;
+                    return Err(());
+                }
+                // Shortcuts must keep one more cell from the inflated obstacles than the path itself: a
+                // straight leg hugging an inflated corner leaves no room for tracking and estimate errors.
+                simplify(&Dilated(&self.grid), &self.path, &mut self.waypoints);
+                // From an escape cell, first fly to it.
+                let target = if here != self.cell_of((state.position_m[0], state.position_m[1])) {
+                    self.shape.center_of(here)
+                } else {
+                    match self.waypoints.get(1) {
+                        Some(c) => self.shape.center_of(*c),
+                        None => self.leg_target(),
+                    }
+                };
+                Ok(Some(target))
+            }
+            Ok(PlanStatus::NoPath) => {
+                self.stats.last_expansions = self.planner.expansions();
+                self.waypoints.clear();
+                Ok(None)
+            }
+            Ok(PlanStatus::Incomplete) => Err(()),
+            Err(PlanError::QueueFull) | Err(_) => {
+                self.planner_needs_reset = true;
+                Err(())
+            }
+        }
+    }
+
+    pub(super) fn navigate(&mut self, now: Micros, state: &StateEstimate, dt_s: f32) -> Setpoint {
+        let (x, y) = (state.position_m[0], state.position_m[1]);
+        let target_leg = self.leg_target();
+        let to_goal = libm::hypotf(target_leg.0 - x, target_leg.1 - y);
+        let planned_goal = self.planner.goal();
+        let at_substitute_goal = planned_goal != self.cell_of(target_leg) && {
+            let (gx, gy) = self.shape.center_of(planned_goal);
+            libm::hypotf(gx - x, gy - y) < self.config.goal_tolerance_m
+        };
+        if to_goal < self.config.goal_tolerance_m || (at_substitute_goal && !self.planner_needs_reset) {
+            return self.begin_search(state);
+        }
+        let target = match self.plan(state) {
+            Ok(Some(t)) => Some(t),
+            Ok(None) if !self.narrow() && self.narrow_inflation_cells() < self.full_inflation_cells() => {
+                // The full margin closes every way: try the narrow one (next tick plans with it), holding
+                // position meanwhile.
+                let narrow = self.narrow_inflation_cells();
+                self.grid.set_inflation_radius(narrow, &mut self.changed);
+                return Setpoint::Position {
+                    x_m: x,
+                    y_m: y,
+                    z_m: self.params.height_m,
+                    yaw_rad: self.heading,
+                };
+            }
+            Ok(None) => {
+                self.phase = Phase::NoPath { since: now, x, y };
+                return Setpoint::Position {
+                    x_m: x,
+                    y_m: y,
+                    z_m: self.params.height_m,
+                    yaw_rad: self.heading,
+                };
+            }
+            // An unfinished repair: keep heading for the previous waypoint, if any.
+            Err(()) => self.waypoints.get(1).map(|c| self.shape.center_of(*c)),
+        };
+        let (dvx, dvy) = match target {
+            Some((tx, ty)) => {
+                let (dx, dy) = (tx - x, ty - y);
+                let d = libm::hypotf(dx, dy);
+                // Slow into the goal (stop within ~0.5 s at 1 m/s²) and never overshoot a waypoint hard.
+                let cruise = if self.narrow() {
+                    self.params.speed_m_s.min(self.config.narrow_speed_m_s)
+                } else {
+                    self.params.speed_m_s
+                };
+                let mut speed = cruise
+                    .min(libm::sqrtf(2.0 * 0.8 * to_goal))
+                    .min(self.corner_speed(cruise, (x, y), (tx, ty)) + CORNER_APPROACH_GAIN * d);
+                let (observed, unobserved_cell) = self.observed_ahead_m((x, y), (tx, ty));
+                speed = speed.min(UNOBSERVED_MIN_SPEED_M_S + UNOBSERVED_APPROACH_GAIN * observed);
+                if d > 0.05 {
+                    // Face the direction of travel, sweeping the heading ±SCAN_AMPLITUDE so the front ranger also
+                    // sees obstacles diagonally ahead (a wall's end beside the path is otherwise invisible to
+                    // four beams until the drone is abeam of it); fly only as fast as the ranger looks ahead.
+                    let phase = 2.0 * core::f32::consts::PI * (now as f32 * 1e-6) / SCAN_PERIOD_S;
+                    let travel = libm::atan2f(dy, dx);
+                    self.heading = match unobserved_cell {
+                        // An unobserved region beside the path ahead: instead of sweeping (whose phase may
+                        // look the other way all along the approach), point the beam that needs the least
+                        // turn (front, left or right) at it, so it is seen before the drone is there.
+                        Some(cell) => Self::look_at_heading(travel, (x, y), cell),
+                        None => wrap_angle(travel + SCAN_AMPLITUDE_RAD * libm::sinf(phase)),
+                    };
+                    // The front beam must look where the drone actually goes: judge the heading against the
+                    // velocity (which turns smoothly) rather than the new target's direction.
+                    let (vx, vy) = (state.velocity_m_s[0], state.velocity_m_s[1]);
+                    let moving = if libm::hypotf(vx, vy) > 0.1 {
+                        libm::atan2f(vy, vx)
+                    } else {
+                        travel
+                    };
+                    let misalignment = wrap_angle(moving - state.attitude_rad[2]);
+                    let excess = (libm::fabsf(misalignment) - SCAN_AMPLITUDE_RAD).max(0.0);
+                    speed *= libm::cosf(excess).max(0.0);
+                }
+                if d > 1e-3 {
+                    (speed * dx / d, speed * dy / d)
+                } else {
+                    (0.0, 0.0)
+                }
+            }
+            None => (0.0, 0.0),
+        };
+        let cmd = self
+            .avoidance
+            .step(&self.last_ranges, state.attitude_rad[2], dvx, dvy, dt_s);
+        Setpoint::Velocity {
+            vx_m_s: cmd.vx,
+            vy_m_s: cmd.vy,
+            z_m: self.params.height_m,
+            yaw_rad: self.heading,
+        }
+    }
+
+    /// How fast to pass the waypoint `target` (reached from `here`), m/s: the cruise speed if the path goes on
+    /// straight, down to [`CORNER_MIN_SPEED_M_S`] for a turn of 90° or more. A path turns where it rounds an
+    /// obstacle (usually a wall end the four beams saw late), so a fast corner overshoots towards it.
+    pub(super) fn corner_speed(&self, cruise: f32, here: (f32, f32), target: (f32, f32)) -> f32 {
+        let Some(next) = self.waypoints.get(2).map(|c| self.shape.center_of(*c)) else {
+            return cruise;
+        };
+        let a = (target.0 - here.0, target.1 - here.1);
+        let b = (next.0 - target.0, next.1 - target.1);
+        let (la, lb) = (libm::hypotf(a.0, a.1), libm::hypotf(b.0, b.1));
+        if !(la > 1e-3 && lb > 1e-3) {
+            return cruise;
+        }
+        let cos_turn = ((a.0 * b.0 + a.1 * b.1) / (la * lb)).clamp(0.0, 1.0);
+        CORNER_MIN_SPEED_M_S + (cruise - CORNER_MIN_SPEED_M_S).max(0.0) * cos_turn
+    }
+
+    /// How far the drone can fly along its path (from `here` to `target`, then the later waypoints) before
+    /// the path passes within [`UNOBSERVED_CLEARANCE_M`] of a region no beam has looked into, m (at most
+    /// [`UNOBSERVED_LOOKAHEAD_M`]). The planner treats unknown space as free, so a path may graze a box the
+    /// four beams have not seen yet; the drone slows there until the sweep has looked.
+    /// Also returns the centre of the unobserved cell found first, if any, for a beam to look at.
+    pub(super) fn observed_ahead_m(&self, here: (f32, f32), target: (f32, f32)) -> (f32, Option<(f32, f32)>) {
+        const STEP_M: f32 = CELL_SIZE_M;
+        let reach = libm::ceilf(UNOBSERVED_CLEARANCE_M / CELL_SIZE_M) as i32;
+        // Only what lies ahead matters: regions beside and behind the drone were passed already.
+        let (ux, uy) = {
+            let (dx, dy) = (target.0 - here.0, target.1 - here.1);
+            let d = libm::hypotf(dx, dy);
+            if d > 1e-3 { (dx / d, dy / d) } else { (0.0, 0.0) }
+        };
+        let ahead = |x: i32, y: i32| {
+            let (cx, cy) = self.shape.center_of(Cell::new(x as u16, y as u16));
+            (cx - here.0) * ux + (cy - here.1) * uy >= 0.0
+        };
+        let suspicious = |p: (f32, f32)| -> Option<(f32, f32)> {
+            let cx = libm::floorf(p.0 / CELL_SIZE_M) as i32;
+            let cy = libm::floorf(p.1 / CELL_SIZE_M) as i32;
+            for y in cy.saturating_sub(reach)..=cy.saturating_add(reach) {
+                for x in cx.saturating_sub(reach)..=cx.saturating_add(reach) {
+                    if !self.shape.contains(x, y) {
+                        continue;
+                    }
+                    let (x0, y0) = (x as f32 * CELL_SIZE_M, y as f32 * CELL_SIZE_M);
+                    let dx = (x0 - p.0).max(p.0 - (x0 + CELL_SIZE_M)).max(0.0);
+                    let dy = (y0 - p.1).max(p.1 - (y0 + CELL_SIZE_M)).max(0.0);
+                    if dx * dx + dy * dy <= UNOBSERVED_CLEARANCE_M * UNOBSERVED_CLEARANCE_M
+                        && ahead(x, y)
+                        && self
+                            .grid
+                            .is_unobserved_region(Cell::new(x as u16, y as u16), UNOBSERVED_MIN_NEIGHBOURS)
+                    {
+                        return Some(self.shape.center_of(Cell::new(x as u16, y as u16)));
+                    }
+                }
+            }
+            None
+        };
+        let corners = core::iter::once(target).chain(self.waypoints.iter().skip(2).map(|c| self.shape.center_of(*c)));
+        let mut from = here;
+        let mut travelled = 0.0f32;
+        // Distance along the current segment of the next sample.
+        let mut offset = 0.0f32;
+        for to in corners {
+            let length = libm::hypotf(to.0 - from.0, to.1 - from.1);
+            if !length.is_finite() {
+                break;
+            }
+            while offset <= length {
+                let s = travelled + offset;
+                if s > UNOBSERVED_LOOKAHEAD_M {
+                    return (UNOBSERVED_LOOKAHEAD_M, None);
+                }
+                let t = if length > 1e-6 { offset / length } else { 0.0 };
+                if let Some(cell) = suspicious((from.0 + t * (to.0 - from.0), from.1 + t * (to.1 - from.1))) {
+                    return (s, Some(cell));
+                }
+                offset += STEP_M;
+            }
+            offset -= length;
+            travelled += length;
+            from = to;
+        }
+        (UNOBSERVED_LOOKAHEAD_M, None)
+    }
+
+    /// The heading within [`LOOK_MAX_OFFSET_RAD`] of `travel` that points the front, left or right beam
+    /// (whichever needs the least turn away from `travel`) from `here` at `point`, rad.
+    pub(super) fn look_at_heading(travel: f32, here: (f32, f32), point: (f32, f32)) -> f32 {
+        let bearing = libm::atan2f(point.1 - here.1, point.0 - here.0);
+        let offset = [0.0, core::f32::consts::FRAC_PI_2, -core::f32::consts::FRAC_PI_2]
+            .into_iter()
+            .map(|beam| wrap_angle(bearing - beam - travel))
+            .fold(core::f32::consts::PI, |best, o| {
+                if libm::fabsf(o) < libm::fabsf(best) { o } else { best }
+            });
+        wrap_angle(travel + offset.clamp(-LOOK_MAX_OFFSET_RAD, LOOK_MAX_OFFSET_RAD))
+    }
+}

@@ -1,0 +1,363 @@
+//! The pad search: the coarse lawnmower around the nominal goal, then refinement lines across and along the
+//! first crossing until the detector locks, every line clipped to keep its clearance from mapped obstacles
+//! and the arena walls. The rules are in the [mission's documentation](super).
+
+use super::{Mission, Phase, Search};
+use crate::landing::sweep::{ArenaBounds, LawnmowerSweep, SweepAxis};
+use crate::nav::map::{CELL_SIZE_M, Cell};
+use crate::types::{Setpoint, StateEstimate};
+
+/// Search lines stop this far from mapped obstacles and arena walls, m: the drone's radius (0.06 m), the
+/// estimate's drift over a search (≈ 5 cm) and tracking overshoot at a line's end.
+const SEARCH_CLEARANCE_M: f32 = 0.18;
+/// A drone this close to a coarse line, between its ends, flies on along it rather than back to its start, m.
+const ON_LINE_TOLERANCE_M: f32 = 0.1;
+/// How far [`Mission::clearance`] looks, m.
+const CLEARANCE_HORIZON_M: f32 = 0.3;
+/// Sampling step along a search line for the clearance check, m.
+const CLEARANCE_STEP_M: f32 = 0.025;
+const REFINE_LINES: u8 = 3;
+const REFINE_STAGES: u8 = 8;
+
+impl<const CELLS: usize, const QUEUE: usize> Mission<CELLS, QUEUE> {
+    pub(super) fn begin_search(&mut self, state: &StateEstimate) -> Setpoint {
+        let centre = self.leg_target();
+        let arena = ArenaBounds::new(self.params.arena_m.0, self.params.arena_m.1, 0.15);
+        let here = (state.position_m[0], state.position_m[1]);
+        // The first pass's lines run along the arrival direction: its middle line, through the nominal
+        // point, then starts just behind the drone instead of off to its side.
+        let mut sweep = self.config.sweep;
+        let (vx, vy) = (state.velocity_m_s[0], state.velocity_m_s[1]);
+        if libm::hypotf(vx, vy) > 0.1 {
+            sweep.axis = if libm::fabsf(vx) >= libm::fabsf(vy) {
+                SweepAxis::AlongX
+            } else {
+                SweepAxis::AlongY
+            };
+        }
+        self.sweep = LawnmowerSweep::new(centre, here, &sweep, &arena).ok();
+        // The detector keeps what it saw on the approach (it was reset when the leg began).
+        let search = Search::Coarse {
+            step: 0,
+            reverse: false,
+        };
+        self.phase = Phase::Search(search);
+        self.search(search, state, 0.02)
+    }
+
+    /// Distance from `p` to the nearest mapped obstacle cell (the cell's square, not its centre) or arena
+    /// wall, m, capped at [`CLEARANCE_HORIZON_M`]. Looks at a (2·3+1)² window of cells: O(49).
+    pub(super) fn clearance(&self, p: (f32, f32)) -> f32 {
+        let (w, h) = self.params.arena_m;
+        let mut best = CLEARANCE_HORIZON_M.min(p.0).min(w - p.0).min(p.1).min(h - p.1);
+        let cx = libm::floorf(p.0 / CELL_SIZE_M) as i32;
+        let cy = libm::floorf(p.1 / CELL_SIZE_M) as i32;
+        let reach = libm::ceilf(CLEARANCE_HORIZON_M / CELL_SIZE_M) as i32;
+        for y in (cy - reach)..=(cy + reach) {
+            for x in (cx - reach)..=(cx + reach) {
+                if !self.shape.contains(x, y) || !self.grid.is_occupied(Cell::new(x as u16, y as u16)) {
+                    continue;
+                }
+                let (x0, y0) = (x as f32 * CELL_SIZE_M, y as f32 * CELL_SIZE_M);
+                let dx = (x0 - p.0).max(p.0 - (x0 + CELL_SIZE_M)).max(0.0);
+                let dy = (y0 - p.1).max(p.1 - (y0 + CELL_SIZE_M)).max(0.0);
+                best = best.min(libm::hypotf(dx, dy));
+            }
+        }
+        best
+    }
+
+    /// The point where the straight flight `from → to` must stop to keep [`SEARCH_CLEARANCE_M`] from what
+    /// the drone has mapped: the search pattern is laid out blind around the nominal point, and its lines
+    /// may run into a wall or box beside the pad. Moving while the clearance grows (leaving a tight spot) is
+    /// always allowed; the first sample where it drops below the minimum and keeps shrinking ends the line.
+    pub(super) fn clip_to_clearance(&self, from: (f32, f32), to: (f32, f32)) -> (f32, f32) {
+        let length = libm::hypotf(to.0 - from.0, to.1 - from.1);
+        if !(length.is_finite() && length > 1e-3) {
+            return to;
+        }
+        let steps = libm::ceilf(length / CLEARANCE_STEP_M).min(400.0) as u32;
+        let mut previous = (from, self.clearance(from));
+        for i in 1..=steps {
+            let t = i as f32 / steps as f32;
+            let p = (from.0 + t * (to.0 - from.0), from.1 + t * (to.1 - from.1));
+            let c = self.clearance(p);
+            if c < SEARCH_CLEARANCE_M && c < previous.1 - 1e-4 {
+                return previous.0;
+            }
+            previous = (p, c);
+        }
+        to
+    }
+
+    /// Fly towards `target` at the search speed (stopping short of mapped obstacles, see
+    /// [`Self::clip_to_clearance`]); `true` once within 3 cm of where it can get.
+    pub(super) fn fly_to(&self, state: &StateEstimate, target: (f32, f32)) -> (Setpoint, bool) {
+        let (x, y) = (state.position_m[0], state.position_m[1]);
+        let target = self.clip_to_clearance((x, y), target);
+        let (dx, dy) = (target.0 - x, target.1 - y);
+        let d = libm::hypotf(dx, dy);
+        // Line ends lie off the pad, so they need no precision; a firm approach (about 2.5 m/s² of
+        // deceleration demand, 4 cm tolerance) keeps each line short in time, and with it the drift
+        // between the crossings the detector compares.
+        let reached = d < 0.04;
+        let speed = self.config.search_speed_m_s.min(0.05 + 2.5 * d);
+        let (vx, vy) = if d > 1e-3 {
+            (speed * dx / d, speed * dy / d)
+        } else {
+            (0.0, 0.0)
+        };
+        (
+            Setpoint::Velocity {
+                vx_m_s: vx,
+                vy_m_s: vy,
+                z_m: self.params.height_m,
+                yaw_rad: self.heading,
+            },
+            reached,
+        )
+    }
+
+    pub(super) fn search(&mut self, search: Search, state: &StateEstimate, _dt_s: f32) -> Setpoint {
+        if let Some((px, py)) = self.pad.locked_centre() {
+            self.stats.pad_centres[self.leg_index()] = Some((px, py));
+            self.phase = Phase::Approach {
+                x: px,
+                y: py,
+                settled_since: None,
+            };
+            return Setpoint::Position {
+                x_m: px,
+                y_m: py,
+                z_m: self.params.height_m,
+                yaw_rad: self.heading,
+            };
+        }
+        match search {
+            Search::Coarse { step, reverse } => {
+                // The first crossing switches to the refinement around it.
+                if let Some(first) = self.pad.crossings().first() {
+                    let (dx, dy) = first.direction();
+                    let centre = first.midpoint();
+                    let refine = Search::Refine {
+                        stage: 0,
+                        line: 0,
+                        end: 0,
+                        centre,
+                        first_along_x: libm::fabsf(dx) >= libm::fabsf(dy),
+                        crossings_before: self.crossing_count(),
+                    };
+                    self.phase = Phase::Search(refine);
+                    return self.search(refine, state, _dt_s);
+                }
+                let Some((a, b)) = self.coarse_line(step / 2) else {
+                    return self.give_up_search(state);
+                };
+                // Enter each line at the end nearer the drone.
+                let reverse = if step % 2 == 0 {
+                    let here = (state.position_m[0], state.position_m[1]);
+                    libm::hypotf(b.0 - here.0, b.1 - here.1) < libm::hypotf(a.0 - here.0, a.1 - here.1)
+                } else {
+                    reverse
+                };
+                let (first, second) = if reverse { (b, a) } else { (a, b) };
+                let here = (state.position_m[0], state.position_m[1]);
+                // Already on the line between its ends (the first line runs along the arrival, through the
+                // nominal point, and navigation hands over short of it): fly on to its far end instead of
+                // turning back to its start; the stretch behind was covered by the detector on the approach.
+                let step = if step % 2 == 0 && Self::lies_on_segment(here, first, second, ON_LINE_TOLERANCE_M) {
+                    step + 1
+                } else {
+                    step
+                };
+                let wp = if step % 2 == 0 { first } else { second };
+                let (sp, reached) = self.fly_to(state, wp);
+                self.phase = Phase::Search(Search::Coarse {
+                    step: if reached { step + 1 } else { step },
+                    reverse,
+                });
+                sp
+            }
+            Search::Refine {
+                stage,
+                line,
+                end,
+                centre,
+                first_along_x,
+                crossings_before,
+            } => {
+                if stage >= REFINE_STAGES {
+                    self.pad.flush();
+                    return self.give_up_search(state);
+                }
+                // Even stages fly across the first crossing's direction, odd stages along it; after the first
+                // two, more passes re-centred on the latest estimate give the detector more crossings.
+                let along_x = if stage % 2 == 0 { !first_along_x } else { first_along_x };
+                let offset = (f32::from(line) - 1.0) * self.config.refine_offset_m;
+                // The first stage crosses a pad whose centre may lie up to a pad width to either side of the
+                // first crossing's line, so its lines are longer; later stages are centred on the estimate.
+                // The same holds while every inlier crossing runs one way: the estimate's other coordinate
+                // is then only the lines' offset, anywhere within half a pad of the centre.
+                let one_direction_only = self.pad.estimate().is_none_or(|e| e.min_direction_crossings < 0.5);
+                let length = if stage == 0 || one_direction_only {
+                    self.config.refine_line_m + 0.3
+                } else {
+                    self.config.refine_line_m
+                };
+                let half = 0.5 * length;
+                let (a, b) = if along_x {
+                    (
+                        (centre.0 - half, centre.1 + offset),
+                        (centre.0 + half, centre.1 + offset),
+                    )
+                } else {
+                    (
+                        (centre.0 + offset, centre.1 - half),
+                        (centre.0 + offset, centre.1 + half),
+                    )
+                };
+                // Alternate directions so consecutive lines join up like a lawnmower.
+                let (first, second) = if line % 2 == 0 { (a, b) } else { (b, a) };
+                let wp = if end == 0 { first } else { second };
+                let (sp, reached) = self.fly_to(state, wp);
+                let crossings_now = self.crossing_count();
+                // A line has done its job once it gave a crossing: its remaining length only costs time.
+                let line_done = end == 1 && (reached || crossings_now > crossings_before);
+                let next = if !reached && !line_done {
+                    Search::Refine {
+                        stage,
+                        line,
+                        end,
+                        centre,
+                        first_along_x,
+                        crossings_before,
+                    }
+                } else if end == 0 {
+                    Search::Refine {
+                        stage,
+                        line,
+                        end: 1,
+                        centre,
+                        first_along_x,
+                        crossings_before: crossings_now,
+                    }
+                } else if line + 1 < REFINE_LINES && (stage >= 2 || self.inlier_crossings(along_x) < 2) {
+                    Search::Refine {
+                        stage,
+                        line: line + 1,
+                        end: 0,
+                        centre,
+                        first_along_x,
+                        crossings_before: crossings_now,
+                    }
+                } else {
+                    // Next stage (this direction has its two crossings, or its lines are flown), centred on
+                    // the detector's best estimate so far. After the first round the detector starts
+                    // afresh: the position estimate drifts (≈ 1 cm/√s on flow alone), so crossings half a
+                    // minute apart disagree by more than the pad detection error.
+                    self.pad.flush();
+                    let c = self.pad.estimate().map(|e| (e.x, e.y)).unwrap_or(centre);
+                    if (stage + 1) % 2 == 0 {
+                        self.pad.reset();
+                    }
+                    Search::Refine {
+                        stage: stage + 1,
+                        line: 0,
+                        end: 0,
+                        centre: c,
+                        first_along_x,
+                        crossings_before: self.crossing_count(),
+                    }
+                };
+                self.phase = Phase::Search(next);
+                sp
+            }
+        }
+    }
+
+    /// Whether `p` lies within `tolerance` of the segment `a → b`, between its ends.
+    pub(super) fn lies_on_segment(p: (f32, f32), a: (f32, f32), b: (f32, f32), tolerance: f32) -> bool {
+        let (ux, uy) = (b.0 - a.0, b.1 - a.1);
+        let length = libm::hypotf(ux, uy);
+        // Also false for a NaN length.
+        if length.is_nan() || length <= 1e-3 {
+            return false;
+        }
+        let (ux, uy) = (ux / length, uy / length);
+        let (px, py) = (p.0 - a.0, p.1 - a.1);
+        let along = px * ux + py * uy;
+        let across = libm::fabsf(px * uy - py * ux);
+        (0.0..length).contains(&along) && across <= tolerance
+    }
+
+    /// Crossings the detector holds (saturating at 255): a line that adds one has done its job.
+    pub(super) fn crossing_count(&self) -> u8 {
+        u8::try_from(self.pad.crossings().len()).unwrap_or(u8::MAX)
+    }
+
+    /// Inlier crossings the detector holds that run along x (`along_x`) or along y.
+    pub(super) fn inlier_crossings(&self, along_x: bool) -> usize {
+        self.pad
+            .crossings()
+            .iter()
+            .filter(|c| {
+                let (dx, dy) = c.direction();
+                c.inlier && (libm::fabsf(dx) >= libm::fabsf(dy)) == along_x
+            })
+            .count()
+    }
+
+    /// The `k`-th line of the coarse pattern, lines taken centre-out within each pass of the lawnmower
+    /// (the pad lies near the nominal point, so the middle lines are the likeliest to cross it).
+    pub(super) fn coarse_line(&self, k: usize) -> Option<((f32, f32), (f32, f32))> {
+        let sweep = self.sweep.as_ref()?;
+        let [first, second] = sweep.lines_per_pass();
+        let (pass_start, lines, j) = if k < first {
+            (0, first, k)
+        } else {
+            (2 * first, second, k.checked_sub(first)?)
+        };
+        if j >= lines {
+            return None;
+        }
+        // Centre-out: mid, mid+1, mid−1, mid+2, …
+        let mid = (lines - 1) / 2;
+        let offset = j.div_ceil(2);
+        let line = if j % 2 == 1 {
+            mid + offset
+        } else {
+            mid.checked_sub(offset)?
+        };
+        let line = if line < lines {
+            line
+        } else {
+            mid.checked_sub(offset + 1)?
+        };
+        let a = sweep.waypoint(pass_start + 2 * line)?;
+        let b = sweep.waypoint(pass_start + 2 * line + 1)?;
+        Some((a, b))
+    }
+
+    /// No lock: land on the best estimate, or the nominal point, and remember it for the final code.
+    pub(super) fn give_up_search(&mut self, state: &StateEstimate) -> Setpoint {
+        self.pad_not_found = true;
+        let (px, py) = self
+            .pad
+            .estimate()
+            .map(|e| (e.x, e.y))
+            .unwrap_or_else(|| self.leg_target());
+        self.stats.pad_centres[self.leg_index()] = None;
+        let _ = state;
+        self.phase = Phase::Approach {
+            x: px,
+            y: py,
+            settled_since: None,
+        };
+        Setpoint::Position {
+            x_m: px,
+            y_m: py,
+            z_m: self.params.height_m,
+            yaw_rad: self.heading,
+        }
+    }
+}

@@ -1,0 +1,503 @@
+//! D* Lite (Koenig & Likhachev, "Fast Replanning for Navigation in Unknown Terrain", IEEE T-RO 2005, the
+//! optimized version with the key modifier `km`) on an 8-connected grid.
+//!
+//! Job: keep the cost-to-goal `g` of every cell consistent with the map the drone believes, repairing it
+//! incrementally when cells become blocked or free and while the start (the drone) moves, so that a
+//! shortest path from the drone's cell to the goal can be read off greedily (see [`DStarLite::next_cell`]).
+//!
+//! Non-goals: building the map (see [`crate::nav::grid`]), path shortening and smoothing (see [`crate::nav::path`]).
+//!
+//! Rules (those of `shared/spec/interfaces.md` §2): moves go to the 8 neighbours; a straight move costs 10,
+//! a diagonal one 14; a diagonal move is allowed only when both cells it passes between are free (no corner
+//! cutting); blocked cells and cells outside the grid cannot be entered. Leaving a blocked cell is allowed,
+//! so a drone whose own cell was inflated into an obstacle can still plan its way out. The heuristic is the
+//! octile distance `10·max(dx,dy) + 4·min(dx,dy)`, which is exact on an empty grid, hence admissible and
+//! consistent.
+//!
+//! Implementation notes:
+//! - The search runs backwards from the goal. `rhs` is kept only for queued cells, as the queue entry's
+//!   payload: D* Lite's invariant is that the open list holds exactly the locally inconsistent cells
+//!   (`g ≠ rhs`), so every other cell has `rhs = g`. That saves `2·CELLS` bytes.
+//! - Costs are `u16` with `u16::MAX` as infinity. A shortest path visits each cell at most once and no
+//!   two non-consecutive cells of it are 4-adjacent, so its cost stays far below 65 535 for any grid of at
+//!   most 8192 cells; a sum that would still reach it saturates to infinity rather than wrapping.
+//! - `km` grows by `h(last, start)` whenever the start has moved since the last repair; keys stay lower
+//!   bounds, and a popped cell whose key is stale is re-queued with its fresh key. When `km` gets large the
+//!   queue is re-keyed from scratch and `km` restarts at 0.
+//! - Changed cells: when a cell's blocked state flips, the edges that change are those entering it and the
+//!   diagonals that pass beside it; all of them leave one of its 8 neighbours, so those neighbours get their
+//!   `rhs` recomputed from their successors and are re-queued as needed.
+//! - Keys tie-break on the smaller `min(g, rhs)`, as in the paper. This makes the first plan on open ground
+//!   expand every cell that lies on *some* optimal path (the octile heuristic is exact there, so they all
+//!   share `k1`), more than an A* that prefers deep nodes; but the order is what guarantees that an
+//!   under-consistent cell on the greedy path, whose `k1` ties with the start's, is repaired before the
+//!   search stops, so it is kept.
+//! - [`DStarLite::compute`] takes an expansion budget. When it is spent the call returns
+//!   [`PlanStatus::Incomplete`] with all state intact; the next call resumes. The loop always terminates:
+//!   each cell is expanded at most twice per repair (once over-, once under-consistent), so "no path" is an
+//!   answer ([`PlanStatus::NoPath`]), never a hang.
+//!
+//! Memory: `g` `2·CELLS` bytes + the queue `2·CELLS + 10·QUEUE` bytes + a few scalars. The firmware's
+//! [`ArenaPlanner`] (7200 cells, 1024 queue entries) takes 39 076 B.
+//!
+//! Complexity: a repair expands `O(k)` cells for `k` affected cells, each expansion `O(8 · log QUEUE)`.
+//! If the queue overflows the planner refuses further work ([`PlanError::QueueFull`]) until
+//! [`DStarLite::reset`], which the caller follows with a fresh plan.
+
+use crate::nav::map::{ARENA_CELLS, Cell, GridShape, Traversability};
+use crate::nav::queue::{IndexedQueue, Key};
+
+/// "Unreachable".
+pub const INFINITE: u16 = u16::MAX;
+/// Cost of a straight move.
+pub const STRAIGHT_COST: u16 = 10;
+/// Cost of a diagonal move.
+pub const DIAGONAL_COST: u16 = 14;
+/// Open-list capacity of the firmware's planner.
+pub const ARENA_QUEUE: usize = 1024;
+/// The planner the firmware is built with.
+pub type ArenaPlanner = DStarLite<ARENA_CELLS, ARENA_QUEUE>;
+
+/// `km` beyond which the queue is re-keyed (keeps `k1` far from overflowing `u32`).
+const KM_REKEY_LIMIT: u32 = 1 << 30;
+
+/// The 8 neighbour offsets, straight moves first (they win ties when a path is read off).
+const NEIGHBOURS: [(i32, i32); 8] = [(1, 0), (0, 1), (-1, 0), (0, -1), (1, 1), (-1, 1), (-1, -1), (1, -1)];
+
+/// Why the planner refused.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum PlanError {
+    /// The grid is empty or larger than the planner's capacity.
+    BadShape,
+    /// A start or goal outside the grid.
+    OutOfBounds,
+    /// The open list overflowed; the planner needs [`DStarLite::reset`].
+    QueueFull,
+    /// No plan was set up yet ([`DStarLite::reset`] was never called).
+    NotReady,
+}
+
+/// The outcome of a [`DStarLite::compute`] call.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum PlanStatus {
+    /// A shortest path exists; its cost from the start, in move-cost units (10 per straight cell).
+    Found {
+        /// Cost from the start to the goal.
+        cost: u32,
+    },
+    /// The goal cannot be reached from the start on the current map.
+    NoPath,
+    /// The expansion budget ran out; call again to continue.
+    Incomplete,
+}
+
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+enum Readiness {
+    Empty,
+    Ready,
+    Broken,
+}
+
+/// See the module documentation.
+#[derive(Clone)]
+pub struct DStarLite<const CELLS: usize, const QUEUE: usize> {
+    shape: GridShape,
+    g: [u16; CELLS],
+    open: IndexedQueue<CELLS, QUEUE>,
+    start: Cell,
+    last_start: Cell,
+    goal: Cell,
+    km: u32,
+    readiness: Readiness,
+    /// Expansions of the current repair (summed over [`PlanStatus::Incomplete`] slices).
+    expansions: u32,
+    /// The last [`DStarLite::compute`] ran out of budget: the next one continues the same repair.
+    resuming: bool,
+}
+
+impl<const CELLS: usize, const QUEUE: usize> Default for DStarLite<CELLS, QUEUE> {
+    fn default() -> Self {
+        Self::new()
+    }
+}
+
+/// Octile distance between two cells, in move-cost units.
+#[inline]
+pub fn octile(a: Cell, b: Cell) -> u32 {
+    let dx = u32::from(a.x.abs_diff(b.x));
+    let dy = u32::from(a.y.abs_diff(b.y));
+    let (lo, hi) = if dx < dy { (dx, dy) } else { (dy, dx) };
+    u32::from(STRAIGHT_COST) * hi + u32::from(DIAGONAL_COST - STRAIGHT_COST) * lo
+}
+
+/// Cost of moving from `(x, y)` by `(dx, dy)` (one of the 8 neighbour offsets) on `map`, or `None` when the
+/// move is not allowed: the target is blocked or outside, or a diagonal would cut a blocked corner.
+#[inline]
+pub fn move_cost(map: &impl Traversability, x: i32, y: i32, dx: i32, dy: i32) -> Option<u16> {
+    if map.is_blocked(x + dx, y + dy) {
+        return None;
+    }
+    if dx != 0 && dy != 0 {
+        if map.is_blocked(x + dx, y) || map.is_blocked(x, y + dy) {
+            return None;
+        }
+        Some(DIAGONAL_COST)
+    } else {
+        Some(STRAIGHT_COST)
+    }
+}
+
+#[inline]
+fn add_cost(c: u16, g: u16) -> u16 {
+    if g == INFINITE {
+        return INFINITE;
+    }
+    let sum = u32::from(c) + u32::from(g);
+    if sum >= u32::from(INFINITE) {
+        INFINITE
+    } else {
+        sum as u16
+    }
+}
+
+impl<const CELLS: usize, const QUEUE: usize> DStarLite<CELLS, QUEUE> {
+    /// A planner with no plan; call [`DStarLite::reset`] before anything else.
+    pub const fn new() -> Self {
+        Self {
+            shape: GridShape { width: 0, height: 0 },
+            g: [0; CELLS],
+            open: IndexedQueue::new(),
+            start: Cell::new(0, 0),
+            last_start: Cell::new(0, 0),
+            goal: Cell::new(0, 0),
+            km: 0,
+            readiness: Readiness::Empty,
+            expansions: 0,
+            resuming: false,
+        }
+    }
+
+    /// Start a new plan from scratch on a `shape` grid (every cell unknown: `g = rhs = ∞` except the goal).
+    /// O(cells). The planner learns the map only through [`DStarLite::cells_changed`] and the edge costs
+    /// it reads while searching, so a map that already has obstacles needs no special treatment.
+    pub fn reset(&mut self, shape: GridShape, start: Cell, goal: Cell) -> Result<(), PlanError> {
+        self.readiness = Readiness::Empty;
+        if shape.width == 0 || shape.height == 0 || shape.cells() > CELLS {
+            return Err(PlanError::BadShape);
+        }
+        let inside = |c: Cell| c.x < shape.width && c.y < shape.height;
+        if !inside(start) || !inside(goal) {
+            return Err(PlanError::OutOfBounds);
+        }
+        self.shape = shape;
+        self.g[..shape.cells()].fill(INFINITE);
+        // The queue's position index may hold garbage from a previous, larger shape or uninitialised memory.
+        self.open.wipe();
+        self.start = start;
+        self.last_start = start;
+        self.goal = goal;
+        self.km = 0;
+        self.expansions = 0;
+        self.resuming = false;
+        let goal_index = shape.index(goal);
+        let key = Key {
+            k1: octile(start, goal),
+            k2: 0,
+        };
+        self.open.push(goal_index, key, 0).map_err(|_| PlanError::QueueFull)?;
+        self.readiness = Readiness::Ready;
+        Ok(())
+    }
+
+    /// The grid shape of the current plan.
+    pub fn shape(&self) -> GridShape {
+        self.shape
+    }
+
+    /// The goal of the current plan.
+    pub fn goal(&self) -> Cell {
+        self.goal
+    }
+
+    /// The start (the drone's cell) of the current plan.
+    pub fn start(&self) -> Cell {
+        self.start
+    }
+
+    /// Move the start to the drone's current cell. Takes effect at the next repair.
+    pub fn set_start(&mut self, start: Cell) -> Result<(), PlanError> {
+        self.check_ready()?;
+        if start.x >= self.shape.width || start.y >= self.shape.height {
+            return Err(PlanError::OutOfBounds);
+        }
+        self.start = start;
+        Ok(())
+    }
+
+    /// Tell the planner that the blocked state of `cells` changed on `map` (which already shows the new
+    /// state). Cells outside the grid are ignored. Call [`DStarLite::compute`] afterwards.
+    pub fn cells_changed(&mut self, map: &impl Traversability, cells: &[Cell]) -> Result<(), PlanError> {
+        self.check_ready()?;
+        self.sync_start();
+        let goal = self.shape.index(self.goal);
+        for &changed in cells {
+            let (cx, cy) = (i32::from(changed.x), i32::from(changed.y));
+            if !self.shape.contains(cx, cy) {
+                continue;
+            }
+            for dy in -1..=1 {
+                for dx in -1..=1 {
+                    let (x, y) = (cx + dx, cy + dy);
+                    if (dx == 0 && dy == 0) || !self.shape.contains(x, y) {
+                        continue;
+                    }
+                    let u = self.index_of(x, y);
+                    if u == goal {
+                        continue;
+                    }
+                    let best = self.best_successor_cost(map, x, y);
+                    if best != self.rhs(u) {
+                        self.update_vertex(u, x, y, best)?;
+                    }
+                }
+            }
+        }
+        Ok(())
+    }
+
+    /// Run (or continue) the repair: expand at most `max_expansions` cells. Returns the plan's status.
+    pub fn compute(&mut self, map: &impl Traversability, max_expansions: u32) -> Result<PlanStatus, PlanError> {
+        self.check_ready()?;
+        self.sync_start();
+        if !self.resuming {
+            self.expansions = 0;
+        }
+        self.resuming = true;
+        let start = self.shape.index(self.start);
+        let goal = self.shape.index(self.goal);
+        let mut budget = max_expansions;
+        loop {
+            let g_start = self.g[start];
+            let rhs_start = self.rhs(start);
+            let start_key = self.key(i32::from(self.start.x), i32::from(self.start.y), g_start, rhs_start);
+            let Some((u, old_key)) = self.open.top() else { break };
+            if old_key >= start_key && rhs_start <= g_start {
+                break;
+            }
+            if budget == 0 {
+                return Ok(PlanStatus::Incomplete);
+            }
+            budget -= 1;
+            self.expansions = self.expansions.saturating_add(1);
+
+            let g_u = self.g[u];
+            let rhs_u = self.rhs(u);
+            let (ux, uy) = self.coords(u);
+            let new_key = self.key(ux, uy, g_u, rhs_u);
+            if old_key < new_key {
+                self.open.update(u, new_key, rhs_u);
+            } else if g_u > rhs_u {
+                // Over-consistent: settle u, then offer it as a successor to its predecessors.
+                self.g[u] = rhs_u;
+                self.open.remove(u);
+                for (dx, dy) in NEIGHBOURS {
+                    let (sx, sy) = (ux - dx, uy - dy);
+                    if !self.shape.contains(sx, sy) {
+                        continue;
+                    }
+                    let s = self.index_of(sx, sy);
+                    if s == goal {
+                        continue;
+                    }
+                    let Some(c) = move_cost(map, sx, sy, dx, dy) else {
+                        continue;
+                    };
+                    let through_u = add_cost(c, rhs_u);
+                    if through_u < self.rhs(s) {
+                        self.update_vertex(s, sx, sy, through_u)?;
+                    }
+                }
+            } else {
+                // Under-consistent: raise u to infinity; every cell whose rhs came through u recomputes it.
+                let g_old = g_u;
+                self.g[u] = INFINITE;
+                for (dx, dy) in NEIGHBOURS {
+                    let (sx, sy) = (ux - dx, uy - dy);
+                    if !self.shape.contains(sx, sy) {
+                        continue;
+                    }
+                    let s = self.index_of(sx, sy);
+                    if s == goal {
+                        continue;
+                    }
+                    let Some(c) = move_cost(map, sx, sy, dx, dy) else {
+                        continue;
+                    };
+                    let rhs_s = self.rhs(s);
+                    if rhs_s != INFINITE && rhs_s == add_cost(c, g_old) {
+                        let best = self.best_successor_cost(map, sx, sy);
+                        self.update_vertex(s, sx, sy, best)?;
+                    }
+                }
+                // u's own rhs does not depend on g(u); it only changes consistency.
+                self.update_vertex(u, ux, uy, rhs_u)?;
+            }
+        }
+        self.resuming = false;
+        let cost = self.rhs(start);
+        Ok(if cost == INFINITE {
+            PlanStatus::NoPath
+        } else {
+            PlanStatus::Found { cost: u32::from(cost) }
+        })
+    }
+
+    /// Expansions of the latest repair (all of its slices).
+    pub fn expansions(&self) -> u32 {
+        self.expansions
+    }
+
+    /// Cells in the open list right now.
+    pub fn queue_len(&self) -> usize {
+        self.open.len()
+    }
+
+    /// The most cells the open list held since [`DStarLite::reset`].
+    pub fn queue_high_water(&self) -> usize {
+        self.open.high_water()
+    }
+
+    /// Cost-to-goal of a cell as the planner knows it (`g`), `None` for unknown/unreachable or outside.
+    pub fn g(&self, cell: Cell) -> Option<u32> {
+        let i = self.checked_index(cell)?;
+        let g = self.g[i];
+        (g != INFINITE).then_some(u32::from(g))
+    }
+
+    /// One-step look-ahead cost-to-goal of a cell (`rhs`); for the start after a completed repair this is
+    /// the cost of the shortest path.
+    pub fn rhs_of(&self, cell: Cell) -> Option<u32> {
+        let i = self.checked_index(cell)?;
+        let r = self.rhs(i);
+        (r != INFINITE).then_some(u32::from(r))
+    }
+
+    /// The next cell on a shortest path from `from`: the successor minimising move cost + `g`, straight
+    /// moves winning ties. `None` at the goal, when nothing is reachable, or outside the grid.
+    pub fn next_cell(&self, map: &impl Traversability, from: Cell) -> Option<Cell> {
+        self.checked_index(from)?;
+        if from == self.goal {
+            return None;
+        }
+        let (x, y) = (i32::from(from.x), i32::from(from.y));
+        let mut best: Option<(u16, Cell)> = None;
+        for (dx, dy) in NEIGHBOURS {
+            let Some(c) = move_cost(map, x, y, dx, dy) else {
+                continue;
+            };
+            let (nx, ny) = (x + dx, y + dy);
+            if !self.shape.contains(nx, ny) {
+                continue;
+            }
+            let total = add_cost(c, self.g[self.index_of(nx, ny)]);
+            if total != INFINITE && best.is_none_or(|(b, _)| total < b) {
+                best = Some((total, Cell::new(nx as u16, ny as u16)));
+            }
+        }
+        best.map(|(_, cell)| cell)
+    }
+
+    fn check_ready(&self) -> Result<(), PlanError> {
+        match self.readiness {
+            Readiness::Ready => Ok(()),
+            Readiness::Empty => Err(PlanError::NotReady),
+            Readiness::Broken => Err(PlanError::QueueFull),
+        }
+    }
+
+    /// Account for start moves in `km` (always valid: by the triangle inequality the stored keys remain
+    /// lower bounds of the fresh ones).
+    fn sync_start(&mut self) {
+        if self.start == self.last_start {
+            return;
+        }
+        self.km = self.km.saturating_add(octile(self.last_start, self.start));
+        self.last_start = self.start;
+        if self.km > KM_REKEY_LIMIT {
+            self.km = 0;
+            let (shape, start, g) = (self.shape, self.start, &self.g);
+            self.open.rekey(|cell, rhs| {
+                let m = g[cell].min(rhs);
+                Key {
+                    k1: u32::from(m) + octile(start, shape.cell(cell)),
+                    k2: m,
+                }
+            });
+        }
+    }
+
+    #[inline]
+    fn rhs(&self, cell: usize) -> u16 {
+        self.open.payload(cell).unwrap_or(self.g[cell])
+    }
+
+    /// The key of the cell at `(x, y)` (coordinates passed in because the callers have them; deriving them
+    /// from the index would cost a division per key).
+    #[inline]
+    fn key(&self, x: i32, y: i32, g: u16, rhs: u16) -> Key {
+        let m = g.min(rhs);
+        let dx = x.abs_diff(i32::from(self.start.x));
+        let dy = y.abs_diff(i32::from(self.start.y));
+        let (lo, hi) = if dx < dy { (dx, dy) } else { (dy, dx) };
+        let h = u32::from(STRAIGHT_COST) * hi + u32::from(DIAGONAL_COST - STRAIGHT_COST) * lo;
+        Key {
+            k1: u32::from(m) + h + self.km,
+            k2: m,
+        }
+    }
+
+    /// D* Lite's UpdateVertex with the new `rhs`: queue the cell iff it is inconsistent.
+    fn update_vertex(&mut self, cell: usize, x: i32, y: i32, rhs: u16) -> Result<(), PlanError> {
+        let g = self.g[cell];
+        if g != rhs {
+            let key = self.key(x, y, g, rhs);
+            if self.open.push(cell, key, rhs).is_err() {
+                self.readiness = Readiness::Broken;
+                return Err(PlanError::QueueFull);
+            }
+        } else {
+            self.open.remove(cell);
+        }
+        Ok(())
+    }
+
+    fn best_successor_cost(&self, map: &impl Traversability, x: i32, y: i32) -> u16 {
+        let mut best = INFINITE;
+        for (dx, dy) in NEIGHBOURS {
+            let Some(c) = move_cost(map, x, y, dx, dy) else {
+                continue;
+            };
+            let (nx, ny) = (x + dx, y + dy);
+            if self.shape.contains(nx, ny) {
+                best = best.min(add_cost(c, self.g[self.index_of(nx, ny)]));
+            }
+        }
+        best
+    }
+
+    #[inline]
+    fn index_of(&self, x: i32, y: i32) -> usize {
+        (y as usize) * usize::from(self.shape.width) + x as usize
+    }
+
+    #[inline]
+    fn coords(&self, index: usize) -> (i32, i32) {
+        let w = usize::from(self.shape.width);
+        ((index % w) as i32, (index / w) as i32)
+    }
+
+    fn checked_index(&self, cell: Cell) -> Option<usize> {
+        (self.readiness != Readiness::Empty && cell.x < self.shape.width && cell.y < self.shape.height)
+            .then(|| self.shape.index(cell))
+    }
+}

@@ -1,0 +1,523 @@
+//! The firmware's step functions: estimator, supervisor, controller and mission wired together exactly as
+//! the MCU runs them. The simulator calls the same functions at the same rates, so what flies in SITL is
+//! what flies on the drone.
+//!
+//! The stack is two objects that never share a reference, only small `Copy` messages:
+//!
+//! * [`Stabilizer`], the fast part: estimator, supervisor, controller, the setpoint in force and the sensor
+//!   updates that feed the estimator. On the MCU it is owned by the interrupt-priority executor and runs at
+//!   the gyro's data-ready rate; it must never wait for the mission.
+//! * [`Navigator`], the slow part: the mission (map, planner, pad detector) and the deck check. On the MCU it
+//!   is owned by the thread-mode task, where a planner slice may take milliseconds.
+//!
+//! Messages: the stabilizer publishes a [`FastStatus`] (estimate, supervisor verdict, whether the motors are
+//! stopped, when the commander last spoke: ~120 bytes) for the navigator; the navigator answers with a
+//! [`MissionCommand`] (a setpoint, or "a mission started here"). On the MCU each side copies a message in or
+//! out under a critical section of a few microseconds; here [`FlightCore`] hands them over directly.
+//!
+//! [`FlightCore`] is that composition for the simulator and the tests:
+//!
+//! | call | rate | does |
+//! |---|---|---|
+//! | [`FlightCore::on_imu`] | 1 kHz (gyro data-ready) | estimator prediction, supervisor, controller → motor duties |
+//! | [`FlightCore::on_flow`] | 100 Hz | estimator flow update |
+//! | [`FlightCore::on_zrange`] | 40 Hz | estimator height update, pad detector |
+//! | [`FlightCore::on_multiranger`] | 10 Hz | wall anchors while holding a place, mapping, avoidance input |
+//! | [`FlightCore::on_battery`] | 100 Hz | battery voltage |
+//! | [`FlightCore::mission_tick`] | 50 Hz | mission state machine → setpoint (bounded planner slice) |
+//!
+//! On the MCU the first, second and fifth run in the interrupt-priority executor (control must never wait),
+//! the height update too, which then forwards the reading with the new estimate to the navigator; the
+//! Multi-ranger reading and the mission tick run in thread mode, so a long planner slice delays only the
+//! next mission tick.
+//!
+//! Non-goals: drivers, radio, timing (the caller owns the clock and passes `now`), locking (the caller picks
+//! how messages cross between priorities).
+//! Memory: the navigator's mission dominates (grid + planner, see [`crate::mission`]); the stabilizer is
+//! under 2 KB; a [`FastStatus`] is about 120 bytes, a [`MissionCommand`] about 40.
+
+use crate::flight::control::{ControlOutput, Controller, ControllerConfig};
+use crate::flight::estimator::{Estimator, EstimatorConfig};
+use crate::flight::supervisor::{
+    Supervisor, SupervisorConfig, SupervisorInput, SupervisorOutput, SupervisorState, clamp_min_height,
+};
+use crate::mission::{Mission, MissionConfig, MissionInputs, MissionParams, MissionState, StartRefusal};
+use crate::types::{
+    FlowSample, ImuSample, Micros, MotorDuty, MultiRangerSample, RangeReading, Setpoint, StateEstimate,
+};
+
+/// Wall anchors are used only while the vertical speed is below this, m/s: a climbing or descending beam
+/// passes the tops of boxes, and its range jumps.
+const HOLD_MAX_CLIMB_M_S: f32 = 0.15;
+
+/// How long commander setpoints keep the idle mission from writing its own (the supervisor's 2 s shutdown
+/// timeout, `crazyflie-hardware.md` §10.1), µs.
+pub const COMMANDER_HOLD_US: Micros = 2_000_000;
+
+/// Why the flight core could not be built.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum FlightConfigError {
+    /// The controller's configuration is invalid.
+    Controller,
+    /// The mission's configuration is invalid.
+    Mission,
+}
+
+/// Why a mission start was refused (on top of the mission's own parameter checks).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum StartError {
+    /// A parameter makes no sense (see [`StartRefusal`]).
+    Params(StartRefusal),
+    /// The drone is flying (under radio control).
+    Flying,
+    /// The Flow deck or the Multi-ranger deck is missing or failed.
+    DeckMissing,
+}
+
+/// All the tuning of the flight stack.
+#[derive(Clone, Copy, Debug, Default)]
+pub struct FlightConfig {
+    /// Estimator tuning.
+    pub estimator: EstimatorConfig,
+    /// Controller tuning.
+    pub controller: ControllerConfig,
+    /// Supervisor rules.
+    pub supervisor: SupervisorConfig,
+    /// Mission tuning.
+    pub mission: MissionConfig,
+}
+
+/// What the stabilizer tells the navigator: a snapshot taken after its latest step.
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct FastStatus {
+    /// The state estimate.
+    pub estimate: StateEstimate,
+    /// The supervisor's latest verdict.
+    pub supervisor: SupervisorOutput,
+    /// The duties written at the latest IMU step were all zero.
+    pub motors_stopped: bool,
+    /// When the radio commander last sent a setpoint (cleared when a mission starts).
+    pub commander_time: Option<Micros>,
+}
+
+/// What the navigator asks of the stabilizer.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum MissionCommand {
+    /// Fly `setpoint`, issued at `time` (its age feeds the supervisor's setpoint watchdog).
+    Setpoint {
+        /// The setpoint.
+        setpoint: Setpoint,
+        /// When the mission issued it, µs.
+        time: Micros,
+    },
+    /// A mission started with the drone standing at `start_m` (arena frame, m): anchor the estimator there
+    /// (keeping its heading) and forget the commander.
+    Started {
+        /// The take-off point, arena frame, m.
+        start_m: (f32, f32),
+    },
+}
+
+/// The fast part: estimator, supervisor and controller, and the setpoint in force. See the module docs.
+pub struct Stabilizer {
+    estimator: Estimator,
+    controller: Controller,
+    supervisor: Supervisor,
+    setpoint: Setpoint,
+    setpoint_time: Option<Micros>,
+    last_imu_time: Option<Micros>,
+    battery_v: f32,
+    last_control: ControlOutput,
+    last_supervisor: SupervisorOutput,
+    duty: MotorDuty,
+    /// When the commander last sent a setpoint.
+    commander_time: Option<Micros>,
+}
+
+impl Stabilizer {
+    /// A stabilizer at power-on, standing at `start_m` (arena frame) with heading `yaw_rad`.
+    pub fn new(config: &FlightConfig, start_m: (f32, f32), yaw_rad: f32) -> Result<Self, FlightConfigError> {
+        let mut estimator = Estimator::new(config.estimator);
+        estimator.reset([start_m.0, start_m.1, 0.0], yaw_rad);
+        Ok(Self {
+            estimator,
+            controller: Controller::new(config.controller).map_err(|_| FlightConfigError::Controller)?,
+            supervisor: Supervisor::new(config.supervisor),
+            setpoint: Setpoint::Stop,
+            setpoint_time: None,
+            last_imu_time: None,
+            battery_v: 0.0,
+            last_control: ControlOutput::default(),
+            last_supervisor: SupervisorOutput::default(),
+            duty: MotorDuty::default(),
+            commander_time: None,
+        })
+    }
+
+    /// 1 kHz: a gyro/accelerometer sample. Returns the motor duties to write now (all zero unless the
+    /// supervisor allows the motors and a setpoint other than [`Setpoint::Stop`] is in force).
+    pub fn on_imu(&mut self, sample: &ImuSample, now: Micros) -> MotorDuty {
+        let dt_s = match self.last_imu_time {
+            Some(t) if now > t => ((now - t) as f32 * 1e-6).min(0.01),
+            _ => 0.001,
+        };
+        self.last_imu_time = Some(now);
+        self.estimator.on_imu(sample, dt_s);
+        let state = self.estimator.state();
+
+        let age = self.setpoint_time.map(|t| now.saturating_sub(t));
+        let verdict = self.supervisor.update(&SupervisorInput {
+            now,
+            accel_m_s2: sample.accel_m_s2,
+            estimate: state,
+            thrust_cmd: self.last_control.thrust_cmd,
+            setpoint: self.setpoint,
+            setpoint_age_us: age,
+            battery_v: self.battery_v,
+            arm_request: false,
+        });
+        self.estimator.set_flying(verdict.flying);
+        let setpoint = if verdict.motors_allowed {
+            let guarded = self.supervisor.guard_setpoint(self.setpoint);
+            if verdict.flying {
+                clamp_min_height(guarded, crate::mission::MIN_HEIGHT_M)
+            } else {
+                guarded
+            }
+        } else {
+            Setpoint::Stop
+        };
+        let output = self
+            .controller
+            .update(&setpoint, &state, sample.gyro_rad_s, self.battery_v, now);
+        self.duty = if verdict.motors_allowed && setpoint != Setpoint::Stop {
+            output.duty
+        } else {
+            MotorDuty::default()
+        };
+        self.last_control = output;
+        self.last_supervisor = verdict;
+        self.duty
+    }
+
+    /// 100 Hz: an optical-flow sample.
+    pub fn on_flow(&mut self, sample: &FlowSample) {
+        self.estimator.on_flow(sample);
+    }
+
+    /// 40 Hz: a downward-range sample. Returns the estimate after the update (the navigator's pad detector
+    /// wants the reading together with it).
+    pub fn on_zrange(&mut self, range: RangeReading) -> StateEstimate {
+        self.estimator.on_zrange(range);
+        self.estimator.state()
+    }
+
+    /// 10 Hz: the Multi-ranger's beams. While the commander holds the drone at a place (a position setpoint
+    /// in flight, not climbing or descending) the estimator ties the position to the walls the beams saw
+    /// when the hold began (module `estimator::wall_hold`): hovering, the flow-only estimate would wander
+    /// ≈ 1 cm/√s. The mission's holds (over a pad before landing) last a second or two, and its landings
+    /// measured no better with the anchors (BENCHMARKS.md §5), so a running mission does not use them.
+    pub fn on_multiranger(&mut self, sample: &MultiRangerSample) {
+        let vz = self.estimator.state().velocity_m_s[2];
+        let hold = self.last_supervisor.flying
+            && self.commander_time.is_some()
+            && vz.abs() < HOLD_MAX_CLIMB_M_S
+            && matches!(self.setpoint, Setpoint::Position { .. });
+        self.estimator.on_multiranger(sample, hold);
+    }
+
+    /// 100 Hz: the battery voltage reported by the power controller, V. Non-finite readings are ignored.
+    pub fn on_battery(&mut self, volts: f32) {
+        if volts.is_finite() {
+            self.battery_v = volts;
+        }
+    }
+
+    /// A setpoint from the radio commander. The caller checks that no mission runs
+    /// ([`Navigator::is_running`]): the stabilizer flies whatever it is given last.
+    pub fn commander_setpoint(&mut self, setpoint: Setpoint, now: Micros) {
+        self.setpoint = setpoint;
+        self.setpoint_time = Some(now);
+        self.commander_time = Some(now);
+    }
+
+    /// Applies a message from the navigator.
+    pub fn apply(&mut self, command: MissionCommand) {
+        match command {
+            MissionCommand::Setpoint { setpoint, time } => {
+                self.setpoint = setpoint;
+                self.setpoint_time = Some(time);
+            }
+            MissionCommand::Started { start_m } => {
+                self.commander_time = None;
+                // The drone stands where the parameters say: that is the arena frame's anchor for the flight.
+                let yaw = self.estimator.state().attitude_rad[2];
+                self.estimator.reset([start_m.0, start_m.1, 0.0], yaw);
+            }
+        }
+    }
+
+    /// The snapshot the navigator works from.
+    pub fn status(&self) -> FastStatus {
+        FastStatus {
+            estimate: self.estimator.state(),
+            supervisor: self.last_supervisor,
+            motors_stopped: self.duty == MotorDuty::default(),
+            commander_time: self.commander_time,
+        }
+    }
+
+    /// The state estimate.
+    pub fn estimate(&self) -> StateEstimate {
+        self.estimator.state()
+    }
+
+    /// The estimator (diagnostics).
+    pub fn estimator(&self) -> &Estimator {
+        &self.estimator
+    }
+
+    /// The supervisor's latest verdict.
+    pub fn supervisor(&self) -> &SupervisorOutput {
+        &self.last_supervisor
+    }
+
+    /// The controller's latest output.
+    pub fn control(&self) -> &ControlOutput {
+        &self.last_control
+    }
+
+    /// The setpoint in force (the mission's or the commander's), before the supervisor's guard.
+    pub fn setpoint(&self) -> Setpoint {
+        self.setpoint
+    }
+
+    /// The duties written at the latest [`Stabilizer::on_imu`].
+    pub fn duty(&self) -> MotorDuty {
+        self.duty
+    }
+}
+
+/// The slow part: the mission and the deck check. See the module docs.
+pub struct Navigator<const CELLS: usize, const QUEUE: usize> {
+    mission: Mission<CELLS, QUEUE>,
+    decks_ok: bool,
+}
+
+impl<const CELLS: usize, const QUEUE: usize> Navigator<CELLS, QUEUE> {
+    /// An idle navigator (decks assumed present until told otherwise).
+    pub fn new(config: &FlightConfig) -> Result<Self, FlightConfigError> {
+        Ok(Self {
+            mission: Mission::new(config.mission).map_err(|_| FlightConfigError::Mission)?,
+            decks_ok: true,
+        })
+    }
+
+    /// Whether both decks (Flow v2, Multi-ranger) are present and working.
+    pub fn set_decks_ok(&mut self, ok: bool) {
+        self.decks_ok = ok;
+    }
+
+    /// Whether both decks were reported present.
+    pub fn decks_ok(&self) -> bool {
+        self.decks_ok
+    }
+
+    /// Starts the round-trip mission. Refused while flying (per `status`) or while a mission runs, without
+    /// both decks, or with parameters that make no sense; nothing changes then. On success the returned
+    /// [`MissionCommand::Started`] must reach the stabilizer before the next mission tick.
+    pub fn start(&mut self, params: MissionParams, status: &FastStatus) -> Result<MissionCommand, StartError> {
+        if status.supervisor.flying || self.mission.is_running() {
+            return Err(StartError::Flying);
+        }
+        if !self.decks_ok {
+            return Err(StartError::DeckMissing);
+        }
+        self.mission.start(params).map_err(StartError::Params)?;
+        Ok(MissionCommand::Started {
+            start_m: params.start_m,
+        })
+    }
+
+    /// Abort (`mission.start = 0` during a mission): land where the estimate says the drone is.
+    pub fn abort(&mut self, status: &FastStatus) {
+        self.mission.abort(&status.estimate);
+    }
+
+    /// A downward-range reading with the estimate right after the stabilizer used it (pad detector).
+    pub fn on_zrange(&mut self, range: RangeReading, estimate: &StateEstimate) {
+        self.mission.on_zrange(range, estimate);
+    }
+
+    /// The Multi-ranger's five beams with the current estimate (mapping, avoidance).
+    pub fn on_multiranger(&mut self, sample: &MultiRangerSample, estimate: &StateEstimate) {
+        self.mission.on_ranges(sample, estimate);
+    }
+
+    /// 50 Hz: one mission step (at most one bounded planner slice). Returns the setpoint for the stabilizer,
+    /// or `None` while no mission runs and the commander has spoken within [`COMMANDER_HOLD_US`] (the idle
+    /// mission must not overwrite the commander's setpoint with Stop).
+    pub fn tick(&mut self, now: Micros, status: &FastStatus) -> Option<MissionCommand> {
+        if !self.mission.is_running()
+            && status
+                .commander_time
+                .is_some_and(|t| now.saturating_sub(t) < COMMANDER_HOLD_US)
+        {
+            return None;
+        }
+        let sup = &status.supervisor;
+        let inputs = MissionInputs {
+            landed: matches!(sup.state, SupervisorState::Landed) || (!sup.flying && status.motors_stopped),
+            crashed: matches!(sup.state, SupervisorState::Crashed | SupervisorState::Locked),
+            battery_low: sup.battery_low,
+            armed: sup.motors_allowed,
+        };
+        let setpoint = self.mission.tick(now, &status.estimate, &inputs);
+        Some(MissionCommand::Setpoint { setpoint, time: now })
+    }
+
+    /// Whether a mission runs (commander setpoints are refused then).
+    pub fn is_running(&self) -> bool {
+        self.mission.is_running()
+    }
+
+    /// The mission.
+    pub fn mission(&self) -> &Mission<CELLS, QUEUE> {
+        &self.mission
+    }
+
+    /// The `mission.state` code.
+    pub fn state(&self) -> MissionState {
+        self.mission.state()
+    }
+}
+
+/// The stabilizer and the navigator composed on one thread, messages handed over at once: what the
+/// simulator flies. See the module documentation.
+pub struct FlightCore<const CELLS: usize, const QUEUE: usize> {
+    stabilizer: Stabilizer,
+    navigator: Navigator<CELLS, QUEUE>,
+}
+
+impl<const CELLS: usize, const QUEUE: usize> FlightCore<CELLS, QUEUE> {
+    /// A flight stack at power-on, standing at `start_m` (arena frame) with heading `yaw_rad`.
+    pub fn new(config: &FlightConfig, start_m: (f32, f32), yaw_rad: f32) -> Result<Self, FlightConfigError> {
+        Ok(Self {
+            stabilizer: Stabilizer::new(config, start_m, yaw_rad)?,
+            navigator: Navigator::new(config)?,
+        })
+    }
+
+    /// Tell the core whether both decks (Flow v2, Multi-ranger) are present and working.
+    pub fn set_decks_ok(&mut self, ok: bool) {
+        self.navigator.set_decks_ok(ok);
+    }
+
+    /// Start the round-trip mission (`mission.start = 1`). Refused while flying, without both decks, or
+    /// with parameters that make no sense; nothing changes then.
+    pub fn start_mission(&mut self, params: MissionParams) -> Result<(), StartError> {
+        let command = self.navigator.start(params, &self.stabilizer.status())?;
+        self.stabilizer.apply(command);
+        Ok(())
+    }
+
+    /// Abort (`mission.start = 0` during a mission): land where it is.
+    pub fn abort_mission(&mut self) {
+        self.navigator.abort(&self.stabilizer.status());
+    }
+
+    /// 1 kHz: a gyro/accelerometer sample. Returns the motor duties to write now.
+    pub fn on_imu(&mut self, sample: &ImuSample, now: Micros) -> MotorDuty {
+        self.stabilizer.on_imu(sample, now)
+    }
+
+    /// 100 Hz: an optical-flow sample.
+    pub fn on_flow(&mut self, sample: &FlowSample) {
+        self.stabilizer.on_flow(sample);
+    }
+
+    /// 40 Hz: a downward-range sample.
+    pub fn on_zrange(&mut self, range: RangeReading) {
+        let estimate = self.stabilizer.on_zrange(range);
+        self.navigator.on_zrange(range, &estimate);
+    }
+
+    /// 10 Hz: the Multi-ranger's five beams.
+    pub fn on_multiranger(&mut self, sample: &MultiRangerSample) {
+        self.stabilizer.on_multiranger(sample);
+        let estimate = self.stabilizer.estimate();
+        self.navigator.on_multiranger(sample, &estimate);
+    }
+
+    /// 100 Hz: the battery voltage reported by the power controller, V.
+    pub fn on_battery(&mut self, volts: f32) {
+        self.stabilizer.on_battery(volts);
+    }
+
+    /// A setpoint from outside the mission (the radio commander, or a test script). Flown only while no
+    /// mission runs; like the stock commander it must keep coming, or the supervisor's setpoint timeout
+    /// levels out and then stops the motors.
+    pub fn commander_setpoint(&mut self, setpoint: Setpoint, now: Micros) {
+        if !self.navigator.is_running() {
+            self.stabilizer.commander_setpoint(setpoint, now);
+        }
+    }
+
+    /// 50 Hz: one mission step; its setpoint is flown by the next [`FlightCore::on_imu`] calls. Does
+    /// nothing while no mission runs and the commander flies (the commander's setpoint stays in force).
+    pub fn mission_tick(&mut self, now: Micros) {
+        if let Some(command) = self.navigator.tick(now, &self.stabilizer.status()) {
+            self.stabilizer.apply(command);
+        }
+    }
+
+    /// The state estimate.
+    pub fn estimate(&self) -> StateEstimate {
+        self.stabilizer.estimate()
+    }
+
+    /// The mission.
+    pub fn mission(&self) -> &Mission<CELLS, QUEUE> {
+        self.navigator.mission()
+    }
+
+    /// The `mission.state` code.
+    pub fn mission_state(&self) -> MissionState {
+        self.navigator.state()
+    }
+
+    /// The estimator (diagnostics).
+    pub fn estimator(&self) -> &Estimator {
+        self.stabilizer.estimator()
+    }
+
+    /// The supervisor's latest verdict.
+    pub fn supervisor(&self) -> &SupervisorOutput {
+        self.stabilizer.supervisor()
+    }
+
+    /// The controller's latest output.
+    pub fn control(&self) -> &ControlOutput {
+        self.stabilizer.control()
+    }
+
+    /// The setpoint the mission asks for.
+    pub fn setpoint(&self) -> Setpoint {
+        self.stabilizer.setpoint()
+    }
+
+    /// The duties written at the latest [`FlightCore::on_imu`].
+    pub fn duty(&self) -> MotorDuty {
+        self.stabilizer.duty()
+    }
+
+    /// The fast part (the firmware runs it on its own in the control executor).
+    pub fn stabilizer(&self) -> &Stabilizer {
+        &self.stabilizer
+    }
+
+    /// The slow part (the firmware runs it on its own in thread mode).
+    pub fn navigator(&self) -> &Navigator<CELLS, QUEUE> {
+        &self.navigator
+    }
+}

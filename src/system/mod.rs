@@ -1,0 +1,15 @@
+//! System services the firmware needs around the flight: stored radio settings, CPU accounting, the
+//! status LEDs and the `mission.start` hand-over.
+//!
+//! Holds the EEPROM config block codec ([`config_block`]), CPU load and control-loop jitter accounting from
+//! a cycle counter ([`cpu_load`]), the LED patterns for each firmware state ([`status_led`]) and the rules
+//! by which a `mission.start` write becomes a started mission ([`mission_start`]).
+//!
+//! May depend on: [`crate::types`] and the radio codecs of [`crate::radio`] (the config block carries
+//! syslink radio settings). No peripheral access: the board layer reads the cycle counter, the EEPROM and
+//! drives the pins.
+
+pub mod config_block;
+pub mod cpu_load;
+pub mod mission_start;
+pub mod status_led;

@@ -64,6 +64,26 @@ const KM_REKEY_LIMIT: u32 = 1 << 30;
 /// The 8 neighbour offsets, straight moves first (they win ties when a path is read off).
 const NEIGHBOURS: [(i32, i32); 8] = [(1, 0), (0, 1), (-1, 0), (0, -1), (1, 1), (-1, 1), (-1, -1), (1, -1)];
 
+/// For each of [`NEIGHBOURS`]: its move cost and, for a diagonal `(dx, dy)`, the indices (into the first
+/// four of [`NEIGHBOURS`]) of the straight neighbours `(dx, 0)` and `(0, dy)` it passes between.
+const MOVES: [(u16, usize, usize); 8] = [
+    (STRAIGHT_COST, 0, 0),
+    (STRAIGHT_COST, 1, 1),
+    (STRAIGHT_COST, 2, 2),
+    (STRAIGHT_COST, 3, 3),
+    (DIAGONAL_COST, 0, 1),
+    (DIAGONAL_COST, 2, 1),
+    (DIAGONAL_COST, 2, 3),
+    (DIAGONAL_COST, 0, 3),
+];
+
+/// For each straight neighbour index of [`NEIGHBOURS`], the index of the opposite direction.
+const OPPOSITE: [usize; 4] = [2, 3, 0, 1];
+
+/// Bit 0 of a key's `k1` (see [`DStarLite::key`]): set for consistent and over-consistent cells, clear for
+/// under-consistent ones, so that among equal `min(g, rhs) + h + km` the under-consistent cells come first.
+const SETTLING: u32 = 1;
+
 /// Why the planner refused.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum PlanError {
@@ -160,6 +180,53 @@ fn add_cost(c: u16, g: u16) -> u16 {
     }
 }
 
+/// The queue key of a cell with `g` and `rhs` whose heuristic is `h`, under the key modifier `km`.
+///
+/// D* Lite orders by `f = min(g, rhs) + h + km` first (the paper's `k1`); this key is `2·f + tag` so that
+/// ties on `f` are broken in two classes:
+/// - under-consistent cells (`g < rhs`) first, smaller `g` first, as in the paper. They must come first:
+///   a cell whose `g` is too small (its path was cut) can tie on `f` with the start or with an
+///   over-consistent cell whose `rhs` was computed through it, and must be raised before either is settled
+///   or the search stops;
+/// - then over-consistent and consistent cells, *larger* `rhs` first (A*'s "deepest first"): they only
+///   lower values, so among them any order settles correct costs (each popped over-consistent cell has an
+///   `f` no larger than that of any cell on its true shortest path still queued, strictly so when its `rhs`
+///   is wrong), and preferring the cell nearest the start ends the search once the start is reached instead
+///   of first expanding every cell that lies on some optimal path (the octile heuristic is exact on open
+///   ground, so those all tie).
+#[inline]
+fn key_of(h: u32, km: u32, g: u16, rhs: u16) -> Key {
+    let f = u32::from(g.min(rhs)) + h + km;
+    if g < rhs {
+        Key { k1: f << 1, k2: g }
+    } else {
+        Key {
+            k1: (f << 1) | SETTLING,
+            k2: INFINITE - rhs,
+        }
+    }
+}
+
+/// Whether each of the four straight neighbours of `(x, y)` (in [`NEIGHBOURS`] order) may be entered; cells
+/// outside the grid count as blocked ([`Traversability`]'s contract).
+#[inline]
+fn straight_free(map: &impl Traversability, x: i32, y: i32) -> [bool; 4] {
+    [
+        !map.is_blocked(x + 1, y),
+        !map.is_blocked(x, y + 1),
+        !map.is_blocked(x - 1, y),
+        !map.is_blocked(x, y - 1),
+    ]
+}
+
+/// Whether the diagonal move from `u - (dx, dy)` into a free `u` is open, given `u`'s [`straight_free`]
+/// and the [`MOVES`] side indices `a`, `b` of `(dx, dy)`: it passes `u`'s straight neighbours at `(-dx, 0)`
+/// and `(0, -dy)`, the opposites of `a` and `b`.
+#[inline]
+fn diagonal_open_into(side_free: &[bool; 4], a: usize, b: usize) -> bool {
+    side_free[OPPOSITE[a]] && side_free[OPPOSITE[b]]
+}
+
 impl<const CELLS: usize, const QUEUE: usize> DStarLite<CELLS, QUEUE> {
     /// A planner with no plan; call [`DStarLite::reset`] before anything else.
     pub const fn new() -> Self {
@@ -200,10 +267,7 @@ impl<const CELLS: usize, const QUEUE: usize> DStarLite<CELLS, QUEUE> {
         self.expansions = 0;
         self.resuming = false;
         let goal_index = shape.index(goal);
-        let key = Key {
-            k1: octile(start, goal),
-            k2: 0,
-        };
+        let key = key_of(octile(start, goal), 0, INFINITE, 0);
         self.open.push(goal_index, key, 0).map_err(|_| PlanError::QueueFull)?;
         self.readiness = Readiness::Ready;
         Ok(())
@@ -300,7 +364,12 @@ impl<const CELLS: usize, const QUEUE: usize> DStarLite<CELLS, QUEUE> {
                 // Over-consistent: settle u, then offer it as a successor to its predecessors.
                 self.g[u] = rhs_u;
                 self.open.remove(u);
-                for (dx, dy) in NEIGHBOURS {
+                // Entering a blocked cell is never allowed: then u has no predecessors.
+                if map.is_blocked(ux, uy) {
+                    continue;
+                }
+                let side_free = straight_free(map, ux, uy);
+                for (k, (dx, dy)) in NEIGHBOURS.into_iter().enumerate() {
                     let (sx, sy) = (ux - dx, uy - dy);
                     if !self.shape.contains(sx, sy) {
                         continue;
@@ -309,32 +378,40 @@ impl<const CELLS: usize, const QUEUE: usize> DStarLite<CELLS, QUEUE> {
                     if s == goal {
                         continue;
                     }
-                    let Some(c) = move_cost(map, sx, sy, dx, dy) else {
-                        continue;
-                    };
+                    // The cheap test first: only a cell whose rhs would drop needs its move checked.
+                    let (c, a, b) = MOVES[k];
                     let through_u = add_cost(c, rhs_u);
-                    if through_u < self.rhs(s) {
-                        self.update_vertex(s, sx, sy, through_u)?;
+                    if through_u >= self.rhs(s) {
+                        continue;
                     }
+                    if c == DIAGONAL_COST && !diagonal_open_into(&side_free, a, b) {
+                        continue;
+                    }
+                    self.update_vertex(s, sx, sy, through_u)?;
                 }
             } else {
                 // Under-consistent: raise u to infinity; every cell whose rhs came through u recomputes it.
                 let g_old = g_u;
                 self.g[u] = INFINITE;
-                for (dx, dy) in NEIGHBOURS {
-                    let (sx, sy) = (ux - dx, uy - dy);
-                    if !self.shape.contains(sx, sy) {
-                        continue;
-                    }
-                    let s = self.index_of(sx, sy);
-                    if s == goal {
-                        continue;
-                    }
-                    let Some(c) = move_cost(map, sx, sy, dx, dy) else {
-                        continue;
-                    };
-                    let rhs_s = self.rhs(s);
-                    if rhs_s != INFINITE && rhs_s == add_cost(c, g_old) {
+                if !map.is_blocked(ux, uy) {
+                    let side_free = straight_free(map, ux, uy);
+                    for (k, (dx, dy)) in NEIGHBOURS.into_iter().enumerate() {
+                        let (sx, sy) = (ux - dx, uy - dy);
+                        if !self.shape.contains(sx, sy) {
+                            continue;
+                        }
+                        let s = self.index_of(sx, sy);
+                        if s == goal {
+                            continue;
+                        }
+                        let (c, a, b) = MOVES[k];
+                        let rhs_s = self.rhs(s);
+                        if rhs_s == INFINITE || rhs_s != add_cost(c, g_old) {
+                            continue;
+                        }
+                        if c == DIAGONAL_COST && !diagonal_open_into(&side_free, a, b) {
+                            continue;
+                        }
                         let best = self.best_successor_cost(map, sx, sy);
                         self.update_vertex(s, sx, sy, best)?;
                     }
@@ -426,13 +503,8 @@ impl<const CELLS: usize, const QUEUE: usize> DStarLite<CELLS, QUEUE> {
         if self.km > KM_REKEY_LIMIT {
             self.km = 0;
             let (shape, start, g) = (self.shape, self.start, &self.g);
-            self.open.rekey(|cell, rhs| {
-                let m = g[cell].min(rhs);
-                Key {
-                    k1: u32::from(m) + octile(start, shape.cell(cell)),
-                    k2: m,
-                }
-            });
+            self.open
+                .rekey(|cell, rhs| key_of(octile(start, shape.cell(cell)), 0, g[cell], rhs));
         }
     }
 
@@ -445,15 +517,11 @@ impl<const CELLS: usize, const QUEUE: usize> DStarLite<CELLS, QUEUE> {
     /// from the index would cost a division per key).
     #[inline]
     fn key(&self, x: i32, y: i32, g: u16, rhs: u16) -> Key {
-        let m = g.min(rhs);
         let dx = x.abs_diff(i32::from(self.start.x));
         let dy = y.abs_diff(i32::from(self.start.y));
         let (lo, hi) = if dx < dy { (dx, dy) } else { (dy, dx) };
         let h = u32::from(STRAIGHT_COST) * hi + u32::from(DIAGONAL_COST - STRAIGHT_COST) * lo;
-        Key {
-            k1: u32::from(m) + h + self.km,
-            k2: m,
-        }
+        key_of(h, self.km, g, rhs)
     }
 
     /// D* Lite's UpdateVertex with the new `rhs`: queue the cell iff it is inconsistent.
@@ -472,13 +540,18 @@ impl<const CELLS: usize, const QUEUE: usize> DStarLite<CELLS, QUEUE> {
     }
 
     fn best_successor_cost(&self, map: &impl Traversability, x: i32, y: i32) -> u16 {
+        let side_free = straight_free(map, x, y);
         let mut best = INFINITE;
-        for (dx, dy) in NEIGHBOURS {
-            let Some(c) = move_cost(map, x, y, dx, dy) else {
-                continue;
-            };
+        for (k, (dx, dy)) in NEIGHBOURS.into_iter().enumerate() {
+            let (c, a, b) = MOVES[k];
             let (nx, ny) = (x + dx, y + dy);
-            if self.shape.contains(nx, ny) {
+            // Straight: the target is that straight neighbour. Diagonal: both sides and the target.
+            let open = if c == STRAIGHT_COST {
+                side_free[a]
+            } else {
+                side_free[a] && side_free[b] && !map.is_blocked(nx, ny)
+            };
+            if open && self.shape.contains(nx, ny) {
                 best = best.min(add_cost(c, self.g[self.index_of(nx, ny)]));
             }
         }

@@ -246,27 +246,37 @@ impl<const CELLS: usize, const CAP: usize> IndexedQueue<CELLS, CAP> {
         self.position[usize::from(cell)] = (slot + 1) as u16;
     }
 
-    fn swap(&mut self, a: usize, b: usize) {
-        self.cell.swap(a, b);
-        self.k1.swap(a, b);
-        self.k2.swap(a, b);
-        self.payload.swap(a, b);
-        self.position[usize::from(self.cell[a])] = (a + 1) as u16;
-        self.position[usize::from(self.cell[b])] = (b + 1) as u16;
+    /// Move the entry at `from` to `to` (the hole), keeping `position` in step.
+    #[inline]
+    fn move_entry(&mut self, from: usize, to: usize) {
+        let cell = self.cell[from];
+        self.cell[to] = cell;
+        self.k1[to] = self.k1[from];
+        self.k2[to] = self.k2[from];
+        self.payload[to] = self.payload[from];
+        self.position[usize::from(cell)] = (to + 1) as u16;
     }
 
+    /// Restore the heap order above `slot`: the entry there moves up past every larger parent, which move
+    /// down into the hole it leaves (one write per level instead of a swap).
     fn sift_up(&mut self, mut slot: usize) {
+        let key = self.key(slot);
+        let (cell, payload) = (self.cell[slot], self.payload[slot]);
         while slot > 0 {
             let parent = (slot - 1) / 2;
-            if self.key(parent) <= self.key(slot) {
+            if self.key(parent) <= key {
                 break;
             }
-            self.swap(parent, slot);
+            self.move_entry(parent, slot);
             slot = parent;
         }
+        self.write(slot, cell, key, payload);
     }
 
+    /// Restore the heap order below `slot`: smaller children move up into the hole.
     fn sift_down(&mut self, mut slot: usize) {
+        let key = self.key(slot);
+        let (cell, payload) = (self.cell[slot], self.payload[slot]);
         loop {
             let left = 2 * slot + 1;
             if left >= self.len {
@@ -278,11 +288,12 @@ impl<const CELLS: usize, const CAP: usize> IndexedQueue<CELLS, CAP> {
             } else {
                 left
             };
-            if self.key(slot) <= self.key(child) {
+            if key <= self.key(child) {
                 break;
             }
-            self.swap(slot, child);
+            self.move_entry(child, slot);
             slot = child;
         }
+        self.write(slot, cell, key, payload);
     }
 }

@@ -1,22 +1,41 @@
-//! Host benchmark: D* Lite against repeated A* (the `pathfinding` crate) on the seed scenario.
+//! Host benchmark: D* Lite against repeated A* (the `pathfinding` crate) on three replay maps.
 //!
-//! The seed map (`maps/seed.map`, 120 × 60, start (0.6, 1.3) m, goal (5.0, 1.5) m, walls hidden until
-//! sensed within 8 cells) is replayed once with D* Lite to record the drone's trajectory and what it learns
-//! at every step. Both planners are then timed on exactly that sequence: D* Lite repairs incrementally,
-//! A* searches from scratch from the drone's cell each time the map changed.
+//! Maps: the seed scenario (`maps/seed.map`, 120 × 60, start (0.6, 1.3) m, goal (5.0, 1.5) m, walls hidden
+//! until sensed), and two on the large arena (128 × 64): `maps/large-clutter.map` (known and hidden boxes)
+//! and `maps/large-maze.map` (a maze of known walls with hidden blocked passages). Each is replayed once with
+//! D* Lite (sense radius 8 cells) to record the drone's trajectory and what it learns at every step. Both
+//! planners are then timed on exactly that sequence: D* Lite repairs incrementally, A* searches from scratch
+//! from the drone's cell each time the map changed.
 //!
-//! Run: `cargo bench -p cfnav-tools --bench planner` (prints the ratio at the end).
+//! Equal work: both planners produce the path, not only its cost. The first plan is, for D* Lite,
+//! `reset` (O(cells)) + `compute` + [`extract_path`] into a buffer; for A*, `astar`, which returns the path
+//! as a `Vec`. Replans: D* Lite `set_start` + `cells_changed` + `compute` + [`extract_path`]; A* `astar`
+//! from the drone's cell. A*'s successor function yields the same moves as the planner (8 neighbours, 10/14,
+//! no corner cutting) from an iterator, without allocating. The bench first checks that both find the same
+//! costs at every step.
+//!
+//! Run: `cargo bench -p cfnav-tools --bench planner` (prints `RESULT` lines with the ratios at the end).
 
 use std::hint::black_box;
 use std::time::{Duration, Instant};
 
-use cfnav::nav::dstar::{DStarLite, PlanStatus};
+use cfnav::nav::dstar::{ARENA_QUEUE, DStarLite, PlanStatus};
 use cfnav::nav::map::{Cell, GridShape, Traversability};
+use cfnav::nav::path::extract_path;
 use cfnav_tools::nav::replay::{ReplayMap, replay};
 use criterion::{BatchSize, Criterion};
 use pathfinding::prelude::astar;
 
-type Planner = DStarLite<{ 120 * 60 }, 1024>;
+/// The firmware's planner with the `large-arena` capacity (128 × 64 cells) and its open-list size.
+type Planner = DStarLite<{ 128 * 64 }, ARENA_QUEUE>;
+/// The D* Lite side's path buffer (the longest path on these maps is far shorter).
+type PathBuf = heapless::Vec<Cell, 4096>;
+/// The maps, by name.
+const MAPS: [(&str, &str); 3] = [
+    ("seed", include_str!("../../maps/seed.map")),
+    ("large_clutter", include_str!("../../maps/large-clutter.map")),
+    ("large_maze", include_str!("../../maps/large-maze.map")),
+];
 const SENSE_RADIUS: u16 = 8;
 
 #[derive(Clone)]
@@ -63,9 +82,8 @@ struct Scenario {
     events: Vec<Event>,
 }
 
-fn scenario() -> Scenario {
-    let text = include_str!("../../maps/seed.map");
-    let map = ReplayMap::parse(text).expect("seed map");
+fn scenario(text: &str) -> Scenario {
+    let map = ReplayMap::parse(text).expect("map");
     let cells = usize::from(map.width) * usize::from(map.height);
     let mut initial = Belief {
         width: map.width,
@@ -83,10 +101,10 @@ fn scenario() -> Scenario {
     let (start, goal) = (map.start, map.goal);
     let report = replay(map, SENSE_RADIUS).expect("replay");
     assert_eq!(report.status, "reached");
-    assert_eq!(
-        report.steps[0].changed, 0,
-        "the first plan starts from the initial belief"
-    );
+    // The first plan is made after the first sense (interfaces.md §2): it starts from that belief.
+    for &c in &report.steps[0].changed_cells {
+        initial.set(c, truth.is_blocked(i32::from(c.x), i32::from(c.y)));
+    }
     let events = report
         .steps
         .iter()
@@ -111,38 +129,55 @@ fn octile(a: Cell, b: Cell) -> u32 {
     10 * dx.max(dy) + 4 * dx.min(dy)
 }
 
-fn astar_cost(map: &Belief, from: Cell, goal: Cell) -> Option<u32> {
-    let successors = |c: &Cell| {
-        let (x, y) = (i32::from(c.x), i32::from(c.y));
-        let mut out = Vec::with_capacity(8);
-        for (dx, dy) in [(1, 0), (0, 1), (-1, 0), (0, -1), (1, 1), (-1, 1), (-1, -1), (1, -1)] {
+/// The moves of the planner's rules from `c` (8 neighbours, 10 / 14, no corner cutting), without allocating.
+fn successors(map: &Belief, c: Cell) -> impl Iterator<Item = (Cell, u32)> + '_ {
+    let (x, y) = (i32::from(c.x), i32::from(c.y));
+    [(1, 0), (0, 1), (-1, 0), (0, -1), (1, 1), (-1, 1), (-1, -1), (1, -1)]
+        .into_iter()
+        .filter_map(move |(dx, dy)| {
             if map.is_blocked(x + dx, y + dy) {
-                continue;
+                return None;
             }
             let diagonal = dx != 0 && dy != 0;
             if diagonal && (map.is_blocked(x + dx, y) || map.is_blocked(x, y + dy)) {
-                continue;
+                return None;
             }
-            out.push((
+            Some((
                 Cell::new((x + dx) as u16, (y + dy) as u16),
                 if diagonal { 14 } else { 10 },
-            ));
-        }
-        out
-    };
-    astar(&from, successors, |c| octile(*c, goal), |c| *c == goal).map(|(_, cost)| cost)
+            ))
+        })
 }
 
-fn first_plan_dstar(s: &Scenario, p: &mut Planner) -> u32 {
+/// A* from `from` to `goal`: the path and its cost.
+fn astar_plan(map: &Belief, from: Cell, goal: Cell) -> Option<(Vec<Cell>, u32)> {
+    astar(&from, |c| successors(map, *c), |c| octile(*c, goal), |c| *c == goal)
+}
+
+fn astar_cost(map: &Belief, from: Cell, goal: Cell) -> Option<u32> {
+    astar_plan(map, from, goal).map(|(path, cost)| {
+        assert_eq!(path.first(), Some(&from));
+        cost
+    })
+}
+
+/// D* Lite's path (into `path`) and cost after a completed repair.
+fn dstar_path(p: &Planner, map: &Belief, path: &mut PathBuf) -> u32 {
+    let summary = extract_path(p, map, path).expect("path");
+    assert!(summary.complete);
+    summary.cost
+}
+
+fn first_plan_dstar(s: &Scenario, p: &mut Planner, path: &mut PathBuf) -> u32 {
     p.reset(s.initial.shape(), s.start, s.goal).expect("reset");
     match p.compute(&s.initial, u32::MAX).expect("compute") {
-        PlanStatus::Found { cost } => cost,
+        PlanStatus::Found { .. } => dstar_path(p, &s.initial, path),
         other => panic!("{other:?}"),
     }
 }
 
 /// All replans of the flight on a planner that has made the first plan. Returns the summed costs.
-fn replans_dstar(s: &Scenario, p: &mut Planner, belief: &mut Belief) -> u64 {
+fn replans_dstar(s: &Scenario, p: &mut Planner, belief: &mut Belief, path: &mut PathBuf) -> u64 {
     let mut sum = 0u64;
     for e in &s.events {
         for &c in &e.changed {
@@ -150,8 +185,8 @@ fn replans_dstar(s: &Scenario, p: &mut Planner, belief: &mut Belief) -> u64 {
         }
         p.set_start(e.at).expect("start");
         p.cells_changed(belief, &e.changed).expect("changed");
-        if let PlanStatus::Found { cost } = p.compute(belief, u32::MAX).expect("compute") {
-            sum += u64::from(cost);
+        if let PlanStatus::Found { .. } = p.compute(belief, u32::MAX).expect("compute") {
+            sum += u64::from(dstar_path(p, belief, path));
         }
     }
     sum
@@ -180,63 +215,70 @@ fn median_time(mut f: impl FnMut(), runs: usize) -> Duration {
     t[runs / 2]
 }
 
-fn main() {
-    let s = scenario();
+fn bench_map(c: &mut Criterion, name: &str, s: &Scenario) {
     let mut planner: Box<Planner> = Box::new(DStarLite::new());
-    let first_cost = first_plan_dstar(&s, &mut planner);
+    let mut path: Box<PathBuf> = Box::new(PathBuf::new());
+    let first_cost = first_plan_dstar(s, &mut planner, &mut path);
     assert_eq!(
         astar_cost(&s.initial, s.start, s.goal),
         Some(first_cost),
-        "both planners agree"
+        "{name}: both planners agree"
     );
+    let first_expansions = planner.expansions();
     let after_first = planner.clone();
     // Both planners must agree on every replan too.
     let (mut b1, mut b2) = (s.initial.clone(), s.initial.clone());
     let mut check = after_first.clone();
-    assert_eq!(replans_dstar(&s, &mut check, &mut b1), replans_astar(&s, &mut b2));
+    assert_eq!(
+        replans_dstar(s, &mut check, &mut b1, &mut path),
+        replans_astar(s, &mut b2),
+        "{name}: replans agree"
+    );
     println!(
-        "seed scenario: {} replans after map changes, first plan cost {first_cost}",
+        "{name}: {} replans after map changes, first plan cost {first_cost} ({first_expansions} D* Lite expansions)",
         s.events.len()
     );
 
-    let mut c = Criterion::default()
-        .configure_from_args()
-        .warm_up_time(Duration::from_millis(500));
-    let mut g = c.benchmark_group("seed");
+    let mut g = c.benchmark_group(name);
     g.bench_function("first_plan/dstar_lite", |b| {
-        b.iter(|| first_plan_dstar(&s, black_box(&mut planner)))
+        b.iter(|| first_plan_dstar(s, black_box(&mut planner), &mut path))
     });
     g.bench_function("first_plan/astar", |b| {
-        b.iter(|| astar_cost(black_box(&s.initial), s.start, s.goal))
+        b.iter(|| astar_plan(black_box(&s.initial), s.start, s.goal))
     });
     g.bench_function("all_replans/dstar_lite", |b| {
         b.iter_batched_ref(
             || (after_first.clone(), s.initial.clone()),
-            |(p, belief)| replans_dstar(&s, p, belief),
+            |(p, belief)| replans_dstar(s, p, belief, &mut path),
             BatchSize::SmallInput,
         )
     });
     g.bench_function("all_replans/astar", |b| {
         b.iter_batched_ref(
             || s.initial.clone(),
-            |belief| replans_astar(&s, belief),
+            |belief| replans_astar(s, belief),
             BatchSize::SmallInput,
         )
     });
     g.finish();
-    c.final_summary();
+}
 
-    // The ratio, measured in this same run (median of repeated runs, setup excluded where possible).
-    let runs = 41;
+/// The ratios, measured in this same run (median of repeated runs, setup excluded where possible).
+fn ratios(name: &str, s: &Scenario) {
+    let mut planner: Box<Planner> = Box::new(DStarLite::new());
+    let mut path: Box<PathBuf> = Box::new(PathBuf::new());
+    first_plan_dstar(s, &mut planner, &mut path);
+    let after_first = planner.clone();
+    let runs = 101;
     let first_d = median_time(
         || {
-            black_box(first_plan_dstar(&s, &mut planner));
+            black_box(first_plan_dstar(s, &mut planner, &mut path));
         },
         runs,
     );
     let first_a = median_time(
         || {
-            black_box(astar_cost(&s.initial, s.start, s.goal));
+            black_box(astar_plan(&s.initial, s.start, s.goal));
         },
         runs,
     );
@@ -245,7 +287,7 @@ fn main() {
     let replan_d = median_time(
         || {
             if let Some((p, b)) = it.next() {
-                black_box(replans_dstar(&s, p, b));
+                black_box(replans_dstar(s, p, b, &mut path));
             }
         },
         runs,
@@ -255,20 +297,34 @@ fn main() {
     let replan_a = median_time(
         || {
             if let Some(b) = it.next() {
-                black_box(replans_astar(&s, b));
+                black_box(replans_astar(s, b));
             }
         },
         runs,
     );
-    let n = s.events.len() as u32;
+    let n = s.events.len().max(1) as u32;
     println!(
-        "RESULT first_plan dstar_lite={first_d:?} astar={first_a:?} ratio_astar_over_dstar={:.2}",
+        "RESULT {name} first_plan dstar_lite={first_d:?} astar={first_a:?} ratio_astar_over_dstar={:.2}",
         first_a.as_secs_f64() / first_d.as_secs_f64()
     );
     println!(
-        "RESULT replans n={n} dstar_lite_total={replan_d:?} ({:?}/replan) astar_total={replan_a:?} ({:?}/replan) ratio_astar_over_dstar={:.2}",
+        "RESULT {name} replans n={n} dstar_lite_total={replan_d:?} ({:?}/replan) astar_total={replan_a:?} ({:?}/replan) ratio_astar_over_dstar={:.2}",
         replan_d / n,
         replan_a / n,
         replan_a.as_secs_f64() / replan_d.as_secs_f64()
     );
+}
+
+fn main() {
+    let scenarios: Vec<(&str, Scenario)> = MAPS.iter().map(|(name, text)| (*name, scenario(text))).collect();
+    let mut c = Criterion::default()
+        .configure_from_args()
+        .warm_up_time(Duration::from_millis(500));
+    for (name, s) in &scenarios {
+        bench_map(&mut c, name, s);
+    }
+    c.final_summary();
+    for (name, s) in &scenarios {
+        ratios(name, s);
+    }
 }

@@ -133,6 +133,8 @@ pub struct DStarLite<const CELLS: usize, const QUEUE: usize> {
     expansions: u32,
     /// The last [`DStarLite::compute`] ran out of budget: the next one continues the same repair.
     resuming: bool,
+    /// The start's `g` or `rhs` may have changed since [`DStarLite::compute`] last computed its key.
+    start_touched: bool,
 }
 
 impl<const CELLS: usize, const QUEUE: usize> Default for DStarLite<CELLS, QUEUE> {
@@ -241,6 +243,7 @@ impl<const CELLS: usize, const QUEUE: usize> DStarLite<CELLS, QUEUE> {
             readiness: Readiness::Empty,
             expansions: 0,
             resuming: false,
+            start_touched: true,
         }
     }
 
@@ -339,11 +342,20 @@ impl<const CELLS: usize, const QUEUE: usize> DStarLite<CELLS, QUEUE> {
         self.resuming = true;
         let start = self.shape.index(self.start);
         let goal = self.shape.index(self.goal);
+        let (width, height) = (i32::from(self.shape.width), i32::from(self.shape.height));
+        // Index offset of the predecessor `u - (dx, dy)` for each of NEIGHBOURS.
+        let back = NEIGHBOURS.map(|(dx, dy)| -(dy as isize * width as isize + dx as isize));
         let mut budget = max_expansions;
+        // The start's key changes only when the start is expanded or its rhs is updated (`start_touched`).
+        self.start_touched = true;
+        let (mut g_start, mut rhs_start, mut start_key) = (INFINITE, INFINITE, Key::MAX);
         loop {
-            let g_start = self.g[start];
-            let rhs_start = self.rhs(start);
-            let start_key = self.key(i32::from(self.start.x), i32::from(self.start.y), g_start, rhs_start);
+            if self.start_touched {
+                self.start_touched = false;
+                g_start = self.g[start];
+                rhs_start = self.rhs(start);
+                start_key = self.key(i32::from(self.start.x), i32::from(self.start.y), g_start, rhs_start);
+            }
             let Some((u, old_key)) = self.open.top() else { break };
             if old_key >= start_key && rhs_start <= g_start {
                 break;
@@ -357,6 +369,11 @@ impl<const CELLS: usize, const QUEUE: usize> DStarLite<CELLS, QUEUE> {
             let g_u = self.g[u];
             let rhs_u = self.rhs(u);
             let (ux, uy) = self.coords(u);
+            if u == start {
+                self.start_touched = true;
+            }
+            // Away from the edges every neighbour is inside the grid: no bounds test per neighbour.
+            let interior = ux > 0 && uy > 0 && ux + 1 < width && uy + 1 < height;
             let new_key = self.key(ux, uy, g_u, rhs_u);
             if old_key < new_key {
                 self.open.update(u, new_key, rhs_u);
@@ -371,10 +388,10 @@ impl<const CELLS: usize, const QUEUE: usize> DStarLite<CELLS, QUEUE> {
                 let side_free = straight_free(map, ux, uy);
                 for (k, (dx, dy)) in NEIGHBOURS.into_iter().enumerate() {
                     let (sx, sy) = (ux - dx, uy - dy);
-                    if !self.shape.contains(sx, sy) {
+                    if !interior && !self.shape.contains(sx, sy) {
                         continue;
                     }
-                    let s = self.index_of(sx, sy);
+                    let s = u.wrapping_add_signed(back[k]);
                     if s == goal {
                         continue;
                     }
@@ -397,10 +414,10 @@ impl<const CELLS: usize, const QUEUE: usize> DStarLite<CELLS, QUEUE> {
                     let side_free = straight_free(map, ux, uy);
                     for (k, (dx, dy)) in NEIGHBOURS.into_iter().enumerate() {
                         let (sx, sy) = (ux - dx, uy - dy);
-                        if !self.shape.contains(sx, sy) {
+                        if !interior && !self.shape.contains(sx, sy) {
                             continue;
                         }
-                        let s = self.index_of(sx, sy);
+                        let s = u.wrapping_add_signed(back[k]);
                         if s == goal {
                             continue;
                         }
@@ -526,6 +543,9 @@ impl<const CELLS: usize, const QUEUE: usize> DStarLite<CELLS, QUEUE> {
 
     /// D* Lite's UpdateVertex with the new `rhs`: queue the cell iff it is inconsistent.
     fn update_vertex(&mut self, cell: usize, x: i32, y: i32, rhs: u16) -> Result<(), PlanError> {
+        if x == i32::from(self.start.x) && y == i32::from(self.start.y) {
+            self.start_touched = true;
+        }
         let g = self.g[cell];
         if g != rhs {
             let key = self.key(x, y, g, rhs);
@@ -551,6 +571,7 @@ impl<const CELLS: usize, const QUEUE: usize> DStarLite<CELLS, QUEUE> {
             } else {
                 side_free[a] && side_free[b] && !map.is_blocked(nx, ny)
             };
+            // `is_blocked` is true outside the map, but the map's shape is the caller's: check ours too.
             if open && self.shape.contains(nx, ny) {
                 best = best.min(add_cost(c, self.g[self.index_of(nx, ny)]));
             }

@@ -1,4 +1,4 @@
-//! An indexed binary min-heap over grid cells: the open list `U` of D* Lite.
+//! An indexed 4-ary min-heap over grid cells: the open list `U` of D* Lite.
 //!
 //! Job: hold at most `CAP` cells, each with a priority [`Key`] and one `u16` payload (D* Lite keeps the
 //! cell's `rhs` there, see [`crate::nav::dstar`]), and support insert, change-key (up or down), removal of any
@@ -15,6 +15,11 @@
 //!
 //! The position index stores `slot + 1`, so an all-zero queue is a valid empty one (it can live in
 //! zero-initialised or `NOLOAD` memory once cleared).
+
+/// Children per heap node. A 4-ary heap is half as deep as a binary one: D* Lite pushes several cells per
+/// expansion and pops one, and with deepest-first ties a pushed cell often rises to the top, so the
+/// shallower sift-up outweighs the extra comparisons of sift-down.
+const ARITY: usize = 4;
 
 /// A D* Lite priority: compared lexicographically, `k1` first.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, PartialOrd, Ord)]
@@ -150,11 +155,11 @@ impl<const CELLS: usize, const CAP: usize> IndexedQueue<CELLS, CAP> {
     /// Insert a cell that is not queued yet. A cell that is already queued gets its key and payload
     /// replaced instead; a cell id outside `CELLS` is ignored.
     pub fn push(&mut self, cell: usize, key: Key, payload: u16) -> Result<(), QueueFull> {
-        if cell >= CELLS {
+        let Some(&p) = self.position.get(cell) else {
             return Ok(());
-        }
-        if self.contains(cell) {
-            self.update(cell, key, payload);
+        };
+        if p != 0 {
+            self.set(usize::from(p) - 1, key, payload);
             return Ok(());
         }
         if self.len >= CAP {
@@ -170,7 +175,13 @@ impl<const CELLS: usize, const CAP: usize> IndexedQueue<CELLS, CAP> {
 
     /// Change the key and payload of a queued cell (does nothing for a cell that is not queued).
     pub fn update(&mut self, cell: usize, key: Key, payload: u16) {
-        let Some(slot) = self.slot_of(cell) else { return };
+        if let Some(slot) = self.slot_of(cell) {
+            self.set(slot, key, payload);
+        }
+    }
+
+    /// Give the entry at `slot` a new key and payload and restore the heap order.
+    fn set(&mut self, slot: usize, key: Key, payload: u16) {
         let old = self.key(slot);
         self.k1[slot] = key.k1;
         self.k2[slot] = key.k2;
@@ -193,7 +204,7 @@ impl<const CELLS: usize, const CAP: usize> IndexedQueue<CELLS, CAP> {
             let moved_key = self.key(last);
             self.write(slot, self.cell[last], moved_key, self.payload[last]);
             // The moved entry may belong above or below the hole.
-            let parent_bigger = slot > 0 && self.key((slot - 1) / 2) > moved_key;
+            let parent_bigger = slot > 0 && self.key((slot - 1) / ARITY) > moved_key;
             if parent_bigger {
                 self.sift_up(slot);
             } else {
@@ -217,7 +228,7 @@ impl<const CELLS: usize, const CAP: usize> IndexedQueue<CELLS, CAP> {
             self.k1[slot] = k.k1;
             self.k2[slot] = k.k2;
         }
-        for slot in (0..self.len / 2).rev() {
+        for slot in (0..self.len.div_ceil(ARITY)).rev() {
             self.sift_down(slot);
         }
     }
@@ -263,7 +274,7 @@ impl<const CELLS: usize, const CAP: usize> IndexedQueue<CELLS, CAP> {
         let key = self.key(slot);
         let (cell, payload) = (self.cell[slot], self.payload[slot]);
         while slot > 0 {
-            let parent = (slot - 1) / 2;
+            let parent = (slot - 1) / ARITY;
             if self.key(parent) <= key {
                 break;
             }
@@ -273,22 +284,26 @@ impl<const CELLS: usize, const CAP: usize> IndexedQueue<CELLS, CAP> {
         self.write(slot, cell, key, payload);
     }
 
-    /// Restore the heap order below `slot`: smaller children move up into the hole.
+    /// Restore the heap order below `slot`: the smallest child moves up into the hole.
     fn sift_down(&mut self, mut slot: usize) {
         let key = self.key(slot);
         let (cell, payload) = (self.cell[slot], self.payload[slot]);
         loop {
-            let left = 2 * slot + 1;
-            if left >= self.len {
+            let first = ARITY * slot + 1;
+            if first >= self.len {
                 break;
             }
-            let right = left + 1;
-            let child = if right < self.len && self.key(right) < self.key(left) {
-                right
-            } else {
-                left
-            };
-            if key <= self.key(child) {
+            let end = (first + ARITY).min(self.len);
+            let mut child = first;
+            let mut child_key = self.key(first);
+            for c in first + 1..end {
+                let k = self.key(c);
+                if k < child_key {
+                    child = c;
+                    child_key = k;
+                }
+            }
+            if key <= child_key {
                 break;
             }
             self.move_entry(child, slot);

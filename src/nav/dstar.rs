@@ -484,13 +484,17 @@ impl<const CELLS: usize, const QUEUE: usize> DStarLite<CELLS, QUEUE> {
             return None;
         }
         let (x, y) = (i32::from(from.x), i32::from(from.y));
+        let side_free = straight_free(map, x, y);
         let mut best: Option<(u16, Cell)> = None;
-        for (dx, dy) in NEIGHBOURS {
-            let Some(c) = move_cost(map, x, y, dx, dy) else {
-                continue;
-            };
+        for (k, (dx, dy)) in NEIGHBOURS.into_iter().enumerate() {
+            let (c, a, b) = MOVES[k];
             let (nx, ny) = (x + dx, y + dy);
-            if !self.shape.contains(nx, ny) {
+            let open = if c == STRAIGHT_COST {
+                side_free[a]
+            } else {
+                side_free[a] && side_free[b] && !map.is_blocked(nx, ny)
+            };
+            if !open || !self.shape.contains(nx, ny) {
                 continue;
             }
             let total = add_cost(c, self.g[self.index_of(nx, ny)]);

@@ -240,6 +240,13 @@ impl<const CELLS: usize, const CAP: usize> IndexedQueue<CELLS, CAP> {
         }
     }
 
+    /// The key at `slot` as one integer with the same order (`k1` in the high bits): one comparison,
+    /// no branch on `k1` equality, in the sift loops.
+    #[inline]
+    fn rank(&self, slot: usize) -> u64 {
+        (u64::from(self.k1[slot]) << 16) | u64::from(self.k2[slot])
+    }
+
     #[inline]
     fn key(&self, slot: usize) -> Key {
         Key {
@@ -272,10 +279,11 @@ impl<const CELLS: usize, const CAP: usize> IndexedQueue<CELLS, CAP> {
     /// down into the hole it leaves (one write per level instead of a swap).
     fn sift_up(&mut self, mut slot: usize) {
         let key = self.key(slot);
+        let rank = self.rank(slot);
         let (cell, payload) = (self.cell[slot], self.payload[slot]);
         while slot > 0 {
             let parent = (slot - 1) / ARITY;
-            if self.key(parent) <= key {
+            if self.rank(parent) <= rank {
                 break;
             }
             self.move_entry(parent, slot);
@@ -287,6 +295,7 @@ impl<const CELLS: usize, const CAP: usize> IndexedQueue<CELLS, CAP> {
     /// Restore the heap order below `slot`: the smallest child moves up into the hole.
     fn sift_down(&mut self, mut slot: usize) {
         let key = self.key(slot);
+        let rank = self.rank(slot);
         let (cell, payload) = (self.cell[slot], self.payload[slot]);
         loop {
             let first = ARITY * slot + 1;
@@ -295,15 +304,15 @@ impl<const CELLS: usize, const CAP: usize> IndexedQueue<CELLS, CAP> {
             }
             let end = (first + ARITY).min(self.len);
             let mut child = first;
-            let mut child_key = self.key(first);
+            let mut child_rank = self.rank(first);
             for c in first + 1..end {
-                let k = self.key(c);
-                if k < child_key {
+                let r = self.rank(c);
+                if r < child_rank {
                     child = c;
-                    child_key = k;
+                    child_rank = r;
                 }
             }
-            if key <= child_key {
+            if rank <= child_rank {
                 break;
             }
             self.move_entry(child, slot);

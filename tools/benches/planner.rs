@@ -203,16 +203,22 @@ fn replans_astar(s: &Scenario, belief: &mut Belief) -> u64 {
     sum
 }
 
-fn median_time(mut f: impl FnMut(), runs: usize) -> Duration {
-    let mut t: Vec<Duration> = (0..runs)
-        .map(|_| {
-            let t0 = Instant::now();
-            f();
-            t0.elapsed()
-        })
-        .collect();
-    t.sort();
-    t[runs / 2]
+/// Median times of `a` and `b` over `runs` runs each, run alternately (a, b, a, b, …) so that a change in
+/// the machine's load during the measurement hits both alike.
+fn paired_medians(mut a: impl FnMut(usize), mut b: impl FnMut(usize), runs: usize) -> (Duration, Duration) {
+    let mut ta = Vec::with_capacity(runs);
+    let mut tb = Vec::with_capacity(runs);
+    for i in 0..runs {
+        let t0 = Instant::now();
+        a(i);
+        ta.push(t0.elapsed());
+        let t0 = Instant::now();
+        b(i);
+        tb.push(t0.elapsed());
+    }
+    ta.sort();
+    tb.sort();
+    (ta[runs / 2], tb[runs / 2])
 }
 
 fn bench_map(c: &mut Criterion, name: &str, s: &Scenario) {
@@ -269,36 +275,26 @@ fn ratios(name: &str, s: &Scenario) {
     let mut path: Box<PathBuf> = Box::new(PathBuf::new());
     first_plan_dstar(s, &mut planner, &mut path);
     let after_first = planner.clone();
-    let runs = 101;
-    let first_d = median_time(
-        || {
+    let runs = 201;
+    let (first_d, first_a) = paired_medians(
+        |_| {
             black_box(first_plan_dstar(s, &mut planner, &mut path));
         },
-        runs,
-    );
-    let first_a = median_time(
-        || {
+        |_| {
             black_box(astar_plan(&s.initial, s.start, s.goal));
         },
         runs,
     );
+    // Each replan run starts from a fresh copy of the state after the first plan (copies made beforehand).
     let mut pairs: Vec<_> = (0..runs).map(|_| (after_first.clone(), s.initial.clone())).collect();
-    let mut it = pairs.iter_mut();
-    let replan_d = median_time(
-        || {
-            if let Some((p, b)) = it.next() {
-                black_box(replans_dstar(s, p, b, &mut path));
-            }
-        },
-        runs,
-    );
     let mut beliefs: Vec<_> = (0..runs).map(|_| s.initial.clone()).collect();
-    let mut it = beliefs.iter_mut();
-    let replan_a = median_time(
-        || {
-            if let Some(b) = it.next() {
-                black_box(replans_astar(s, b));
-            }
+    let (replan_d, replan_a) = paired_medians(
+        |i| {
+            let (p, b) = &mut pairs[i];
+            black_box(replans_dstar(s, p, b, &mut path));
+        },
+        |i| {
+            black_box(replans_astar(s, &mut beliefs[i]));
         },
         runs,
     );

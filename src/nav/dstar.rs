@@ -169,7 +169,7 @@ pub fn move_cost(map: &impl Traversability, x: i32, y: i32, dx: i32, dy: i32) ->
     }
 }
 
-#[inline]
+#[inline(always)]
 fn add_cost(c: u16, g: u16) -> u16 {
     if g == INFINITE {
         return INFINITE;
@@ -196,7 +196,7 @@ fn add_cost(c: u16, g: u16) -> u16 {
 ///   is wrong), and preferring the cell nearest the start ends the search once the start is reached instead
 ///   of first expanding every cell that lies on some optimal path (the octile heuristic is exact on open
 ///   ground, so those all tie).
-#[inline]
+#[inline(always)]
 fn key_of(h: u32, km: u32, g: u16, rhs: u16) -> Key {
     let f = u32::from(g.min(rhs)) + h + km;
     if g < rhs {
@@ -211,7 +211,7 @@ fn key_of(h: u32, km: u32, g: u16, rhs: u16) -> Key {
 
 /// Whether each of the four straight neighbours of `(x, y)` (in [`NEIGHBOURS`] order) may be entered; cells
 /// outside the grid count as blocked ([`Traversability`]'s contract).
-#[inline]
+#[inline(always)]
 fn straight_free(map: &impl Traversability, x: i32, y: i32) -> [bool; 4] {
     [
         !map.is_blocked(x + 1, y),
@@ -224,7 +224,7 @@ fn straight_free(map: &impl Traversability, x: i32, y: i32) -> [bool; 4] {
 /// Whether the diagonal move from `u - (dx, dy)` into a free `u` is open, given `u`'s [`straight_free`]
 /// and the [`MOVES`] side indices `a`, `b` of `(dx, dy)`: it passes `u`'s straight neighbours at `(-dx, 0)`
 /// and `(0, -dy)`, the opposites of `a` and `b`.
-#[inline]
+#[inline(always)]
 fn diagonal_open_into(side_free: &[bool; 4], a: usize, b: usize) -> bool {
     side_free[OPPOSITE[a]] && side_free[OPPOSITE[b]]
 }
@@ -565,6 +565,10 @@ impl<const CELLS: usize, const QUEUE: usize> DStarLite<CELLS, QUEUE> {
 
     fn best_successor_cost(&self, map: &impl Traversability, x: i32, y: i32) -> u16 {
         let side_free = straight_free(map, x, y);
+        let (width, height) = (i32::from(self.shape.width), i32::from(self.shape.height));
+        // Away from the edges every neighbour is inside the grid: no bounds test, no multiplication.
+        let interior = x > 0 && y > 0 && x + 1 < width && y + 1 < height;
+        let here = self.index_of(x, y);
         let mut best = INFINITE;
         for (k, (dx, dy)) in NEIGHBOURS.into_iter().enumerate() {
             let (c, a, b) = MOVES[k];
@@ -576,8 +580,9 @@ impl<const CELLS: usize, const QUEUE: usize> DStarLite<CELLS, QUEUE> {
                 side_free[a] && side_free[b] && !map.is_blocked(nx, ny)
             };
             // `is_blocked` is true outside the map, but the map's shape is the caller's: check ours too.
-            if open && self.shape.contains(nx, ny) {
-                best = best.min(add_cost(c, self.g[self.index_of(nx, ny)]));
+            if open && (interior || self.shape.contains(nx, ny)) {
+                let n = here.wrapping_add_signed(dy as isize * width as isize + dx as isize);
+                best = best.min(add_cost(c, self.g[n]));
             }
         }
         best

@@ -7,6 +7,9 @@
 //!
 //! Non-goals: stability among equal keys, growth beyond `CAP` (a full queue is reported, never grown).
 //!
+//! Sifts move a hole instead of swapping (one entry write per level) and compare keys as one packed
+//! integer; the heap is 4-ary (see `ARITY`).
+//!
 //! Memory: `2·CELLS` bytes for the position index plus `10·CAP` bytes for the entries (struct of arrays,
 //! so no padding): 7200 cells and 1024 entries take 24 640 B.
 //!

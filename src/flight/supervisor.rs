@@ -73,6 +73,7 @@
 //! Memory: [`Supervisor`] is 280 bytes (half of it the configuration). Cost: O(1), a few dozen
 //! comparisons and flops, no transcendental functions.
 
+use super::flags::Flags;
 use crate::types::{GRAVITY_M_S2, Micros, Setpoint, StateEstimate};
 
 /// Tunable thresholds. [`Default`] is stock (§10) where stock has a value.
@@ -188,9 +189,12 @@ pub enum Reason {
     MotorsStopped,
 }
 
+/// The owner of [`SupervisorFlags`]'s bits (a marker, never built).
+#[derive(Debug)]
+pub enum SupervisorBits {}
+
 /// Bit flags describing one tick, for logs.
-#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
-pub struct SupervisorFlags(pub u16);
+pub type SupervisorFlags = Flags<SupervisorBits>;
 
 impl SupervisorFlags {
     /// The tilt timer is running (acc.z below the tilt threshold).
@@ -217,17 +221,6 @@ impl SupervisorFlags {
     pub const BATTERY_INVALID: u16 = 1 << 10;
     /// The estimate is not valid.
     pub const ESTIMATE_INVALID: u16 = 1 << 11;
-
-    /// Whether `flag` (one of the constants) is set.
-    pub fn contains(self, flag: u16) -> bool {
-        self.0 & flag != 0
-    }
-
-    fn set(&mut self, flag: u16, on: bool) {
-        if on {
-            self.0 |= flag;
-        }
-    }
 }
 
 /// One tick's inputs.
@@ -381,7 +374,7 @@ impl Supervisor {
         };
         self.last_now = Some(now);
         let first = *self.first_now.get_or_insert(now);
-        let mut flags = SupervisorFlags(0);
+        let mut flags = SupervisorFlags::default();
 
         // Accelerometer: tumble timers.
         let g = GRAVITY_M_S2;

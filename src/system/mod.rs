@@ -5,9 +5,9 @@
 //! a cycle counter ([`cpu_load`]), the LED patterns for each firmware state ([`status_led`]) and the rules
 //! by which a `mission.start` write becomes a started mission ([`mission_start`]).
 //!
-//! May depend on: [`crate::types`] and the radio codecs of [`crate::radio`] (the config block carries
-//! syslink radio settings). No peripheral access: the board layer reads the cycle counter, the EEPROM and
-//! drives the pins.
+//! May depend on: [`crate::types`], [`crate::math`] and the radio codecs of [`crate::radio`] (the config
+//! block carries syslink radio settings). No peripheral access: the board layer reads the cycle counter,
+//! the EEPROM and drives the pins.
 
 pub mod config_block;
 pub mod cpu_load;

@@ -11,6 +11,7 @@ use cfnav::flight::control::mixer::{
 };
 use cfnav::flight::control::{ControlFlags, ControlOutput, Controller, ControllerConfig};
 use cfnav::flight::supervisor::{Reason, Supervisor, SupervisorConfig, SupervisorInput, SupervisorState};
+use cfnav::math::{cross3, mul_m3t_v3, quat_mul, quat_to_rot};
 use cfnav::types::{GRAVITY_M_S2, MotorDuty, Setpoint, StateEstimate};
 use rand::rngs::SmallRng;
 use rand::{Rng, SeedableRng};
@@ -47,42 +48,12 @@ struct Quad {
     vbat: f64,
 }
 
-fn quat_mul(a: [f64; 4], b: [f64; 4]) -> [f64; 4] {
-    [
-        a[0] * b[0] - a[1] * b[1] - a[2] * b[2] - a[3] * b[3],
-        a[0] * b[1] + a[1] * b[0] + a[2] * b[3] - a[3] * b[2],
-        a[0] * b[2] - a[1] * b[3] + a[2] * b[0] + a[3] * b[1],
-        a[0] * b[3] + a[1] * b[2] - a[2] * b[1] + a[3] * b[0],
-    ]
-}
-
 fn quat_from_euler(roll: f64, pitch: f64, yaw: f64) -> [f64; 4] {
     // R = Rz(yaw)·Ry(pitch)·Rx(roll)
     let qz = [(yaw / 2.0).cos(), 0.0, 0.0, (yaw / 2.0).sin()];
     let qy = [(pitch / 2.0).cos(), 0.0, (pitch / 2.0).sin(), 0.0];
     let qx = [(roll / 2.0).cos(), (roll / 2.0).sin(), 0.0, 0.0];
     quat_mul(quat_mul(qz, qy), qx)
-}
-
-fn rot(q: [f64; 4]) -> [[f64; 3]; 3] {
-    let [w, x, y, z] = q;
-    [
-        [
-            1.0 - 2.0 * (y * y + z * z),
-            2.0 * (x * y - w * z),
-            2.0 * (x * z + w * y),
-        ],
-        [
-            2.0 * (x * y + w * z),
-            1.0 - 2.0 * (x * x + z * z),
-            2.0 * (y * z - w * x),
-        ],
-        [
-            2.0 * (x * z - w * y),
-            2.0 * (y * z + w * x),
-            1.0 - 2.0 * (x * x + y * y),
-        ],
-    ]
 }
 
 impl Quad {
@@ -105,7 +76,7 @@ impl Quad {
     }
 
     fn euler(&self) -> [f64; 3] {
-        let r = rot(self.q);
+        let r = quat_to_rot(self.q);
         [
             r[2][1].atan2(r[2][2]),
             (-r[2][0]).clamp(-1.0, 1.0).asin(),
@@ -127,13 +98,8 @@ impl Quad {
 
     /// Specific force in the body frame, m/s² (what the accelerometer reads).
     fn specific_force(&self, acc_arena: [f64; 3]) -> [f64; 3] {
-        let r = rot(self.q);
-        let a = [acc_arena[0], acc_arena[1], acc_arena[2] + G];
-        [
-            r[0][0] * a[0] + r[1][0] * a[1] + r[2][0] * a[2],
-            r[0][1] * a[0] + r[1][1] * a[1] + r[2][1] * a[2],
-            r[0][2] * a[0] + r[1][2] * a[1] + r[2][2] * a[2],
-        ]
+        let r = quat_to_rot(self.q);
+        mul_m3t_v3(&r, [acc_arena[0], acc_arena[1], acc_arena[2] + G])
     }
 
     /// Body torque from the current motor thrusts.
@@ -160,7 +126,7 @@ impl Quad {
             self.f[i] += (f_ss - self.f[i]) * a_lag;
         }
         let total: f64 = self.f.iter().sum();
-        let r = rot(self.q);
+        let r = quat_to_rot(self.q);
         let mut acc = [0.0; 3];
         for k in 0..3 {
             acc[k] = r[k][2] * total / MASS - LINEAR_DRAG * self.v[k] / MASS;
@@ -169,11 +135,7 @@ impl Quad {
         let tau = self.torque();
         let w = self.w;
         let iw = [INERTIA[0] * w[0], INERTIA[1] * w[1], INERTIA[2] * w[2]];
-        let gyro = [
-            w[1] * iw[2] - w[2] * iw[1],
-            w[2] * iw[0] - w[0] * iw[2],
-            w[0] * iw[1] - w[1] * iw[0],
-        ];
+        let gyro = cross3(w, iw);
         for k in 0..3 {
             self.w[k] += (tau[k] - gyro[k] - ROT_DRAG * w[k]) / INERTIA[k] * DT;
             self.v[k] += acc[k] * DT;
@@ -326,7 +288,7 @@ fn step_response(samples: &[(f64, f64)], start: f64, target: f64, band: f64) -> 
 }
 
 fn max_tilt_deg(q: &Quad) -> f64 {
-    let r = rot(q.q);
+    let r = quat_to_rot(q.q);
     r[2][2].clamp(-1.0, 1.0).acos().to_degrees()
 }
 
@@ -1134,7 +1096,7 @@ fn a_knock_in_flight_is_recovered_and_not_a_false_crash() {
         let out = g.step(pos(1.0, 1.0, 1.0, 0.0));
         assert_eq!(out.state, SupervisorState::Flying, "false crash at {k} ms");
         min_z = min_z.min(g.f.quad.p[2]);
-        if upright_at.is_none() && rot(g.f.quad.q)[2][2] > (10f64).to_radians().cos() {
+        if upright_at.is_none() && quat_to_rot(g.f.quad.q)[2][2] > (10f64).to_radians().cos() {
             upright_at = Some(k);
         }
     }

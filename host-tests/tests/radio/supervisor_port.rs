@@ -91,7 +91,7 @@ fn bitfield_reply_layout_and_mapping() {
 
     // Crashed after a tumble, mission running, deck fault.
     let mut st = status(SupervisorState::Crashed, Reason::Tumbled);
-    st.output.flags = SupervisorFlags(SupervisorFlags::TUMBLED);
+    st.output.flags = SupervisorFlags::from_bits(SupervisorFlags::TUMBLED);
     st.mission_running = true;
     st.decks_ok = false;
     s.set_status(st);
@@ -196,7 +196,7 @@ fn recovery_answers() {
     );
     assert!(!s.take_requests().recover, "nothing to recover");
     let mut crashed = status(SupervisorState::Crashed, Reason::Tumbled);
-    crashed.output.flags = SupervisorFlags(SupervisorFlags::TUMBLED);
+    crashed.output.flags = SupervisorFlags::from_bits(SupervisorFlags::TUMBLED);
     s.set_status(crashed);
     assert_eq!(
         s.handle(&pk(CH_COMMAND, &[CMD_RECOVER_SYSTEM]))

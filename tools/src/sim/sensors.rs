@@ -17,6 +17,7 @@
 //! All sensors sit at the body origin (the stock flow-deck position parameters default to 0 too); the
 //! Multi-ranger's ~1.5 cm offset from the centre to its sensors is neglected.
 
+use cfnav::math::finite3;
 use cfnav::types::{FlowSample, ImuSample, MultiRangerSample, RangeReading};
 use rand::Rng;
 use rand::rngs::SmallRng;
@@ -44,10 +45,6 @@ pub const FLOW_COUNTS_PER_PIXEL: f32 = 10.0;
 
 fn gauss(rng: &mut SmallRng) -> f32 {
     rng.sample::<f32, _>(StandardNormal)
-}
-
-fn finite3(v: [f32; 3]) -> bool {
-    v.iter().all(|x| x.is_finite())
 }
 
 // ---------------------------------------------------------------------------------------------------------

@@ -138,6 +138,28 @@ pub enum Setpoint {
     },
 }
 
+impl Setpoint {
+    /// Every number in it is finite (Stop has none).
+    pub fn is_finite(&self) -> bool {
+        match *self {
+            Setpoint::Stop => true,
+            Setpoint::Position { x_m, y_m, z_m, yaw_rad } => [x_m, y_m, z_m, yaw_rad].iter().all(|v| v.is_finite()),
+            Setpoint::Velocity {
+                vx_m_s,
+                vy_m_s,
+                z_m,
+                yaw_rad,
+            } => [vx_m_s, vy_m_s, z_m, yaw_rad].iter().all(|v| v.is_finite()),
+            Setpoint::Descend {
+                x_m,
+                y_m,
+                vz_m_s,
+                yaw_rad,
+            } => [x_m, y_m, vz_m_s, yaw_rad].iter().all(|v| v.is_finite()),
+        }
+    }
+}
+
 /// The four motor duties as the firmware writes them to TIM2/TIM4 (8-bit, 0..=255), in the stock motor
 /// numbering: M1 front-right, M2 back-right, M3 back-left, M4 front-left (crazyflie-hardware.md §6).
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]

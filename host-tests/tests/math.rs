@@ -141,3 +141,35 @@ fn vector_helpers_match_their_definitions_in_f32_and_f64() {
     assert_eq!(finite_or(f32::NAN, 2.0), 2.0);
     assert_eq!(finite_or(1.5, 2.0), 1.5);
 }
+
+#[test]
+fn a_setpoint_is_finite_only_when_every_field_is() {
+    use cfnav::types::Setpoint;
+    let fields = |v: f32| {
+        [
+            Setpoint::Position {
+                x_m: v,
+                y_m: 1.0,
+                z_m: 1.0,
+                yaw_rad: 0.0,
+            },
+            Setpoint::Velocity {
+                vx_m_s: 0.0,
+                vy_m_s: 0.0,
+                z_m: 1.0,
+                yaw_rad: v,
+            },
+            Setpoint::Descend {
+                x_m: 1.0,
+                y_m: 1.0,
+                vz_m_s: v,
+                yaw_rad: 0.0,
+            },
+        ]
+    };
+    assert!(Setpoint::Stop.is_finite());
+    assert!(fields(0.5).iter().all(Setpoint::is_finite));
+    for bad in [f32::NAN, f32::INFINITY, f32::NEG_INFINITY] {
+        assert!(fields(bad).iter().all(|s| !s.is_finite()), "{bad}");
+    }
+}

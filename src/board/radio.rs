@@ -11,7 +11,7 @@
 //!
 //! Commander (ports 3 and 7): each accepted setpoint is mapped by [`SetpointFollower`] and handed to the
 //! control task with its arrival time, once, and only while no mission runs (as `cfnav sim --serve` does).
-//! Console (port 0): refusal notes and firmware messages through [`ConsoleService`].
+//! Console (port 0): refusal notes and firmware messages through [`cfnav::radio::console::ConsoleService`].
 //! Supervisor (port 9): state bits from the stabilizer's verdict; arming cannot be changed (auto-arming, as
 //! the stock Crazyflie 2.1); an emergency stop (command or its watchdog) cuts the motors at once and is
 //! latched until reset like a fault (stock: Locked, reboot required); a running mission is aborted.
@@ -25,16 +25,13 @@ use core::sync::atomic::Ordering;
 
 use cfnav::mission::MissionParams;
 use cfnav::nav::map::ARENA_CELLS;
-use cfnav::radio::commander::{CommanderService, SetpointFollower};
-use cfnav::radio::console::ConsoleService;
-use cfnav::radio::crtp::{CrtpPacket, PlatformService, Router};
-use cfnav::radio::endpoint::EndpointServices;
-use cfnav::radio::log::LogService;
+use cfnav::radio::commander::SetpointFollower;
+use cfnav::radio::crtp::CrtpPacket;
+use cfnav::radio::endpoint::Endpoint;
 use cfnav::radio::log_registry::FirmwareLogState;
-use cfnav::radio::mem::MemService;
 use cfnav::radio::param::ParamService;
 use cfnav::radio::registry::{ID_START, MissionParamState};
-use cfnav::radio::supervisor_port::{SupervisorPortConfig, SupervisorPortService, SupervisorStatus};
+use cfnav::radio::supervisor_port::{SupervisorPortConfig, SupervisorStatus};
 use cfnav::radio::syslink::{BatteryState, MAX_FRAME, SyslinkDecoder, SyslinkPacket, encode, kind};
 use cfnav::system::config_block::RadioSettings;
 use cfnav::system::cpu_load::Level;
@@ -95,18 +92,11 @@ impl SyslinkUart {
 }
 
 type Params = ParamService<MissionParamState>;
-type Logs = LogService<FirmwareLogState>;
 
 /// The CRTP side: router, services and the `mission.start` bookkeeping.
 struct Crtp {
-    router: Router<ROUTER_QUEUE>,
-    param: Params,
-    log: Logs,
-    mem: MemService,
-    commander: CommanderService,
+    ep: Endpoint<MissionParamState, FirmwareLogState, CONSOLE_QUEUE, ROUTER_QUEUE>,
     follower: SetpointFollower,
-    console: ConsoleService<CONSOLE_QUEUE>,
-    supervisor: SupervisorPortService,
     commander_dropped: u32,
     /// `mission.start` requests in flight.
     start: StartTracker,
@@ -117,17 +107,15 @@ struct Crtp {
 impl Crtp {
     fn new() -> Self {
         Self {
-            router: Router::new(PlatformService::new(FIRMWARE_TAG)),
-            param: ParamService::new(MissionParamState::new(MissionParams::SEED, ARENA_CELLS)),
-            log: LogService::new(),
-            mem: MemService,
-            commander: CommanderService::new(),
+            ep: Endpoint::new(
+                FIRMWARE_TAG,
+                MissionParamState::new(MissionParams::SEED, ARENA_CELLS),
+                SupervisorPortConfig {
+                    auto_arm: true,
+                    can_recover: false,
+                },
+            ),
             follower: SetpointFollower::new(),
-            console: ConsoleService::new(),
-            supervisor: SupervisorPortService::new(SupervisorPortConfig {
-                auto_arm: true,
-                can_recover: false,
-            }),
             commander_dropped: 0,
             start: StartTracker::new(),
             last_uplink: None,
@@ -137,12 +125,12 @@ impl Crtp {
 
     /// Queues a console line.
     fn console(&mut self, text: &str) {
-        self.console.print(text);
+        self.ep.console.print(text);
     }
 
     /// Hands the commander's new setpoint to the control task, if one arrived and no mission runs.
     fn apply_commander(&mut self) {
-        let Some((command, received_us)) = self.commander.take_fresh() else {
+        let Some((command, received_us)) = self.ep.commander.take_fresh() else {
             return;
         };
         if MISSION_RUNNING.load(Ordering::Acquire) || self.start.pending() {
@@ -163,37 +151,25 @@ impl Crtp {
     fn on_uplink(&mut self, bytes: &[u8], now: Instant) -> Option<CrtpPacket> {
         self.last_uplink = Some(now);
         {
-            let store = self.param.store_mut();
+            let store = self.ep.param.store_mut();
             store.flying = fast_status().supervisor.flying;
             store.decks_ok = DECKS_OK.load(Ordering::Acquire);
         }
-        let before = self.param.store().start;
-        self.commander.set_now(now.as_micros());
-        self.supervisor.set_now(now.as_micros());
+        let before = self.ep.param.store().start;
         let running = MISSION_RUNNING.load(Ordering::Acquire);
-        self.supervisor.set_status(SupervisorStatus {
+        self.ep.supervisor.set_status(SupervisorStatus {
             output: fast_status().supervisor,
             mission_running: running,
             mission_finished: !running && log_state().flight.mission_state != 0,
             decks_ok: DECKS_OK.load(Ordering::Acquire),
         });
-        let reply = {
-            EndpointServices {
-                param: &mut self.param,
-                log: &mut self.log,
-                mem: &mut self.mem,
-                commander: &mut self.commander,
-                supervisor: &mut self.supervisor,
-                console: &mut self.console,
-            }
-            .handle_uplink(&mut self.router, bytes)
-        };
+        let reply = self.ep.handle_uplink(bytes, now.as_micros());
         self.apply_commander();
-        let after = self.param.store().start;
+        let after = self.ep.param.store().start;
         let fault = FAULT.load(Ordering::Acquire);
         match self.start.on_write(before, after, fault) {
             StartDecision::RequestStart => {
-                let params = self.param.store().params;
+                let params = self.ep.param.store().params;
                 let queued = MISSION_REQUESTS.try_send(MissionRequest::Start(params)).is_ok();
                 if let Some(reason) = self.start.request_queued(queued) {
                     self.revert_start(reason);
@@ -212,16 +188,16 @@ impl Crtp {
     fn emergency_stop(&mut self) {
         fault("emergency stop (supervisor port)");
         let _ = MISSION_REQUESTS.try_send(MissionRequest::Abort);
-        if self.param.store().start != 0 {
-            self.param.store_mut().start = 0;
-            self.param.notify(ID_START);
+        if self.ep.param.store().start != 0 {
+            self.ep.param.store_mut().start = 0;
+            self.ep.param.notify(ID_START);
         }
         self.console("emergency stop: motors stopped; power-cycle to fly again\n");
     }
 
     fn revert_start(&mut self, line: &str) {
-        self.param.store_mut().start = 0;
-        self.param.notify(ID_START);
+        self.ep.param.store_mut().start = 0;
+        self.ep.param.notify(ID_START);
         warn!("{}", line.trim_end());
         self.console(line);
     }
@@ -229,8 +205,8 @@ impl Crtp {
     /// Everything that is not a reply: start outcomes, the end of a mission, parameter updates and refusal
     /// lines, due log data.
     fn housekeeping(&mut self, now: Instant) {
-        let fired = self.supervisor.poll(now.as_micros());
-        if fired || self.supervisor.take_requests().emergency_stop {
+        let fired = self.ep.supervisor.poll(now.as_micros());
+        if fired || self.ep.supervisor.take_requests().emergency_stop {
             self.emergency_stop();
         }
         if let Some(outcome) = START_OUTCOME.try_take()
@@ -243,18 +219,18 @@ impl Crtp {
         }
         if self
             .start
-            .must_clear(self.param.store().start, MISSION_RUNNING.load(Ordering::Acquire))
+            .must_clear(self.ep.param.store().start, MISSION_RUNNING.load(Ordering::Acquire))
         {
             // The mission ended (or never ran): interfaces.md §5 wants mission.start back at 0.
-            self.param.store_mut().start = 0;
-            self.param.notify(ID_START);
+            self.ep.param.store_mut().start = 0;
+            self.ep.param.notify(ID_START);
         }
-        while let Some(p) = self.param.next_notification() {
-            if self.router.enqueue(p).is_err() {
+        while let Some(p) = self.ep.param.next_notification() {
+            if self.ep.router.enqueue(p).is_err() {
                 self.dropped_downlinks = self.dropped_downlinks.saturating_add(1);
             }
         }
-        while let Some(note) = self.param.take_refusal() {
+        while let Some(note) = self.ep.param.take_refusal() {
             let line = Params::console_line(&note);
             self.console(&line);
         }
@@ -263,19 +239,19 @@ impl Crtp {
             .is_some_and(|t| now.saturating_duration_since(t) > LINK_TIMEOUT)
         {
             info!("radio link silent: log blocks stopped");
-            self.log.reset();
+            self.ep.log.reset();
             self.last_uplink = None;
         }
-        self.console.flush();
-        while self.router.pending() < ROUTER_QUEUE / 2
-            && let Some(p) = self.console.next_packet()
+        self.ep.console.flush();
+        while self.ep.router.pending() < ROUTER_QUEUE / 2
+            && let Some(p) = self.ep.console.next_packet()
         {
-            let _ = self.router.enqueue(p);
+            let _ = self.ep.router.enqueue(p);
         }
         let state = log_state();
         let now_ms = now.as_millis() as u32;
-        while let Some(p) = self.log.tick(now_ms, &state) {
-            if self.router.enqueue(p).is_err() {
+        while let Some(p) = self.ep.log.tick(now_ms, &state) {
+            if self.ep.router.enqueue(p).is_err() {
                 self.dropped_downlinks = self.dropped_downlinks.saturating_add(1);
                 break;
             }

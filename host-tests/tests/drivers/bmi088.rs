@@ -4,10 +4,11 @@
 //! datasheet's scale formulas, and every failure path (NACK, wrong id, ACC_ERR_REG, config read-back,
 //! data-ready timeout).
 
+use super::NACK;
 use cfnav::drivers::DriverError;
 use cfnav::drivers::bmi088::{Bmi088, DATA_READY_POLLS};
 use embassy_futures::block_on;
-use embedded_hal::i2c::{ErrorKind, NoAcknowledgeSource};
+use embedded_hal::i2c::ErrorKind;
 use embedded_hal_mock::eh1::delay::{CheckedDelay, Transaction as D};
 use embedded_hal_mock::eh1::i2c::{Mock as I2cMock, Transaction as T};
 
@@ -15,10 +16,6 @@ use embedded_hal_mock::eh1::i2c::{Mock as I2cMock, Transaction as T};
 const ACC: u8 = 0x18; // SDO1 to GND on the CF2.1
 const GYR: u8 = 0x69; // SDO2 to VDDIO on the CF2.1
 const G: f32 = 9.81; // the g of cfnav::types::GRAVITY_M_S2 and the simulator
-
-fn nack() -> ErrorKind {
-    ErrorKind::NoAcknowledge(NoAcknowledgeSource::Address)
-}
 
 fn reg_read(addr: u8, reg: u8, value: u8) -> T {
     T::write_read(addr, vec![reg], vec![value])
@@ -181,9 +178,9 @@ fn read_raw_keeps_the_counts() {
 
 #[test]
 fn nack_at_the_gyro_probe_is_a_bus_error_and_nothing_else_is_sent() {
-    let bus = [reg_read(GYR, 0x00, 0x00).with_error(nack())];
+    let bus = [reg_read(GYR, 0x00, 0x00).with_error(NACK)];
     let (result, imu, delay) = run_init(&bus, &[]);
-    assert_eq!(result, Err(DriverError::Bus(nack())));
+    assert_eq!(result, Err(DriverError::Bus(NACK)));
     assert!(!imu.is_initialised());
     finish(imu, delay);
 }
@@ -191,9 +188,9 @@ fn nack_at_the_gyro_probe_is_a_bus_error_and_nothing_else_is_sent() {
 #[test]
 fn nack_at_the_accelerometer_probe_is_a_bus_error() {
     let (mut bus, delays) = gyro_init();
-    bus.push(reg_read(ACC, 0x00, 0x00).with_error(nack()));
+    bus.push(reg_read(ACC, 0x00, 0x00).with_error(NACK));
     let (result, imu, delay) = run_init(&bus, &delays);
-    assert_eq!(result, Err(DriverError::Bus(nack())));
+    assert_eq!(result, Err(DriverError::Bus(NACK)));
     finish(imu, delay);
 }
 
@@ -341,11 +338,11 @@ fn gyro_that_never_has_data_times_out() {
 #[test]
 fn init_after_a_failure_starts_over() {
     let (good_bus, good_delays) = full_init();
-    let mut bus = vec![reg_read(GYR, 0x00, 0x00).with_error(nack())];
+    let mut bus = vec![reg_read(GYR, 0x00, 0x00).with_error(NACK)];
     bus.extend(good_bus);
     let mut imu = Bmi088::new(I2cMock::new(&bus));
     let mut delay = CheckedDelay::new(&good_delays);
-    assert_eq!(block_on(imu.init(&mut delay)), Err(DriverError::Bus(nack())));
+    assert_eq!(block_on(imu.init(&mut delay)), Err(DriverError::Bus(NACK)));
     assert_eq!(block_on(imu.init(&mut delay)), Ok(()));
     assert!(imu.is_initialised());
     finish(imu, delay);
@@ -355,10 +352,10 @@ fn init_after_a_failure_starts_over() {
 fn nack_during_a_read_is_a_bus_error() {
     let bus = [
         T::write_read(GYR, vec![0x02], vec![0; 6]),
-        T::write_read(ACC, vec![0x12], vec![0; 6]).with_error(nack()),
+        T::write_read(ACC, vec![0x12], vec![0; 6]).with_error(NACK),
     ];
     let mut imu = Bmi088::new(I2cMock::new(&bus));
-    assert_eq!(block_on(imu.read()), Err(DriverError::Bus(nack())));
+    assert_eq!(block_on(imu.read()), Err(DriverError::Bus(NACK)));
     imu.release().done();
 }
 

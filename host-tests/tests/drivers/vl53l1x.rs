@@ -6,26 +6,13 @@
 //! `CheckForDataReady`, `GetRangeStatus`, `GetDistance`, `ClearInterrupt`, `SetI2CAddress`. Register numbers
 //! are literals here on purpose (not the driver's constants), so a wrong constant in the driver fails.
 
+use super::{CountingDelay, NACK};
 use cfnav::drivers::DriverError;
 use cfnav::drivers::vl53l1x::{DEFAULT_CONFIGURATION, DistanceMode, RangeStatus, RangingConfig, TimingBudget, Vl53l1x};
 use embassy_futures::block_on;
-use embedded_hal::i2c::{ErrorKind, NoAcknowledgeSource};
+use embedded_hal::i2c::ErrorKind;
 use embedded_hal_mock::eh1::delay::NoopDelay;
 use embedded_hal_mock::eh1::i2c::{Mock as I2cMock, Transaction as T};
-
-const NACK: ErrorKind = ErrorKind::NoAcknowledge(NoAcknowledgeSource::Address);
-
-/// A delay that only adds up how long the driver asked to wait.
-#[derive(Default)]
-struct CountingDelay {
-    total_ns: u64,
-}
-
-impl embedded_hal_async::delay::DelayNs for CountingDelay {
-    async fn delay_ns(&mut self, ns: u32) {
-        self.total_ns += u64::from(ns);
-    }
-}
 
 // ---- expected transactions: 16-bit big-endian register index, big-endian data ----
 

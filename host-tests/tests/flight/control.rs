@@ -353,37 +353,35 @@ fn response_to(roll: i16, pitch: i16, yaw: i16) -> ([f64; 3], [f64; 3]) {
 
 #[test]
 fn mixer_signs_move_the_body_the_commanded_way() {
-    let (t, e) = response_to(3000, 0, 0);
-    println!(
-        "roll +3000: torque {t:?} N·m, attitude {:?} deg",
-        e.map(f64::to_degrees)
-    );
-    assert!(
-        t[0] > 0.0 && e[0] > 0.01,
-        "positive roll command lowers the right side (roll > 0)"
-    );
-    assert!(e[1].abs() < 0.1 * e[0] && e[2].abs() < 0.1 * e[0]);
+    for (axis, name, meaning, min_angle_rad) in [
+        (
+            0,
+            "roll",
+            "positive roll command lowers the right side (roll > 0)",
+            0.01,
+        ),
+        (1, "pitch", "positive pitch command lowers the nose (pitch > 0)", 0.01),
+        (
+            2,
+            "yaw",
+            "positive yaw command turns counter-clockwise (yaw > 0)",
+            0.001,
+        ),
+    ] {
+        let mut cmd = [0i16; 3];
+        cmd[axis] = 3000;
+        let (t, e) = response_to(cmd[0], cmd[1], cmd[2]);
+        println!(
+            "{name} +3000: torque {t:?} N·m, attitude {:?} deg",
+            e.map(f64::to_degrees)
+        );
+        assert!(t[axis] > 0.0 && e[axis] > min_angle_rad, "{meaning}");
+        for other in (0..3).filter(|&k| k != axis) {
+            assert!(e[other].abs() < 0.1 * e[axis], "{name} moves {other} too: {e:?}");
+        }
+    }
     let (t, e) = response_to(-3000, 0, 0);
     assert!(t[0] < 0.0 && e[0] < -0.01);
-
-    let (t, e) = response_to(0, 3000, 0);
-    println!(
-        "pitch +3000: torque {t:?} N·m, attitude {:?} deg",
-        e.map(f64::to_degrees)
-    );
-    assert!(
-        t[1] > 0.0 && e[1] > 0.01,
-        "positive pitch command lowers the nose (pitch > 0)"
-    );
-    assert!(e[0].abs() < 0.1 * e[1] && e[2].abs() < 0.1 * e[1]);
-
-    let (t, e) = response_to(0, 0, 3000);
-    println!("yaw +3000: torque {t:?} N·m, attitude {:?} deg", e.map(f64::to_degrees));
-    assert!(
-        t[2] > 0.0 && e[2] > 0.001,
-        "positive yaw command turns counter-clockwise (yaw > 0)"
-    );
-    assert!(e[0].abs() < 0.1 * e[2] && e[1].abs() < 0.1 * e[2]);
 }
 
 #[test]

@@ -20,21 +20,21 @@ impl Pack {
         self.0.push(v);
         self
     }
-    fn f(mut self, v: f32) -> Self {
-        self.0.extend_from_slice(&v.to_le_bytes());
+    fn bytes(mut self, v: &[u8]) -> Self {
+        self.0.extend_from_slice(v);
         self
     }
-    fn h(mut self, v: u16) -> Self {
-        self.0.extend_from_slice(&v.to_le_bytes());
-        self
+    fn f(self, v: f32) -> Self {
+        self.bytes(&v.to_le_bytes())
     }
-    fn i16(mut self, v: i16) -> Self {
-        self.0.extend_from_slice(&v.to_le_bytes());
-        self
+    fn h(self, v: u16) -> Self {
+        self.bytes(&v.to_le_bytes())
     }
-    fn i(mut self, v: u32) -> Self {
-        self.0.extend_from_slice(&v.to_le_bytes());
-        self
+    fn i16(self, v: i16) -> Self {
+        self.bytes(&v.to_le_bytes())
+    }
+    fn i(self, v: u32) -> Self {
+        self.bytes(&v.to_le_bytes())
     }
 }
 

@@ -3,8 +3,9 @@
 //! trace, the flight table's TOC, block limits and error codes, the stock type conversion, period 0, the data
 //! schedule with its 24-bit timestamp, the TOC CRC, and a seeded random-bytes loop.
 
+use super::{hex, send, wire};
 use cfnav::mission::MissionParams;
-use cfnav::radio::crtp::{CrtpPacket, PlatformService, Router, Service};
+use cfnav::radio::crtp::{PlatformService, Router, Service};
 use cfnav::radio::log::{
     E2BIG, EEXIST, EINVAL, ENOENT, ENOMEM, LogService, MAX_BLOCK_DATA, MAX_BLOCKS, MAX_OPS, PORT_LOG,
 };
@@ -16,23 +17,6 @@ use cfnav::radio::param::ParamService;
 use cfnav::radio::registry::{MISSION_TABLE, MissionParamState, PARAM_CRC_SEED, toc_crc};
 use rand::rngs::SmallRng;
 use rand::{Rng, SeedableRng};
-
-fn hex(s: &str) -> Vec<u8> {
-    s.split_whitespace()
-        .map(|b| u8::from_str_radix(b, 16).unwrap())
-        .collect()
-}
-
-fn wire(p: &CrtpPacket) -> Vec<u8> {
-    let mut out = [0u8; 32];
-    let n = p.to_bytes(&mut out);
-    out[..n].to_vec()
-}
-
-fn send<S: Service>(s: &mut S, bytes: &[u8]) -> Option<Vec<u8>> {
-    let p = CrtpPacket::from_bytes(bytes).unwrap();
-    s.handle(&p).map(|r| wire(&r))
-}
 
 /// Sends `data` on 5/1 and returns the reply's payload.
 fn ctl<S: LogSource>(s: &mut LogService<S>, data: &[u8]) -> Vec<u8> {

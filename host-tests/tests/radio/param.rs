@@ -3,6 +3,7 @@
 //! the trace, the connect sequence through the router, the refusal rule, set-by-name, VALUE_UPDATED, the TOC
 //! CRC, and a seeded random-bytes loop.
 
+use super::{hex, send, wire};
 use cfnav::mission::MissionParams;
 use cfnav::radio::crtp::{CrtpPacket, PlatformService, Router, Service};
 use cfnav::radio::param::{EACCES, EINVAL, ENOENT, ParamService, RefusalNote};
@@ -20,24 +21,6 @@ type Mission = ParamService<MissionParamState>;
 
 fn service() -> Mission {
     ParamService::new(MissionParamState::new(MissionParams::SEED, CAPACITY))
-}
-
-fn hex(s: &str) -> Vec<u8> {
-    s.split_whitespace()
-        .map(|b| u8::from_str_radix(b, 16).unwrap())
-        .collect()
-}
-
-fn wire(p: &CrtpPacket) -> Vec<u8> {
-    let mut out = [0u8; 32];
-    let n = p.to_bytes(&mut out);
-    out[..n].to_vec()
-}
-
-/// Sends raw uplink bytes straight to a service (header parsed as the router does).
-fn send<S: Service>(s: &mut S, bytes: &[u8]) -> Option<Vec<u8>> {
-    let p = CrtpPacket::from_bytes(bytes).unwrap();
-    s.handle(&p).map(|r| wire(&r))
 }
 
 fn f32_le(v: f32) -> [u8; 4] {

@@ -243,26 +243,20 @@ fn generic_types_decode_as_cflib_packs_them() {
 
     // send_zdistance_setpoint: type 9 (roll, pitch, yawrate, z); pitch is sent unnegated, so the firmware's
     // legacy pitch sign shows as a negated cfnav pitch.
-    s.handle_packet(&cflib_four(9, 2.0, 3.0, 10.0, 0.4)).unwrap();
-    assert_eq!(
-        latest(&s),
-        Command::ZDistance {
-            roll_rad: deg(2.0),
-            pitch_rad: -deg(3.0),
-            yaw_rate_rad_s: deg(10.0),
-            z_m: 0.4
-        }
-    );
-    s.handle_packet(&cflib_four(2, 2.0, 3.0, -10.0, 0.4)).unwrap();
-    assert_eq!(
-        latest(&s),
-        Command::ZDistance {
-            roll_rad: deg(2.0),
-            pitch_rad: -deg(3.0),
-            yaw_rate_rad_s: deg(10.0),
-            z_m: 0.4
-        }
-    );
+    // The legacy type 2 carries the same with the yaw rate negated: both decode to one command.
+    for (kind, yaw_rate_deg) in [(9, 10.0), (2, -10.0)] {
+        s.handle_packet(&cflib_four(kind, 2.0, 3.0, yaw_rate_deg, 0.4)).unwrap();
+        assert_eq!(
+            latest(&s),
+            Command::ZDistance {
+                roll_rad: deg(2.0),
+                pitch_rad: -deg(3.0),
+                yaw_rate_rad_s: deg(10.0),
+                z_m: 0.4
+            },
+            "type {kind}"
+        );
+    }
 
     // send_hover_setpoint: type 10 (vx, vy body, yawrate, z); legacy type 5 with −yawrate.
     let hover = Command::Hover {

@@ -445,13 +445,7 @@ fn battery_compensation_raises_duty_as_the_voltage_drops() {
         assert!((made - thrust).abs() < 0.003, "thrust {made} vs {thrust}");
     }
     // The controller's filter reaches the same duty.
-    let mut c = Controller::new(ControllerConfig::default()).expect("valid");
-    let sp = pos(0.0, 0.0, 1.0, 0.0);
-    let est = StateEstimate {
-        position_m: [0.0, 0.0, 1.0],
-        valid: true,
-        ..StateEstimate::default()
-    };
+    let (mut c, sp, est) = holding_one_metre();
     let duty_at = |vbat: f32, c: &mut Controller| {
         let mut out = ControlOutput::default();
         for k in 0..2000 {
@@ -483,15 +477,20 @@ fn battery_compensation_raises_duty_as_the_voltage_drops() {
     );
 }
 
-#[test]
-fn battery_filter_is_stock_and_ignores_garbage() {
-    let mut c = Controller::new(ControllerConfig::default()).expect("valid");
-    let sp = pos(0.0, 0.0, 1.0, 0.0);
+/// A default controller already at its setpoint, 1 m above the origin: only the battery changes its output.
+fn holding_one_metre() -> (Controller, Setpoint, StateEstimate) {
     let est = StateEstimate {
         position_m: [0.0, 0.0, 1.0],
         valid: true,
         ..StateEstimate::default()
     };
+    let c = Controller::new(ControllerConfig::default()).expect("valid");
+    (c, pos(0.0, 0.0, 1.0, 0.0), est)
+}
+
+#[test]
+fn battery_filter_is_stock_and_ignores_garbage() {
+    let (mut c, sp, est) = holding_one_metre();
     let out = c.update(&sp, &est, [0.0; 3], 4.0, 0);
     assert_eq!(out.battery_v_filtered, 4.0, "first reading initialises the filter");
     let out = c.update(&sp, &est, [0.0; 3], 3.0, 1000);

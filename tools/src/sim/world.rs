@@ -22,6 +22,7 @@
 //! | `sim.seed` | 0 | any `u64` |
 //! | `sim.time_limit` | 300 | 0 < seconds ≤ 3600 |
 //! | `sim.expect` | `"completed"` | **schema addition**: `"completed"`, `"no_path"` or `"pad_not_found"` |
+//! | `[sensors]`, `[disturbances]` | the simulator's own | every key optional; keys, units and ranges in [`super::stress`] |
 //!
 //! `sim.expect` says how a run of the world should end: `"completed"` names the report's `outcome`, any other
 //! value its `reason` (interfaces.md §4). Failure worlds shipped in `worlds/` also carry a `fail-` file-name
@@ -65,13 +66,18 @@ use std::ops::Range;
 use std::path::Path;
 
 use cfnav::nav::map::{GridShape, MAX_HEIGHT_CELLS, MAX_WIDTH_CELLS};
+
+use super::stress::{Disturbances, RawDisturbances, RawSensors, SensorStress, Stress};
 use serde::Deserialize;
 use toml::Spanned;
 
 mod geometry;
 mod random;
 
-pub use random::{KEEP_OUT_M, SOLVABILITY_INFLATION_M};
+pub use random::{
+    FOREST_PAD_GAP_M, FOREST_RADIUS_M, Generator, KEEP_OUT_M, NEAR_PAD_GAP_M, SOLVABILITY_INFLATION_M,
+    WIDE_ARENA_MAX_M, WIDE_ARENA_MIN_M,
+};
 
 /// Radius of the drone's body disc: touching an obstacle with it is a collision (interfaces.md §3).
 pub const BODY_RADIUS_M: f32 = 0.06;
@@ -129,6 +135,8 @@ pub struct World {
     pub cylinders: Vec<Cylinder>,
     /// Seed, time limit, expected outcome.
     pub sim: SimSettings,
+    /// `[sensors]` and `[disturbances]` (stress testing; empty: the simulator's defaults).
+    pub stress: Stress,
 }
 
 /// `[arena]`.
@@ -300,6 +308,8 @@ struct RawWorld {
     #[serde(default)]
     cylinders: Vec<Spanned<RawCylinder>>,
     sim: Option<Spanned<RawSim>>,
+    sensors: Option<Spanned<RawSensors>>,
+    disturbances: Option<Spanned<RawDisturbances>>,
 }
 
 #[derive(Deserialize)]
@@ -507,6 +517,20 @@ fn convert(raw: RawWorld, default_name: &str, spans: &mut Spans) -> Result<World
         sim.expect = spans.optional("sim.expect", s.expect).unwrap_or_default();
     }
 
+    let mut stress = Stress::default();
+    let mut sink = |f: &str, r: Range<usize>| spans.add(f, r);
+    if let Some(t) = raw.sensors {
+        sink("sensors", t.span());
+        stress.sensors = SensorStress::from_raw(t.into_inner(), &mut sink);
+    }
+    if let Some(t) = raw.disturbances {
+        sink("disturbances", t.span());
+        stress.disturbances = Disturbances::from_raw(t.into_inner(), &mut sink).map_err(|e| Invalid {
+            field: e.field,
+            message: e.message,
+        })?;
+    }
+
     Ok(World {
         name,
         arena: Arena { size, ceiling },
@@ -515,6 +539,7 @@ fn convert(raw: RawWorld, default_name: &str, spans: &mut Spans) -> Result<World
         boxes,
         cylinders,
         sim,
+        stress,
     })
 }
 
@@ -829,7 +854,10 @@ impl World {
                 format!("{t} s; expected 0 < time_limit ≤ {MAX_TIME_LIMIT_S} s"),
             );
         }
-        Ok(())
+        self.stress.check().map_err(|e| Invalid {
+            field: e.field,
+            message: e.message,
+        })
     }
 
     /// Check a world built in code (e.g. by a test or a generator) against the rules world files obey.
@@ -963,6 +991,7 @@ impl World {
                 time_limit: DEFAULT_TIME_LIMIT_S,
                 expect: Expect::Completed,
             },
+            stress: Stress::default(),
         }
     }
 
@@ -1049,6 +1078,7 @@ impl World {
         if self.sim.expect != Expect::Completed {
             s.push_str(&format!("expect = \"{}\"\n", self.sim.expect.as_str()));
         }
+        s.push_str(&self.stress.to_toml_string());
         s
     }
 }

@@ -407,15 +407,17 @@ fn candidate_wide(rng: &mut SmallRng, seed: u64) -> World {
         }
     }
 
-    // A forest of thin cylinders around the goal (one world in three): 4–9 of them, centres 0.35–1.0 m from
-    // the goal pad's centre, at least 0.1 m from the pad and 0.35 m apart (edge to edge).
+    // A forest of thin cylinders around the goal (one world in three): up to 4–9 of them, centres 0.3–1.1 m
+    // from the goal pad's centre, at least 0.1 m from the pad and 0.5–0.7 m apart edge to edge (room for the
+    // drone's inflated path between them, so that the forest is a maze rather than a fence).
     if rng.random_bool(1.0 / 3.0) {
         let n = rng.random_range(4..=9);
+        let spacing = rng.random_range(0.5..=0.7f32);
         let first = cylinders.len();
         for _ in 0..n {
-            for _ in 0..20 {
+            for _ in 0..30 {
                 let r = cm(rng.random_range(FOREST_RADIUS_M.0..=FOREST_RADIUS_M.1));
-                let d = rng.random_range(0.35..=1.0f32);
+                let d = rng.random_range(0.3..=1.1f32);
                 let a = rng.random_range(0.0..std::f32::consts::TAU);
                 let c = [
                     cm(goal_pad.center[0] + d * a.cos()),
@@ -424,7 +426,7 @@ fn candidate_wide(rng: &mut SmallRng, seed: u64) -> World {
                 let inside = c[0] - r > 0.05 && c[1] - r > 0.05 && c[0] + r < w - 0.05 && c[1] + r < h - 0.05;
                 let apart = cylinders[first..]
                     .iter()
-                    .all(|o: &Cylinder| dist(o.center, c) - o.radius - r >= 0.35);
+                    .all(|o: &Cylinder| dist(o.center, c) - o.radius - r >= spacing);
                 if inside && apart && near_keep.allows_disc(c, r) && clear_of_goal_pad_disc(c, r, FOREST_PAD_GAP_M) {
                     cylinders.push(Cylinder {
                         center: c,

@@ -187,15 +187,27 @@ fn the_command_line_exits_2_on_a_bad_stress_file_and_flies_a_good_one() {
         let mut args = sim_args();
         args.random = Some(1);
         args.stress = Some(path.clone());
-        assert_eq!(run_cli(&args), ExitCode::from(2), "--random --stress with {table}.{key} = {value}");
+        assert_eq!(
+            run_cli(&args),
+            ExitCode::from(2),
+            "--random --stress with {table}.{key} = {value}"
+        );
         let mut args = sim_args();
         args.stress = Some(path);
-        assert_eq!(run_cli(&args), ExitCode::from(2), "sim --stress with {table}.{key} = {value}");
+        assert_eq!(
+            run_cli(&args),
+            ExitCode::from(2),
+            "sim --stress with {table}.{key} = {value}"
+        );
         // The same value inside a world file.
         let world = scratch(&format!("bad-world-{i}.toml"), &with_table(table, key, value));
         let mut args = sim_args();
         args.world = Some(world);
-        assert_eq!(run_cli(&args), ExitCode::from(2), "--world with {table}.{key} = {value}");
+        assert_eq!(
+            run_cli(&args),
+            ExitCode::from(2),
+            "--world with {table}.{key} = {value}"
+        );
     }
     let mut args = sim_args();
     args.random = Some(1);
@@ -210,7 +222,10 @@ fn the_command_line_exits_2_on_a_bad_stress_file_and_flies_a_good_one() {
     args.json = Some(json.clone());
     assert_eq!(run_cli(&args), ExitCode::SUCCESS);
     let report = std::fs::read_to_string(json).expect("report");
-    assert!(report.contains("\"runs\"") && report.contains("\"summary\""), "{report}");
+    assert!(
+        report.contains("\"runs\"") && report.contains("\"summary\""),
+        "{report}"
+    );
 }
 
 #[test]
@@ -248,8 +263,11 @@ fn a_stress_file_overrides_the_worlds_keys_one_by_one() {
         "w",
     )
     .expect("world tables");
-    let over = Stress::from_toml_str("[sensors]\nflow_noise_counts = 0.5\n[disturbances]\ngust_m_s = 0.1\n", "o")
-        .expect("stress file");
+    let over = Stress::from_toml_str(
+        "[sensors]\nflow_noise_counts = 0.5\n[disturbances]\ngust_m_s = 0.1\n",
+        "o",
+    )
+    .expect("stress file");
     let s = world.overlaid(&over);
     assert_eq!(s.sensors.flow_noise_counts, Some(0.5), "the stress file's key wins");
     assert_eq!(s.sensors.flow_dropout, Some(0.1), "the world's own key stays");
@@ -365,10 +383,17 @@ fn flow_scale_error_scales_the_reading() {
     let mut seen = (f32::INFINITY, f32::NEG_INFINITY);
     for seed in 0..400 {
         let p = s.flow_params(&mut SmallRng::seed_from_u64(seed));
-        assert!((0.02 - 1e-6..=0.08 + 1e-6).contains(&p.scale_error), "{}", p.scale_error);
+        assert!(
+            (0.02 - 1e-6..=0.08 + 1e-6).contains(&p.scale_error),
+            "{}",
+            p.scale_error
+        );
         seen = (seen.0.min(p.scale_error), seen.1.max(p.scale_error));
     }
-    assert!(seen.0 < 0.025 && seen.1 > 0.075, "the draw spans ±0.03 around 0.05: {seen:?}");
+    assert!(
+        seen.0 < 0.025 && seen.1 > 0.075,
+        "the draw spans ±0.03 around 0.05: {seen:?}"
+    );
 }
 
 #[test]
@@ -411,7 +436,10 @@ fn zranger_outliers_are_uniform_in_the_span() {
     println!("z-ranger outliers {rate}: {} of {n}, mean {mean:.2} m", wrong.len());
     assert!(binomial_ok(wrong.len(), n, rate * 0.975), "{} of {n}", wrong.len());
     assert!(wrong.iter().all(|r| (0.0..=4.0).contains(r)));
-    assert!((mean - 2.0).abs() < 0.12, "uniform in 0..4 m has mean 2 (the band around 0.5 m excluded)");
+    assert!(
+        (mean - 2.0).abs() < 0.12,
+        "uniform in 0..4 m has mean 2 (the band around 0.5 m excluded)"
+    );
 }
 
 #[test]
@@ -481,7 +509,11 @@ fn imu_biases_are_drawn_within_their_bound() {
 fn wind_drags_on_the_air_relative_velocity() {
     let p = QuadParams::default();
     let hover = p.hover_thrust_per_motor_n();
-    for (air, vel) in [([0.3f32, -0.1], [0.0f32, 0.0]), ([0.3, -0.1], [0.3, -0.1]), ([0.0, 0.0], [0.5, 0.0])] {
+    for (air, vel) in [
+        ([0.3f32, -0.1], [0.0f32, 0.0]),
+        ([0.3, -0.1], [0.3, -0.1]),
+        ([0.0, 0.0], [0.5, 0.0]),
+    ] {
         let mut q = Quadrotor::new(p, [5.0, 5.0, 1.0], 0.0);
         q.set_motor_thrusts([hover; 4]);
         q.set_velocity([vel[0], vel[1], 0.0]);
@@ -500,7 +532,10 @@ fn wind_drags_on_the_air_relative_velocity() {
             .collect();
         println!("air {air:?}, velocity {vel:?}: acceleration {acc:?}, model {want:?}");
         for i in 0..2 {
-            assert!((acc[i] - want[i]).abs() < 0.01 + 0.05 * want[i].abs(), "axis {i}: {acc:?} vs {want:?}");
+            assert!(
+                (acc[i] - want[i]).abs() < 0.01 + 0.05 * want[i].abs(),
+                "axis {i}: {acc:?} vs {want:?}"
+            );
         }
     }
 }
@@ -545,7 +580,10 @@ fn mass_motor_and_battery_settings_reach_the_vehicle() {
     world.stress = s;
     let drone = SimDrone::new(&world, 1, &Faults::default()).expect("drone");
     let ocv = drone.quad.battery().open_circuit_voltage();
-    println!("battery_start_v 3.9: OCV {ocv:.4} V, loaded {:.3} V", drone.quad.battery_voltage());
+    println!(
+        "battery_start_v 3.9: OCV {ocv:.4} V, loaded {:.3} V",
+        drone.quad.battery_voltage()
+    );
     assert!((ocv - 3.9).abs() < 1e-3, "{ocv}");
     assert!((drone.quad.params().mass_kg - 1.15 * d.mass_kg).abs() < 1e-7);
     let table = d.battery.ocv_table_v;
@@ -581,7 +619,10 @@ fn each_key_alone_changes_the_flight() {
             r.outcome,
             r.reason,
             r.mission_time_s,
-            r.landings.iter().map(|l| (l.error_m * 1000.0).round() / 10.0).collect::<Vec<_>>(),
+            r.landings
+                .iter()
+                .map(|l| (l.error_m * 1000.0).round() / 10.0)
+                .collect::<Vec<_>>(),
             r.collisions
         );
         assert!(

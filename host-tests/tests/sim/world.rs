@@ -1007,6 +1007,7 @@ fn wide_random_worlds_have_what_real_arenas_have() {
     };
     let n = 600u64;
     let (mut by_wall, mut by_obstacle, mut forest, mut zigzag, mut large, mut far_pad) = (0, 0, 0, 0, 0, 0);
+    let mut bare = 0;
     let (mut min_size, mut max_size) = ([f32::INFINITY; 2], [0.0f32; 2]);
     let mut texts = HashSet::new();
     for seed in 0..n {
@@ -1030,21 +1031,32 @@ fn wide_random_worlds_have_what_real_arenas_have() {
         // exceed the default build's.
         let shape = w.grid_shape().expect("a grid the firmware maps");
         assert!(shape.cells() <= LARGE_ARENA_CELLS);
-        assert_eq!(w.needs_large_arena(), shape.cells() > DEFAULT_FIRMWARE_CELLS, "seed {seed}");
+        assert_eq!(
+            w.needs_large_arena(),
+            shape.cells() > DEFAULT_FIRMWARE_CELLS,
+            "seed {seed}"
+        );
         large += usize::from(w.needs_large_arena());
 
         let pad = *w.goal_pad().expect("goal pad");
         let fp = pad.footprint();
         let d_goal = (pad.center[0] - w.mission.goal[0]).hypot(pad.center[1] - w.mission.goal[1]);
-        assert!(d_goal <= MAX_PAD_OFFSET_M + 1e-4, "seed {seed}: goal pad {d_goal} m off");
+        assert!(
+            d_goal <= MAX_PAD_OFFSET_M + 1e-4,
+            "seed {seed}: goal pad {d_goal} m off"
+        );
         far_pad += usize::from(d_goal > 0.25);
         let wall_gap = fp.0[0].min(fp.0[1]).min(sx - fp.1[0]).min(sy - fp.1[1]);
         by_wall += usize::from((0.1 - 1e-3..=0.25 + 1e-3).contains(&wall_gap));
         let mut fps: Vec<Footprint> = w.boxes.iter().map(|b| Footprint::Rect(b.min, b.max)).collect();
         fps.extend(w.cylinders.iter().map(|c| Footprint::Disc(c.center, c.radius)));
+        bare += usize::from(fps.is_empty());
         let pad_fp = Footprint::Rect(fp.0, fp.1);
         let gaps: Vec<f32> = fps.iter().map(|f| footprint_gap(f, &pad_fp)).collect();
-        assert!(gaps.iter().all(|g| *g >= 0.1 - 1e-3), "seed {seed}: an obstacle within 0.1 m of the goal pad");
+        assert!(
+            gaps.iter().all(|g| *g >= 0.1 - 1e-3),
+            "seed {seed}: an obstacle within 0.1 m of the goal pad"
+        );
         by_obstacle += usize::from(gaps.iter().any(|g| *g <= 0.25 + 1e-3));
         let thin_near = w
             .cylinders
@@ -1058,7 +1070,10 @@ fn wide_random_worlds_have_what_real_arenas_have() {
         zigzag += usize::from(zig_zag(&w));
         // Start and home keep their room: nothing within the classic keep-out of the take-off point.
         let start = Footprint::Rect(w.mission.start, w.mission.start);
-        assert!(fps.iter().all(|f| footprint_gap(f, &start) >= KEEP_OUT_M - 1e-4), "seed {seed}");
+        assert!(
+            fps.iter().all(|f| footprint_gap(f, &start) >= KEEP_OUT_M - 1e-4),
+            "seed {seed}"
+        );
     }
     println!(
         "{n} wide worlds: goal pad by a wall {by_wall}, by an obstacle {by_obstacle}, forest {forest}, zig-zag \
@@ -1070,7 +1085,11 @@ fn wide_random_worlds_have_what_real_arenas_have() {
     assert!(share(forest, 0.15), "forests: {forest}");
     assert!(share(zigzag, 0.15), "zig-zags: {zigzag}");
     assert!(share(far_pad, 0.15), "goal pads beyond 0.25 m: {far_pad}");
-    assert!(large > 0 && share(n as usize - large, 0.5), "large-arena worlds: {large}");
+    assert!(bare * 50 <= n as usize, "{bare} worlds without obstacles");
+    assert!(
+        large > 0 && share(n as usize - large, 0.5),
+        "large-arena worlds: {large}"
+    );
     assert!(min_size[0] < 4.2 && min_size[1] < 2.2 && max_size[0] > 6.2 && max_size[1] > 3.0);
     // The classic generator is still there, and differs.
     assert_ne!(World::random(7), World::random_classic(7));

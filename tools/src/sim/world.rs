@@ -35,8 +35,8 @@
 //!
 //! Worlds up to 6.4 × 3.2 m (128 × 64 cells, the largest grid the firmware maps) load. The default firmware
 //! build holds 120 × 60 = 7200 cells; a world with more cells ([`World::needs_large_arena`]) needs the
-//! `large-arena` build of the firmware, and the simulator should say so rather than fly it on a grid too
-//! small.
+//! `large-arena` build of the firmware. The simulator always flies the `large-arena` grid capacity and says
+//! so in each report (`needs_large_arena`) and in a batch's summary (`large_arena_runs`).
 //!
 //! # Shipped worlds (`worlds/`)
 //!
@@ -46,14 +46,34 @@
 //!
 //! # Random worlds
 //!
-//! [`World::random`] draws a 4.5–6 × 2.4–3 m arena (always within the default firmware build), the take-off
-//! point near one end and the nominal goal near the other (either way round), the home pad under the take-off
-//! point (within 5 cm) and the goal pad 5–30 cm from the nominal goal; one to three walls across the arena,
-//! each with a 0.6–1 m gap, up to four boxes and up to four cylinders, 1 m tall up to the ceiling. Every
-//! obstacle keeps [`KEEP_OUT_M`] from the pads, the take-off point and the nominal goal. A candidate is kept
-//! only if it validates and [`World::is_solvable`] with [`SOLVABILITY_INFLATION_M`]; otherwise the generator
-//! draws again from the same random stream, so a seed always gives the same world.
+//! Two generators (`cfnav sim --random N --generator wide|classic`); a candidate is kept only if it validates
+//! and [`World::is_solvable`] with [`SOLVABILITY_INFLATION_M`], otherwise the generator draws again from
+//! the same random stream, so a seed always gives the same world.
 //!
+//! [`World::random`] (`wide`, the default since issue 14) draws what real arenas have: a 4–6.4 × 2–3.2 m
+//! arena ([`WIDE_ARENA_MIN_M`]..[`WIDE_ARENA_MAX_M`]); the take-off point 0.5–0.9 m from one end and the
+//! nominal goal 0.5–0.9 m from the other; the home pad under the take-off point (within 5 cm) or, one world
+//! in six, beside it (0.25–0.35 m, the drone starting on the floor); the goal pad 0.05–0.35 m from the
+//! nominal goal, or (one world in three) 0.1–0.25 m from a side or end wall with the nominal goal within
+//! 0.35 m of it. Then either a zig-zag corridor (about one world in three: 2–4 walls across the arena whose
+//! 0.6–0.9 m gaps alternate between the two side walls, so every turn lies next to an arena wall) or 0–3
+//! walls with a 0.6–1 m gap anywhere; one world in three an obstacle (box or cylinder) 0.1–0.25 m from the
+//! goal pad ([`NEAR_PAD_GAP_M`]); one world in three a forest of 4–9 thin cylinders (radius
+//! [`FOREST_RADIUS_M`]) 0.3–1.1 m from the goal pad's centre, 0.1 m or more from the pad and 0.5–0.7 m apart;
+//! and up to three boxes and three cylinders anywhere. Everything keeps [`KEEP_OUT_M`] from the take-off
+//! point and the home pad; the walls and the free obstacles keep it from the goal end too.
+//!
+//! [`World::random_classic`] (`classic`) is the generator of the figures before issue 14, kept seed for seed:
+//! a 4.5–6 × 2.4–3 m arena, the home pad within 5 cm of the take-off point and the goal pad 5–30 cm from the
+//! nominal goal, one to three walls with a 0.6–1 m gap, up to four boxes and four cylinders 1 m tall up to
+//! the ceiling, every obstacle [`KEEP_OUT_M`] from the pads, the take-off point and the nominal goal.
+//!
+//! Arenas larger than the default firmware build's 120 × 60 cells (about 6 % of the wide worlds) are flown,
+//! like every world, on the `large-arena` build's grid (the simulator's [`crate::sim::runner::SIM_CELLS`]);
+//! their reports say `needs_large_arena`, and the batch summary counts them (`large_arena_runs`). The default
+//! firmware build would refuse them at the start (`StartRefusal::BadArena`), so with that build such a world
+//! cannot be flown at all, never flown on a grid too small.
+
 //! # Geometry
 //!
 //! The solid world is everything outside the arena's interior box `(0, W) × (0, H) × (0, ceiling)` (the four

@@ -2,4 +2,5 @@
 
 mod mission;
 mod physics;
+mod stress;
 mod world;

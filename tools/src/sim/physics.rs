@@ -36,7 +36,8 @@
 //!    `V = E − R0·(P/V + I_e)` in closed form.
 //! 3. Forces: thrust `Σ T_i` along body z (times a Cheeseman–Bennett ground-effect factor near the surface),
 //!    rotor drag `−K·s·v_b` with `s` the mean of `√(T_i/T_hover)` (Förster's drag model: proportional to the
-//!    sum of rotor speeds, so it vanishes with the motors off), quadratic body drag `−c·|v_b|·v_b`, gravity.
+//!    sum of rotor speeds, so it vanishes with the motors off), quadratic body drag `−c·|v_b|·v_b`, gravity;
+//!    `v_b` is the body-frame velocity relative to the air (wind and gusts: [`Quadrotor::set_air_velocity`]).
 //! 4. Translation: `p += v·dt + ½·a·dt²; v += a·dt` (exact under constant acceleration, so free fall lands on
 //!    time); rotation: `ω += I⁻¹(τ − ω×Iω)·dt`, `q += ½·q⊗(0,ω)·dt`, renormalised.
 //! 5. Contact with the surface under the drone ([`Geometry::surface_height`]): when the body's bottom
@@ -435,6 +436,8 @@ pub struct Quadrotor {
     touchdown: Option<Touchdown>,
     alpha_dt: f32,
     motor_alpha: f32,
+    /// Velocity of the air, arena frame, m/s: drag acts on the velocity relative to it.
+    air_velocity: [f32; 3],
 }
 
 impl Quadrotor {
@@ -463,6 +466,7 @@ impl Quadrotor {
             touchdown: None,
             alpha_dt: -1.0,
             motor_alpha: 0.0,
+            air_velocity: [0.0; 3],
             params,
         }
     }
@@ -560,7 +564,13 @@ impl Quadrotor {
             self.thrusts[3] * ge,
         ];
         let t_total = t[0] + t[1] + t[2] + t[3];
-        let vb = mul_m3t_v3(&r, self.velocity);
+        // Drag acts on the velocity relative to the air (wind and gusts, `set_air_velocity`).
+        let v_air = [
+            self.velocity[0] - self.air_velocity[0],
+            self.velocity[1] - self.air_velocity[1],
+            self.velocity[2] - self.air_velocity[2],
+        ];
+        let vb = mul_m3t_v3(&r, v_air);
         let s_rot = 0.25
             * ((self.thrusts[0] * self.inv_hover_thrust).sqrt()
                 + (self.thrusts[1] * self.inv_hover_thrust).sqrt()
@@ -718,6 +728,17 @@ impl Quadrotor {
             self.rot = quat_to_rot(self.q);
             self.specific_force = [0.0, 0.0, GRAVITY_M_S2];
         }
+    }
+
+    /// Sets the velocity of the air around the drone (steady wind plus gusts), arena frame, m/s; the rotor
+    /// and body drag act on the velocity relative to it. Non-finite components count as still air.
+    pub fn set_air_velocity(&mut self, air_m_s: [f32; 3]) {
+        self.air_velocity = air_m_s.map(|v| finite_or(v, 0.0));
+    }
+
+    /// The velocity of the air, arena frame, m/s.
+    pub fn air_velocity(&self) -> [f32; 3] {
+        self.air_velocity
     }
 
     /// Simulated time since [`Quadrotor::new`], s.

@@ -39,6 +39,7 @@ mod fw {
     use cfnav::drivers::bmi088::Bmi088;
     use cfnav::stack::{FlightConfig, Stabilizer};
     use defmt::{error, info, warn};
+    use defmt_rtt as _;
     use embassy_executor::{SendSpawner, SpawnError, SpawnToken, Spawner};
     use embassy_stm32::exti::{self, ExtiInput};
     use embassy_stm32::gpio::{Level, Output, Pull, Speed};
@@ -52,7 +53,6 @@ mod fw {
     use embassy_stm32::{bind_interrupts, dma, peripherals};
     use embassy_time::{Delay, Instant, Timer};
     use static_cell::StaticCell;
-    use defmt_rtt as _;
 
     use crate::board::{self, BOOTED, DECKS_OK, IO_PRIORITY, control, leds, mission, motors, radio, sensors, system};
 

@@ -413,7 +413,10 @@ pub async fn radio_task(mut uart: SyslinkUart, settings: RadioSettings) {
         if !boot_reported && boot.is_settled() {
             boot_reported = true;
             if boot.gave_up() > 0 {
-                warn!("{} radio setting(s) never echoed: the nRF may use its defaults", boot.gave_up());
+                warn!(
+                    "{} radio setting(s) never echoed: the nRF may use its defaults",
+                    boot.gave_up()
+                );
             }
         }
         let section = LOAD.begin(Level::Io, cycles());

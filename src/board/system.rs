@@ -34,7 +34,9 @@ pub fn enable_flash_accelerator() -> Result<(), u32> {
     };
     // RM0090 §3.9.1: the reset bits work only with the caches disabled, and must be cleared again.
     pac::FLASH.acr().write_value(pac::flash::regs::Acr(reset));
-    pac::FLASH.acr().write_value(pac::flash::regs::Acr(reset & !(ICRST | DCRST)));
+    pac::FLASH
+        .acr()
+        .write_value(pac::flash::regs::Acr(reset & !(ICRST | DCRST)));
     pac::FLASH.acr().write_value(pac::flash::regs::Acr(run));
     let read = pac::FLASH.acr().read().0;
     match check_acr(read, CPU_HZ) {

@@ -8,4 +8,5 @@ mod firmware_log;
 mod flash_acr;
 mod mission_start;
 mod status_led;
+mod step_pacing;
 mod watchdog;

@@ -253,7 +253,7 @@ fn boot_packets() -> Vec<SyslinkPacket> {
     vec![
         SyslinkPacket::radio_channel(80).unwrap(),
         SyslinkPacket::radio_datarate(cfnav::radio::syslink::Datarate::Rate2M),
-        SyslinkPacket::radio_address(0xE7E7_E7E7_E7).unwrap(),
+        SyslinkPacket::radio_address(0xE7E7E7E7E7).unwrap(),
     ]
 }
 

@@ -6,7 +6,9 @@
 //! Boot, in order (the board layer's module documentation has the priorities and the messages):
 //! 1. clocks: 8 MHz HSE through the PLL at 168 MHz (APB1 42 MHz, APB2 84 MHz, PLL-Q 48 MHz); the embassy time
 //!    driver runs on TIM5 (TIM2/TIM4 drive the motors); the DWT cycle counter is started for the load figures;
-//! 2. LEDs ("booting"), motors (TIM2/TIM4 PWM, all off), the independent watchdog;
+//!    then the flash accelerator (prefetch, I- and D-cache: embassy leaves them off; checked, fault if not on);
+//! 2. LEDs ("booting"), motors (TIM2/TIM4 PWM, all off), the independent watchdog (fed from the I/O
+//!    executor once it runs);
 //! 3. the navigator (map + planner) built in CCM;
 //! 4. deck I2C1: the EEPROM config block (radio settings), the Multi-ranger probe; SPI1: the Flow deck's
 //!    PMW3901; then syslink on USART6 with the radio task (settings, battery auto-update; RADIO_READY once
@@ -37,6 +39,7 @@ mod fw {
     use cfnav::drivers::bmi088::Bmi088;
     use cfnav::stack::{FlightConfig, Stabilizer};
     use defmt::{error, info, warn};
+    use defmt_rtt as _;
     use embassy_executor::{SendSpawner, SpawnError, SpawnToken, Spawner};
     use embassy_stm32::exti::{self, ExtiInput};
     use embassy_stm32::gpio::{Level, Output, Pull, Speed};
@@ -50,7 +53,6 @@ mod fw {
     use embassy_stm32::{bind_interrupts, dma, peripherals};
     use embassy_time::{Delay, Instant, Timer};
     use static_cell::StaticCell;
-    use {defmt_rtt as _, panic_probe as _};
 
     use crate::board::{self, BOOTED, DECKS_OK, IO_PRIORITY, control, leds, mission, motors, radio, sensors, system};
 
@@ -139,6 +141,11 @@ mod fw {
     async fn main(spawner: Spawner) {
         let p = embassy_stm32::init(clock_config());
         info!("cfnav firmware {} booting", env!("CARGO_PKG_VERSION"));
+        // embassy's clock setup left the flash caches and prefetch off: every CPU figure assumes them on.
+        if let Err(acr) = system::enable_flash_accelerator() {
+            error!("FLASH_ACR reads {=u32:#x}", acr);
+            board::fault("flash accelerator not enabled");
+        }
 
         // The cycle counter for the load and jitter figures.
         match cortex_m::Peripherals::take() {
@@ -163,7 +170,6 @@ mod fw {
             }
         };
         let wdg = IndependentWatchdog::new(p.IWDG, system::WATCHDOG_TIMEOUT_US);
-        spawn(&spawner, "watchdog_task", system::watchdog_task(wdg));
 
         // The navigator first, while the stack is shallow (today the compiler builds it in place in CCM; the
         // largest stack frame of the image is 13 KB, see BENCHMARKS.md §6).
@@ -176,6 +182,8 @@ mod fw {
         // The I/O executor: sensors and radio.
         interrupt::UART5.set_priority(IO_PRIORITY);
         let io = EXECUTOR_IO.start(interrupt::UART5);
+        // Fed from the I/O executor, which preempts thread mode: no planner slice can delay a feed.
+        spawn_send(&io, "watchdog_task", system::watchdog_task(wdg));
 
         // Deck bus: config block, then both decks' rangers (then owned by the deck task).
         let mut i2c_config = i2c::Config::default();
@@ -194,13 +202,23 @@ mod fw {
         match Uart::new(p.USART6, p.PC7, p.PC6, p.DMA2_CH7, p.DMA2_CH1, Irqs, uart_config) {
             Ok(uart) => {
                 let (tx, rx) = uart.split();
-                let rx = rx.into_ring_buffered(SYSLINK_RX_RING.init([0; 1024]));
+                let mut rx = rx.into_ring_buffered(SYSLINK_RX_RING.init([0; 1024]));
+                // Receive from now on: the nRF's echoes of the boot settings come while they are sent.
+                rx.start_uart();
                 // PA4: the nRF's RTS, pulled up as stock (high = stop sending).
                 let flow = ExtiInput::new(p.PA4, p.EXTI4, Pull::Up, Irqs);
                 spawn_send(
                     &io,
                     "radio_task",
-                    radio::radio_task(radio::SyslinkUart { tx, rx, flow }, settings),
+                    radio::radio_task(
+                        radio::SyslinkUart {
+                            tx,
+                            rx,
+                            flow,
+                            frame_tx: cfnav::radio::syslink_tx::FlowTx::new(),
+                        },
+                        settings,
+                    ),
                 );
             }
             Err(e) => {

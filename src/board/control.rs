@@ -3,7 +3,8 @@
 //! I2C3 and writing the motors.
 //!
 //! Each step: wait for the edge, read gyro + accelerometer (async I2C, ~0.5 ms of bus time during which
-//! lower priorities run), then, without awaiting: drain [`super::FAST_INPUTS`], run
+//! lower priorities run), then, without awaiting: drain [`super::FAST_INPUTS`] (at most one costly estimator
+//! update, flow or Multi-ranger, per step: a second one waits one step in a [`HeavyInputGate`]), run
 //! [`Stabilizer::on_imu`], write the motors (zero unless booted, no fault and the supervisor allows them),
 //! publish the [`cfnav::stack::FastStatus`], account the cycles. Motors stop on any fault, on a missing
 //! data-ready edge ([`DRDY_TIMEOUT`]) and after [`MAX_IMU_ERRORS`] failed reads in a row.
@@ -13,6 +14,7 @@ use core::sync::atomic::Ordering;
 use cfnav::drivers::bmi088::Bmi088;
 use cfnav::stack::Stabilizer;
 use cfnav::system::cpu_load::{Level, LoopTiming, LoopWindow};
+use cfnav::system::step_pacing::HeavyInputGate;
 use defmt::warn;
 use embassy_executor::InterruptExecutor;
 use embassy_stm32::exti::ExtiInput;
@@ -55,9 +57,30 @@ fn UART4() {
 /// The IMU on the sensor bus.
 pub type Imu = Bmi088<I2c<'static, Async, I2cMaster>>;
 
-/// Drains the inputs queued for the stabilizer since the previous step.
-fn drain_inputs(stab: &mut Stabilizer) {
-    while let Ok(input) = FAST_INPUTS.try_receive() {
+/// The inputs whose estimator update is costly (flow ≈ 14 k, Multi-ranger with wall anchors ≈ 20 k
+/// instructions; BENCHMARKS.md §6).
+fn is_heavy(input: &FastInput) -> bool {
+    matches!(input, FastInput::Flow(_) | FastInput::MultiRanger(_))
+}
+
+/// Drains the inputs queued for the stabilizer since the previous step, at most one costly one.
+fn drain_inputs(stab: &mut Stabilizer, gate: &mut HeavyInputGate<FastInput>) {
+    if let Some(input) = gate.begin_step() {
+        apply_input(stab, input);
+    }
+    while !gate.holding() {
+        let Ok(input) = FAST_INPUTS.try_receive() else {
+            break;
+        };
+        let heavy = is_heavy(&input);
+        if let Some(input) = gate.admit(input, heavy) {
+            apply_input(stab, input);
+        }
+    }
+}
+
+fn apply_input(stab: &mut Stabilizer, input: FastInput) {
+    {
         match input {
             FastInput::Flow(sample) => stab.on_flow(&sample),
             FastInput::ZRange(range) => {
@@ -80,6 +103,7 @@ pub async fn control_task(mut stab: Stabilizer, mut imu: Imu, mut drdy: ExtiInpu
     let mut timing = LoopTiming::new();
     let mut window_start = cycles();
     let mut errors = 0u32;
+    let mut gate = HeavyInputGate::new();
     loop {
         let edge = with_timeout(DRDY_TIMEOUT, drdy.wait_for_rising_edge()).await;
         let wake = cycles();
@@ -100,7 +124,7 @@ pub async fn control_task(mut stab: Stabilizer, mut imu: Imu, mut drdy: ExtiInpu
         errors = 0;
 
         let section = LOAD.begin(Level::Control, cycles());
-        drain_inputs(&mut stab);
+        drain_inputs(&mut stab, &mut gate);
         let duty = stab.on_imu(&sample, now_us());
         if BOOTED.load(Ordering::Acquire) && !FAULT.load(Ordering::Acquire) {
             motors.set(duty);

@@ -7,8 +7,8 @@
 //! |---|---|---|
 //! | P0 (HAL default) | interrupt handlers | TIM5 time driver, DMA, USART6, I2C, EXTI: they only wake tasks |
 //! | [`control::PRIORITY`] (P6) | interrupt executor on the UART4 vector | estimation + control, paced by the gyro data-ready edge (PC14) |
-//! | [`IO_PRIORITY`] (P9) | interrupt executor on the UART5 vector | syslink + CRTP services, deck sensors, CPU-load statistics |
-//! | thread mode | `#[embassy_executor::main]` | mission + planner (budgeted slices), LEDs, watchdog |
+//! | [`IO_PRIORITY`] (P9) | interrupt executor on the UART5 vector | syslink + CRTP services, deck sensors, CPU-load statistics, the watchdog feeder |
+//! | thread mode | `#[embassy_executor::main]` | mission + planner (budgeted slices), LEDs |
 //!
 //! Messages (each crossing holds a critical section for a copy of at most a few hundred bytes, i.e.
 //! microseconds; nothing is locked while a task computes):
@@ -120,6 +120,8 @@ pub static DECKS_OK: AtomicBool = AtomicBool::new(false);
 pub static CONTROL_RUNNING: AtomicBool = AtomicBool::new(false);
 /// Control steps run since boot (the watchdog is fed only while this advances).
 pub static CONTROL_STEPS: AtomicU32 = AtomicU32::new(0);
+/// Mission ticks run since boot: thread mode's heartbeat (the watchdog is fed only while this advances).
+pub static THREAD_BEATS: AtomicU32 = AtomicU32::new(0);
 
 /// The latest stabilizer status.
 pub fn fast_status() -> FastStatus {

@@ -2,9 +2,16 @@
 //! input (high = the nRF's buffer is full: pause sending), and the CRTP services answering over it
 //! (`crazyflie-hardware.md` §3, §4).
 //!
+//! Flow control at byte granularity: every frame goes out through [`FlowTx`] in chunks of
+//! [`cfnav::radio::syslink_tx::CHUNK`] bytes, PA4 read before each and each chunk awaited to the USART's
+//! transmission-complete flag, so at most four bytes reach the nRF after it raises RTS (its FIFO's headroom;
+//! see `cfnav::radio::syslink_tx`). PA4 held high longer than [`FLOW_CONTROL_TIMEOUT`] drops the rest of
+//! the frame. The RX DMA ring is started in `main` before anything is sent, so the nRF's echoes are kept.
+//!
 //! Boot order (§3.4): RADIO_CHANNEL, RADIO_DATARATE, RADIO_ADDRESS from the EEPROM config block (or the
-//! defaults), PM_BATTERY_AUTOUPDATE, then RADIO_READY once the firmware has finished booting (the nRF keeps
-//! its receiver off until then, or 3 s after its boot).
+//! defaults), each resent until the nRF echoes it ([`BootSettings`]), PM_BATTERY_AUTOUPDATE, SYS_NRF_VERSION
+//! (the reply is logged), then RADIO_READY once the firmware has finished booting (the nRF keeps its
+//! receiver off until then, or 3 s after its boot).
 //!
 //! Pacing (§3.3): one downlink RADIO_RAW per uplink RADIO_RAW, at most; log data, parameter updates and
 //! console lines wait in the router's queue for the next uplink (cfclient and cflib poll continuously).
@@ -32,7 +39,8 @@ use cfnav::radio::log_registry::FirmwareLogState;
 use cfnav::radio::param::ParamService;
 use cfnav::radio::registry::{ID_START, MissionParamState};
 use cfnav::radio::supervisor_port::{SupervisorPortConfig, SupervisorStatus};
-use cfnav::radio::syslink::{BatteryState, MAX_FRAME, SyslinkDecoder, SyslinkPacket, encode, kind};
+use cfnav::radio::syslink::{BatteryState, SyslinkDecoder, SyslinkPacket, kind};
+use cfnav::radio::syslink_tx::{BootSettings, FlowTx, TxStep, nrf_version, nrf_version_request};
 use cfnav::system::config_block::RadioSettings;
 use cfnav::system::cpu_load::Level;
 use cfnav::system::mission_start::{StartDecision, StartTracker};
@@ -40,7 +48,7 @@ use defmt::{info, warn};
 use embassy_stm32::exti::ExtiInput;
 use embassy_stm32::mode::Async;
 use embassy_stm32::usart::{RingBufferedUartRx, UartTx};
-use embassy_time::{Duration, Instant, with_timeout};
+use embassy_time::{Duration, Instant, with_deadline, with_timeout};
 use heapless::String;
 
 use super::{
@@ -54,7 +62,7 @@ pub const FIRMWARE_TAG: &str = concat!("cfnav-", env!("CARGO_PKG_VERSION"));
 pub const ROUTER_QUEUE: usize = 16;
 /// Console packets waiting for a downlink.
 const CONSOLE_QUEUE: usize = 16;
-/// How long PA4 may hold the link before a frame is dropped.
+/// How long PA4 may hold one frame back (in total) before the rest of it is dropped.
 const FLOW_CONTROL_TIMEOUT: Duration = Duration::from_millis(20);
 /// Log blocks are stopped when no uplink came for this long (cflib pings at least every 100 ms).
 const LINK_TIMEOUT: Duration = Duration::from_secs(3);
@@ -67,6 +75,8 @@ pub struct SyslinkUart {
     pub rx: RingBufferedUartRx<'static>,
     /// PA4, the nRF's RTS: high = stop sending.
     pub flow: ExtiInput<'static, Async>,
+    /// The frame being sent, in flow-controlled chunks.
+    pub frame_tx: FlowTx,
 }
 
 /// Why a frame was not sent.
@@ -81,14 +91,40 @@ enum SendError {
 }
 
 impl SyslinkUart {
+    /// Sends one frame, chunk by chunk, pausing while PA4 is high.
     async fn send(&mut self, packet: &SyslinkPacket) -> Result<(), SendError> {
-        let mut frame = [0u8; MAX_FRAME];
-        let n = encode(packet, &mut frame).map_err(|_| SendError::Encode)?;
-        with_timeout(FLOW_CONTROL_TIMEOUT, self.flow.wait_for_low())
-            .await
-            .map_err(|_| SendError::FlowControl)?;
-        self.tx.write(&frame[..n]).await.map_err(|_| SendError::Uart)
+        self.frame_tx.load(packet).map_err(|_| SendError::Encode)?;
+        let deadline = Instant::now() + FLOW_CONTROL_TIMEOUT;
+        loop {
+            match self.frame_tx.next(self.flow.is_high()) {
+                TxStep::Done => return Ok(()),
+                TxStep::WaitForClear => {
+                    if with_deadline(deadline, self.flow.wait_for_low()).await.is_err() {
+                        self.frame_tx.abandon();
+                        return Err(SendError::FlowControl);
+                    }
+                }
+                TxStep::Send(bytes) => {
+                    let n = bytes.len();
+                    // `flush` waits for TC: the chunk has left the shift register before PA4 is read again.
+                    let written = match self.tx.write(bytes).await {
+                        Ok(()) => self.tx.flush().await,
+                        Err(e) => Err(e),
+                    };
+                    if written.is_err() {
+                        self.frame_tx.abandon();
+                        return Err(SendError::Uart);
+                    }
+                    self.frame_tx.sent(n);
+                }
+            }
+        }
     }
+}
+
+/// Milliseconds since boot, wrapping (the echo timer's clock).
+fn now_ms() -> u32 {
+    Instant::now().as_millis() as u32
 }
 
 type Params = ParamService<MissionParamState>;
@@ -288,19 +324,21 @@ fn on_syslink(crtp: &mut Crtp, packet: &SyslinkPacket, now: Instant) -> Option<S
 /// The radio task: boot sequence, then receive, dispatch and answer forever.
 #[embassy_executor::task]
 pub async fn radio_task(mut uart: SyslinkUart, settings: RadioSettings) {
-    match settings.boot_packets() {
-        Ok(packets) => {
-            for p in &packets {
-                if let Err(e) = uart.send(p).await {
-                    warn!("syslink boot packet {=u8:#x} not sent: {}", p.kind, e);
-                }
-            }
+    let mut boot = match settings.boot_packets() {
+        Ok(packets) => BootSettings::new(&packets),
+        Err(_) => {
+            warn!("radio settings out of range: nRF keeps its own");
+            BootSettings::new(&[])
         }
-        Err(_) => warn!("radio settings out of range: nRF keeps its own"),
-    }
+    };
+    send_boot_settings(&mut uart, &mut boot).await;
     if let Err(e) = uart.send(&SyslinkPacket::pm_battery_autoupdate()).await {
         warn!("PM_BATTERY_AUTOUPDATE not sent: {}", e);
     }
+    if let Err(e) = uart.send(&nrf_version_request()).await {
+        warn!("SYS_NRF_VERSION not sent: {}", e);
+    }
+    let mut boot_reported = false;
     let mut crtp = Crtp::new();
     let mut decoder = SyslinkDecoder::new();
     let mut chunk = [0u8; 64];
@@ -330,6 +368,11 @@ pub async fn radio_task(mut uart: SyslinkUart, settings: RadioSettings) {
             let mut event = decoder.push(byte);
             while let Some(result) = event {
                 if let Ok(packet) = result {
+                    if boot.on_received(&packet) {
+                        info!("nRF confirmed radio setting {=u8:#x}", packet.kind);
+                    } else if let Some(version) = nrf_version(&packet) {
+                        info!("nRF51 firmware {}", version);
+                    }
                     let section = LOAD.begin(Level::Io, cycles());
                     let answer = on_syslink(&mut crtp, &packet, now);
                     LOAD.end(section, cycles());
@@ -342,8 +385,27 @@ pub async fn radio_task(mut uart: SyslinkUart, settings: RadioSettings) {
                 event = decoder.poll();
             }
         }
+        send_boot_settings(&mut uart, &mut boot).await;
+        if !boot_reported && boot.is_settled() {
+            boot_reported = true;
+            if boot.gave_up() > 0 {
+                warn!(
+                    "{} radio setting(s) never echoed: the nRF may use its defaults",
+                    boot.gave_up()
+                );
+            }
+        }
         let section = LOAD.begin(Level::Io, cycles());
         crtp.housekeeping(now);
         LOAD.end(section, cycles());
+    }
+}
+
+/// Sends the boot settings that are due: first sends, and resends of those whose echo is late.
+async fn send_boot_settings(uart: &mut SyslinkUart, boot: &mut BootSettings) {
+    while let Some(p) = boot.poll(now_ms()) {
+        if let Err(e) = uart.send(&p).await {
+            warn!("syslink radio setting {=u8:#x} not sent: {}", p.kind, e);
+        }
     }
 }

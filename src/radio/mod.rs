@@ -11,7 +11,8 @@
 //! thrust lock; [`commander::SetpointFollower`] maps them to [`crate::types::Setpoint`]), the supervisor port 9
 //! [`supervisor_port::SupervisorPortService`] (state bits, arming, recovery, emergency stop and its watchdog,
 //! as requests for the caller) and the console port 0 [`console::ConsoleService`] (text lines cut into
-//! ≤ 30-byte packets, handed out one per downlink opportunity).
+//! ≤ 30-byte packets, handed out one per downlink opportunity). [`syslink_tx`] is the transmit side towards the
+//! nRF51: frames in flow-controlled chunks, the boot settings confirmed by their echoes, the nRF version.
 //!
 //! Sources: `/work/shared/reference/crazyflie-hardware.md` §3 (syslink), §4 (CRTP) and §10 (setpoint
 //! watchdog, emergency stop),
@@ -32,3 +33,4 @@ pub mod param;
 pub mod registry;
 pub mod supervisor_port;
 pub mod syslink;
+pub mod syslink_tx;

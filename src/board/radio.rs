@@ -33,9 +33,10 @@ use cfnav::radio::log::LogService;
 use cfnav::radio::log_registry::FirmwareLogState;
 use cfnav::radio::mem::MemService;
 use cfnav::radio::param::ParamService;
-use cfnav::radio::registry::{ID_START, MissionParamState};
+use cfnav::radio::registry::{ID_RESET_ESTIMATION, ID_START, MissionParamState};
 use cfnav::radio::supervisor_port::{SupervisorPortConfig, SupervisorPortService, SupervisorStatus};
 use cfnav::radio::syslink::{BatteryState, MAX_FRAME, SyslinkDecoder, SyslinkPacket, encode, kind};
+use cfnav::stack::MissionCommand;
 use cfnav::system::config_block::RadioSettings;
 use cfnav::system::cpu_load::Level;
 use cfnav::system::mission_start::{StartDecision, StartTracker};
@@ -47,8 +48,8 @@ use embassy_time::{Duration, Instant, with_timeout};
 use heapless::String;
 
 use super::{
-    BOOTED, DECKS_OK, FAST_INPUTS, FAULT, FastInput, LOAD, MISSION_REQUESTS, MISSION_RUNNING, MissionRequest,
-    START_OUTCOME, cycles, fast_status, fault, log_state, update_log,
+    BOOTED, DECK_FLOW2, DECK_MULTIRANGER, DECKS_OK, FAST_INPUTS, FAULT, FastInput, LOAD, MISSION_REQUESTS,
+    MISSION_RUNNING, MissionRequest, START_OUTCOME, cycles, fast_status, fault, log_state, update_log,
 };
 
 /// Firmware version the platform service reports.
@@ -166,6 +167,8 @@ impl Crtp {
             let store = self.param.store_mut();
             store.flying = fast_status().supervisor.flying;
             store.decks_ok = DECKS_OK.load(Ordering::Acquire);
+            store.flow2_deck = DECK_FLOW2.load(Ordering::Acquire);
+            store.multiranger_deck = DECK_MULTIRANGER.load(Ordering::Acquire);
         }
         let before = self.param.store().start;
         self.commander.set_now(now.as_micros());
@@ -272,7 +275,18 @@ impl Crtp {
         {
             let _ = self.router.enqueue(p);
         }
-        let state = log_state();
+        // kalman.resetEstimation: the control task re-anchors the estimate (as a mission start does); the
+        // parameter reads 0 again once the request is queued (retried next time if the queue is full).
+        if let Some(xy) = self.param.store().pending_reset()
+            && FAST_INPUTS
+                .try_send(FastInput::Mission(MissionCommand::Started { start_m: xy }))
+                .is_ok()
+        {
+            self.param.store_mut().reset_estimation = 0;
+            self.param.notify(ID_RESET_ESTIMATION);
+        }
+        let mut state = log_state();
+        state.flight.supervisor_info = self.supervisor.bitfield();
         let now_ms = now.as_millis() as u32;
         while let Some(p) = self.log.tick(now_ms, &state) {
             if self.router.enqueue(p).is_err() {

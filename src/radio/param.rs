@@ -18,7 +18,7 @@
 //! * A write whose value is not exactly the parameter's size, and any truncated request (TOC item or read
 //!   without a full id, write without one, set-by-name without two NULs and a type byte) gets **no reply** and
 //!   changes nothing. Stock does not check these sizes (it reads past the payload); cflib never sends them.
-//! * A write refused by the store (interfaces.md §5) is echoed with the value **in effect**; the refusal is
+//! * A write refused by its declaration (range) or by the store (interfaces.md §5) is echoed with the value **in effect**; the refusal is
 //!   kept for a console line ([`ParamService::take_refusal`]). Every write echo carries the value read back.
 //! * Set-by-name errors: ENOENT (2) unknown name, EINVAL (22) type mismatch, wrong value size or a refused
 //!   value, EACCES (13) read-only; a successful set-by-name queues no VALUE_UPDATED (as stock).
@@ -32,7 +32,7 @@ use core::fmt::Write as _;
 use heapless::{Deque, String, Vec};
 
 use super::crtp::{CrtpPacket, MAX_DATA, Service};
-use super::registry::{FLAG_EXTENDED, ParamEntry, ParamStore, ParamType, Refusal, Value, toc_crc};
+use super::registry::{FLAG_EXTENDED, ParamEntry, ParamStore, ParamType, Refusal, Value, toc_crc, toc_item};
 
 /// Parameter port (§4.2).
 pub const PORT_PARAM: u8 = 2;
@@ -168,13 +168,26 @@ impl<S: ParamStore> ParamService<S> {
         self.dropped_refusals
     }
 
-    /// The console line for a refusal: `param group.name refused: reason\n` (truncated to 64 bytes).
-    pub fn console_line(note: &RefusalNote) -> String<64> {
+    /// The console line for a refusal: `param group.name refused: reason\n`; a value outside the declared
+    /// range names the range, `param group.name refused: not in [0, 1]` (truncated to 96 bytes).
+    pub fn console_line(note: &RefusalNote) -> String<96> {
         let mut out = String::new();
-        let _ = match Self::entry(note.id) {
-            Some(e) => writeln!(out, "param {}.{} refused: {}", e.group, e.name, note.refusal.reason()),
-            None => writeln!(out, "param {} refused: {}", note.id, note.refusal.reason()),
+        let _ = match (Self::entry(note.id), note.refusal) {
+            (Some(e), Refusal::OutOfRange) => {
+                writeln!(
+                    out,
+                    "param {}.{} refused: not in {} {}",
+                    e.group, e.name, e.range, e.unit
+                )
+            }
+            (Some(e), r) => writeln!(out, "param {}.{} refused: {}", e.group, e.name, r.reason()),
+            (None, r) => writeln!(out, "param {} refused: {}", note.id, r.reason()),
         };
+        if note.refusal == Refusal::OutOfRange && out.ends_with(" \n") {
+            // No unit: drop the space before the newline.
+            out.truncate(out.len() - 2);
+            let _ = out.push('\n');
+        }
         out
     }
 
@@ -197,13 +210,7 @@ impl<S: ParamStore> ParamService<S> {
                     return packet(CH_TOC, &[TOC_GET_ITEM_V2]);
                 };
                 let mut out: Vec<u8, MAX_DATA> = Vec::new();
-                out.push(TOC_GET_ITEM_V2).ok()?;
-                out.extend_from_slice(&id.to_le_bytes()).ok()?;
-                out.push(e.type_byte()).ok()?;
-                out.extend_from_slice(e.group.as_bytes()).ok()?;
-                out.push(0).ok()?;
-                out.extend_from_slice(e.name.as_bytes()).ok()?;
-                out.push(0).ok()?;
+                toc_item(&mut out, TOC_GET_ITEM_V2, id, e.type_byte(), e.group, e.name)?;
                 packet(CH_TOC, &out)
             }
             _ => None,
@@ -232,10 +239,12 @@ impl<S: ParamStore> ParamService<S> {
         self.value_reply(CH_READ, id, true)
     }
 
-    /// Decodes a value of exactly the entry's size and type and applies it through the store.
+    /// Decodes a value of exactly the entry's size and type and applies it: the declaration's checks
+    /// ([`ParamEntry::check`]) first, then the store's.
     fn apply(&mut self, id: u16, ty: ParamType, bytes: &[u8]) -> Option<Result<(), Refusal>> {
         let value = Value::from_le(ty, bytes)?;
-        let result = self.store.write(id, value);
+        let entry = Self::entry(id)?;
+        let result = entry.check(value).and_then(|()| self.store.write(id, value));
         if let Err(refusal) = result {
             self.refuse(id, refusal);
         }

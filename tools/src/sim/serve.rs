@@ -38,7 +38,7 @@ use cfnav::radio::log::LogService;
 use cfnav::radio::log_registry::FlightLogState;
 use cfnav::radio::mem::MemService;
 use cfnav::radio::param::ParamService;
-use cfnav::radio::registry::{ID_START, MissionParamState};
+use cfnav::radio::registry::{ID_RESET_ESTIMATION, ID_START, MissionParamState};
 use cfnav::radio::supervisor_port::{SupervisorPortConfig, SupervisorPortService, SupervisorStatus};
 use cfnav::types::{RangeReading, Setpoint};
 
@@ -63,16 +63,15 @@ const NO_RANGE_MM: u16 = 32767;
 type Params = ParamService<MissionParamState>;
 type Logs = LogService<FlightLogState>;
 
-/// What the log service reads from the simulated drone.
-fn log_state(drone: &SimDrone) -> FlightLogState {
+/// What the log service reads from the simulated drone; `supervisor_info` is the supervisor port's bitfield.
+fn log_state(drone: &SimDrone, supervisor_info: u16) -> FlightLogState {
     let mm = |r: RangeReading| match r {
         Some(m) if m.is_finite() && m >= 0.0 => (m * 1000.0).round().min(f32::from(NO_RANGE_MM)) as u16,
         _ => NO_RANGE_MM,
     };
     let mr = &drone.last_multiranger;
-    FlightLogState {
+    let mut s = FlightLogState {
         mission_state: drone.core.mission_state().code(),
-        position_m: drone.core.estimate().position_m,
         ranges_mm: [
             mm(mr.front_m),
             mm(mr.back_m),
@@ -82,7 +81,12 @@ fn log_state(drone: &SimDrone) -> FlightLogState {
             mm(drone.last_zrange),
         ],
         vbat_v: drone.last_vbat,
-    }
+        supervisor_info,
+        battery_low: drone.core.supervisor().battery_low,
+        ..FlightLogState::default()
+    };
+    s.record_flight(&drone.core.estimate(), drone.core.control(), &drone.core.setpoint());
+    s
 }
 
 /// Simulated µs since power-on.
@@ -304,7 +308,8 @@ impl Radio {
         {
             let store = self.param.store_mut();
             store.flying = drone.core.supervisor().flying;
-            store.decks_ok = true;
+            // The simulated drone carries both decks.
+            store.set_decks(true, true);
         }
         let before = self.param.store().start;
         self.commander.set_now(now_us(drone));
@@ -333,6 +338,17 @@ impl Radio {
         }
         self.apply_commander(drone);
         self.apply_supervisor(drone);
+        if let Some(xy) = self.param.store().pending_reset() {
+            drone.core.reset_estimate(xy);
+            eprintln!(
+                "{:8.3} s  kalman.resetEstimation: estimate re-anchored at ({:.2}, {:.2})",
+                seconds(drone),
+                xy.0,
+                xy.1
+            );
+            self.param.store_mut().reset_estimation = 0;
+            self.param.notify(ID_RESET_ESTIMATION);
+        }
         let after = self.param.store().start;
         match (before, after) {
             (0, 1) if self.supervisor.emergency_stopped() => {
@@ -428,7 +444,8 @@ pub fn serve(world: &World, port: u16, speed: f64) -> Result<(), String> {
             if radio.supervisor.poll(now_us(&drone)) {
                 radio.apply_supervisor(&mut drone);
             }
-            let log_state = log_state(&drone);
+            radio.supervisor.set_status(supervisor_status(&drone));
+            let log_state = log_state(&drone, radio.supervisor.bitfield());
             let now_ms = drone.tick() as u32;
             while let Some(p) = radio.log.tick(now_ms, &log_state) {
                 radio.send(&p);

@@ -4,7 +4,7 @@
 //! extended type v2) with the stock firmware's byte layouts, and build the unsolicited VALUE_UPDATED packets
 //! the firmware queues when it changes a parameter itself.
 //!
-//! Non-goals: no V1 (8-bit id) commands, no persistent storage, no default-value commands (misc 5/6/8).
+//! Non-goals: no V1 (8-bit id) commands, no persistent storage (misc 3/4/5).
 //!
 //! Sources (`crazyflie-hardware.md` §4.5, `crtp-over-udp.md` §2 steps 7, 8, 10 and the probe trace):
 //! * ch0 `[3]` → `[3, count u16, crc u32]` (7 bytes); `[2, id u16]` → `[2, id u16, type, group\0, name\0]`,
@@ -23,6 +23,10 @@
 //! * Set-by-name errors: ENOENT (2) unknown name, EINVAL (22) type mismatch, wrong value size or a refused
 //!   value, EACCES (13) read-only; a successful set-by-name queues no VALUE_UPDATED (as stock).
 //! * Misc 7 for an unknown id → `[7, id u16, 2]`; ext_type is 1 (persistent) for [`FLAG_EXTENDED`] entries.
+//! * Default value (stock `paramGetDefaultValue[V2]`, `param_logic.c`): v2 `[8, id u16]` → `[8, id u16, 0,
+//!   value]`, v1 `[6, id u16]` → `[6, id u16, value]`; unknown, read-only or no default
+//!   ([`ParamStore::default_value`]) → `[cmd, id u16, ENOENT]`. cfclient asks for it whenever a parameter is
+//!   selected, and cflib's parameter queue waits for the answer: without one, every later write stalls.
 //! * Unknown TOC/misc commands: no reply.
 //!
 //! Memory: the store, a queue of 8 pending VALUE_UPDATED ids and 4 pending refusals.
@@ -52,8 +56,12 @@ pub const TOC_GET_INFO_V2: u8 = 0x03;
 pub const MISC_SET_BY_NAME: u8 = 0;
 /// Misc command: value updated (downlink only).
 pub const MISC_VALUE_UPDATED: u8 = 1;
+/// Misc command: default value (v1: no status byte).
+pub const MISC_GET_DEFAULT_VALUE: u8 = 6;
 /// Misc command: extended type (v2).
 pub const MISC_GET_EXTENDED_TYPE_V2: u8 = 7;
+/// Misc command: default value (v2: with a status byte).
+pub const MISC_GET_DEFAULT_VALUE_V2: u8 = 8;
 /// `ENOENT`: no such parameter.
 pub const ENOENT: u8 = 2;
 /// `EACCES`: read-only.
@@ -302,6 +310,26 @@ impl<S: ParamStore> ParamService<S> {
     fn misc(&mut self, data: &[u8]) -> Option<CrtpPacket> {
         match *data.first()? {
             MISC_SET_BY_NAME => self.set_by_name(data),
+            cmd @ (MISC_GET_DEFAULT_VALUE | MISC_GET_DEFAULT_VALUE_V2) => {
+                let id = u16::from_le_bytes([*data.get(1)?, *data.get(2)?]);
+                let b = id.to_le_bytes();
+                let mut out: Vec<u8, MAX_DATA> = Vec::new();
+                out.extend_from_slice(&[cmd, b[0], b[1]]).ok()?;
+                let default = Self::entry(id)
+                    .filter(|e| !e.read_only())
+                    .and_then(|_| self.store.default_value(id));
+                match default {
+                    Some(value) => {
+                        if cmd == MISC_GET_DEFAULT_VALUE_V2 {
+                            out.push(0).ok()?;
+                        }
+                        let (bytes, n) = value.to_le();
+                        out.extend_from_slice(&bytes[..n]).ok()?;
+                    }
+                    None => out.push(ENOENT).ok()?,
+                }
+                packet(CH_MISC, &out)
+            }
             MISC_GET_EXTENDED_TYPE_V2 => {
                 let id = u16::from_le_bytes([*data.get(1)?, *data.get(2)?]);
                 let b = id.to_le_bytes();

@@ -501,6 +501,11 @@ pub trait ParamStore {
     fn read(&self, id: u16) -> Option<Value>;
     /// A radio write: validates and applies `value`, or refuses and leaves the state unchanged.
     fn write(&mut self, id: u16, value: Value) -> Result<(), Refusal>;
+    /// The value parameter `id` had at power-on (what cfclient shows as the default); `None` if unknown.
+    fn default_value(&self, id: u16) -> Option<Value> {
+        let _ = id;
+        None
+    }
 }
 
 /// Read-only flag, shortened for the declarations below.
@@ -777,6 +782,8 @@ pub struct MissionParamState {
     pub en_high_level: u8,
     /// Map capacity, cells, for [`MissionParams::validate`] at start.
     pub capacity_cells: usize,
+    /// The mission parameters at power-on (the defaults cfclient shows).
+    pub default_params: MissionParams,
 }
 
 impl MissionParamState {
@@ -793,6 +800,7 @@ impl MissionParamState {
             controller: 0,
             en_high_level: 0,
             capacity_cells,
+            default_params: params,
         }
     }
 
@@ -912,6 +920,12 @@ impl ParamStore for MissionParamState {
             _ if PARAM_TABLE.get(usize::from(id))?.group == "deck" => flag(false),
             _ => return None,
         })
+    }
+
+    fn default_value(&self, id: u16) -> Option<Value> {
+        let mut power_on = Self::new(self.default_params, self.capacity_cells);
+        power_on.set_decks(self.flow2_deck, self.multiranger_deck);
+        power_on.read(id)
     }
 
     fn write(&mut self, id: u16, value: Value) -> Result<(), Refusal> {

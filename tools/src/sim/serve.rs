@@ -607,6 +607,42 @@ mod tests {
     }
 
     #[test]
+    fn kalman_reset_estimation_re_anchors_the_estimate_at_the_start_parameters() {
+        let mut b = Bench::new();
+        b.step_ms(1500); // estimator settles on the ground
+        // cflib set_value: port 2 ch 2, `<H` id then the value; the ids come from the declarations.
+        let write = |b: &mut Bench, id: u16, value: &[u8]| {
+            let mut data = id.to_le_bytes().to_vec();
+            data.extend_from_slice(value);
+            b.uplink(2, 2, &data);
+        };
+        use cfnav::radio::registry::{ID_START_X, ID_START_Y};
+        write(&mut b, ID_START_X, &1.5f32.to_le_bytes());
+        write(&mut b, ID_START_Y, &2.0f32.to_le_bytes());
+        let before = b.drone.core.estimate().position_m;
+        assert!(
+            (before[0] - 1.5).abs() > 0.5,
+            "the estimate starts elsewhere: {before:?}"
+        );
+        write(&mut b, ID_RESET_ESTIMATION, &[1]);
+        let after = b.drone.core.estimate().position_m;
+        assert!(
+            (after[0] - 1.5).abs() < 1e-4 && (after[1] - 2.0).abs() < 1e-4,
+            "{after:?}"
+        );
+        // The parameter reads 0 again, announced by a VALUE_UPDATED (2/3 `[1, id u16, 0]`).
+        assert_eq!(b.radio.param.store().reset_estimation, 0);
+        let id = ID_RESET_ESTIMATION.to_le_bytes();
+        loop {
+            let p = b.received(2);
+            if p[0] & 0x03 == 3 && p[1] == 1 {
+                assert_eq!(&p[2..], &[id[0], id[1], 0]);
+                break;
+            }
+        }
+    }
+
+    #[test]
     fn rpyt_with_thrust_is_not_flown_and_says_so() {
         let mut b = Bench::new();
         b.step_ms(100);

@@ -32,23 +32,7 @@ mkdir -p target/cfclient
 "${CARGO_TARGET_DIR:-target}/release/cfnav" sim --serve --port "$PORT" >target/cfclient/serve.log 2>&1 &
 serve_pid=$!
 trap 'kill "$serve_pid" 2>/dev/null || true' EXIT
-python3 - "$PORT" <<'PY'
-import socket, sys, time
-port = int(sys.argv[1])
-deadline = time.monotonic() + 30
-while time.monotonic() < deadline:
-    s = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
-    s.settimeout(0.2)
-    try:
-        s.sendto(b"\xff", ("127.0.0.1", port))
-        s.recv(64)
-        sys.exit(0)
-    except OSError:
-        time.sleep(0.2)
-    finally:
-        s.close()
-sys.exit(f"the simulator does not answer on udp://127.0.0.1:{port}")
-PY
+python3 tools/e2e/wait_for_sim.py "$PORT" 30
 
 if ! timeout 60 python3 tools/e2e/cflib_stock_names.py --uri "$URI"; then
   echo "cflib check of the stock parameter/log names failed (simulator log: target/cfclient/serve.log)"

@@ -487,8 +487,8 @@ impl Refusal {
             Self::AlreadyRunning => "mission already running",
             Self::BadArena => "arena too large for the map",
             Self::OutOfRange => "out of range",
-            Self::UnsupportedController => "cfnav flies its PID cascade only: 0 (auto) or 1 (PID)",
-            Self::ResetWhileFlying => "no estimator reset while flying",
+            Self::UnsupportedController => "only 0 (auto) or 1 (PID)",
+            Self::ResetWhileFlying => "reset while flying",
         }
     }
 }

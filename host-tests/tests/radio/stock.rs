@@ -102,7 +102,7 @@ fn kalman_reset_estimation_is_accepted_on_the_ground_and_refused_in_the_air() {
     assert_eq!(write(&mut m, reset, &[1]), vec![0]);
     assert_eq!(
         refusal_line(&mut m).as_deref(),
-        Some("param kalman.resetEstimation refused: no estimator reset while flying\n")
+        Some("param kalman.resetEstimation refused: reset while flying\n")
     );
     assert_eq!(m.store().pending_reset(), None);
     // Only 0 and 1 (declared range).
@@ -125,7 +125,7 @@ fn stabilizer_controller_takes_auto_or_pid_and_refuses_the_others() {
         assert_eq!(write(&mut m, controller, &[other]), vec![1], "controller {other}");
         assert_eq!(
             refusal_line(&mut m).as_deref(),
-            Some("param stabilizer.controller refused: cfnav flies its PID cascade only: 0 (auto) or 1 (PID)\n")
+            Some("param stabilizer.controller refused: only 0 (auto) or 1 (PID)\n")
         );
     }
     assert_eq!(write(&mut m, controller, &[0]), vec![0]);
@@ -236,4 +236,37 @@ fn readme_parameter_and_log_tables_are_the_declarations() {
         readme_section("log table") == logs,
         "README's log table differs from the declarations; paste this between its markers:\n{logs}"
     );
+}
+
+#[test]
+fn every_refusal_line_fits_the_console_untruncated() {
+    use cfnav::radio::param::RefusalNote;
+    let all = [
+        Refusal::UnknownId,
+        Refusal::WrongType,
+        Refusal::ReadOnly,
+        Refusal::GoalOutsideArena,
+        Refusal::StartOutsideArena,
+        Refusal::BadHeight,
+        Refusal::BadSpeed,
+        Refusal::BadStartValue,
+        Refusal::StartWhileFlying,
+        Refusal::DeckMissing,
+        Refusal::AlreadyRunning,
+        Refusal::BadArena,
+        Refusal::OutOfRange,
+        Refusal::UnsupportedController,
+        Refusal::ResetWhileFlying,
+    ];
+    for (i, e) in PARAM_TABLE.iter().enumerate() {
+        for refusal in all {
+            let line = Params::console_line(&RefusalNote { id: i as u16, refusal });
+            assert!(
+                line.ends_with('\n'),
+                "{}.{} {refusal:?}: {line:?} was cut",
+                e.group,
+                e.name
+            );
+        }
+    }
 }

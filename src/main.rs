@@ -54,7 +54,10 @@ mod fw {
     use embassy_time::{Delay, Instant, Timer};
     use static_cell::StaticCell;
 
-    use crate::board::{self, BOOTED, DECKS_OK, IO_PRIORITY, control, leds, mission, motors, radio, sensors, system};
+    use crate::board::{
+        self, BOOTED, DECK_FLOW2, DECK_MULTIRANGER, DECKS_OK, IO_PRIORITY, control, leds, mission, motors, radio,
+        sensors, system,
+    };
 
     bind_interrupts!(struct Irqs {
         USART6 => usart::InterruptHandler<peripherals::USART6>;
@@ -192,6 +195,7 @@ mod fw {
         let settings = sensors::read_radio_settings(&mut deck_i2c).await;
         let rangers = sensors::bring_up_rangers(&mut deck_i2c).await;
         let rangers_ok = rangers.z.is_some() && rangers.multi.is_some();
+        DECK_MULTIRANGER.store(rangers.multi.is_some(), Ordering::Release);
         spawn_send(&io, "deck_task", sensors::deck_task(deck_i2c, rangers));
 
         // Syslink.
@@ -235,6 +239,7 @@ mod fw {
         let cs = Output::new(p.PB4, Level::High, Speed::VeryHigh);
         let flow = sensors::init_flow(sensors::SpiWithCs::new(spi, cs)).await;
         let flow_ok = flow.is_some();
+        DECK_FLOW2.store(flow_ok, Ordering::Release);
         if let Some(flow) = flow {
             spawn_send(&io, "flow_task", sensors::flow_task(flow));
         }

@@ -421,6 +421,14 @@ impl<const CELLS: usize, const QUEUE: usize> FlightCore<CELLS, QUEUE> {
         Ok(())
     }
 
+    /// `kalman.resetEstimation`: re-anchor the estimate's horizontal position at `xy_m` (arena frame, m),
+    /// heading kept, as a mission start does. Ignored while a mission runs.
+    pub fn reset_estimate(&mut self, xy_m: (f32, f32)) {
+        if !self.navigator.is_running() {
+            self.stabilizer.apply(MissionCommand::Started { start_m: xy_m });
+        }
+    }
+
     /// Abort (`mission.start = 0` during a mission): land where it is.
     pub fn abort_mission(&mut self) {
         self.navigator.abort(&self.stabilizer.status());

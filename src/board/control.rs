@@ -6,7 +6,7 @@
 //! lower priorities run), then, without awaiting: drain [`super::FAST_INPUTS`] (at most one costly estimator
 //! update, flow or Multi-ranger, per step: a second one waits one step in a [`HeavyInputGate`]), run
 //! [`Stabilizer::on_imu`], write the motors (zero unless booted, no fault and the supervisor allows them),
-//! publish the [`cfnav::stack::FastStatus`], account the cycles. Motors stop on any fault, on a missing
+//! publish the [`cfnav::stack::FastStatus`] (and, every tenth step, the log variables), account the cycles. Motors stop on any fault, on a missing
 //! data-ready edge ([`DRDY_TIMEOUT`]) and after [`MAX_IMU_ERRORS`] failed reads in a row.
 
 use core::sync::atomic::Ordering;
@@ -30,7 +30,7 @@ use embassy_time::{Duration, with_timeout};
 use super::motors::Motors;
 use super::{
     BOOTED, CONTROL_STEPS, FAST_INPUTS, FAULT, FastInput, LOAD, NAV_INPUTS, NavInput, cycles, fault, now_us,
-    publish_fast_status,
+    publish_fast_status, update_log,
 };
 
 /// NVIC priority of the control executor (P0 is the most urgent; HAL interrupt handlers keep P0).
@@ -39,6 +39,8 @@ pub const PRIORITY: Priority = Priority::P6;
 pub const DRDY_TIMEOUT: Duration = Duration::from_millis(5);
 /// Consecutive failed IMU reads (or missed edges) that make a fault.
 pub const MAX_IMU_ERRORS: u32 = 50;
+/// The log state is refreshed every this many control steps (1 kHz / 10 = 100 Hz).
+const LOG_DECIMATION: u32 = 10;
 
 /// The control executor, on the otherwise unused UART4 vector (the Crazyflie 2.1's UARTs are USART2/3 on
 /// the deck and USART6 for syslink: `crazyflie-hardware.md` §5).
@@ -132,7 +134,16 @@ pub async fn control_task(mut stab: Stabilizer, mut imu: Imu, mut drdy: ExtiInpu
             motors.stop();
         }
         publish_fast_status(stab.status());
-        CONTROL_STEPS.fetch_add(1, Ordering::Relaxed);
+        let step = CONTROL_STEPS.fetch_add(1, Ordering::Relaxed);
+        if step.is_multiple_of(LOG_DECIMATION) {
+            // The log variables at 100 Hz (the fastest period cflib asks for is 10 ms).
+            let (estimate, control, setpoint) = (stab.estimate(), *stab.control(), stab.setpoint());
+            let battery_low = stab.supervisor().battery_low;
+            update_log(|s| {
+                s.flight.record_flight(&estimate, &control, &setpoint);
+                s.flight.battery_low = battery_low;
+            });
+        }
         let end = cycles();
         LOAD.end(section, end);
         timing.record(wake, end);

@@ -116,6 +116,10 @@ pub static FAULT: AtomicBool = AtomicBool::new(false);
 pub static MISSION_RUNNING: AtomicBool = AtomicBool::new(false);
 /// Both decks the mission needs answered their probes.
 pub static DECKS_OK: AtomicBool = AtomicBool::new(false);
+/// The Flow deck v2's PMW3901 answered at boot (`deck.bcFlow2`).
+pub static DECK_FLOW2: AtomicBool = AtomicBool::new(false);
+/// The Multi-ranger's beams answered at boot (`deck.bcMultiranger`).
+pub static DECK_MULTIRANGER: AtomicBool = AtomicBool::new(false);
 /// The control task was started (the watchdog then wants [`CONTROL_STEPS`] to advance).
 pub static CONTROL_RUNNING: AtomicBool = AtomicBool::new(false);
 /// Control steps run since boot (the watchdog is fed only while this advances).

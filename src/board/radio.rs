@@ -37,10 +37,11 @@ use cfnav::radio::crtp::CrtpPacket;
 use cfnav::radio::endpoint::Endpoint;
 use cfnav::radio::log_registry::FirmwareLogState;
 use cfnav::radio::param::ParamService;
-use cfnav::radio::registry::{ID_START, MissionParamState};
+use cfnav::radio::registry::{ID_RESET_ESTIMATION, ID_START, MissionParamState};
 use cfnav::radio::supervisor_port::{SupervisorPortConfig, SupervisorStatus};
 use cfnav::radio::syslink::{BatteryState, SyslinkDecoder, SyslinkPacket, kind};
 use cfnav::radio::syslink_tx::{BootSettings, FlowTx, TxStep, nrf_version, nrf_version_request};
+use cfnav::stack::MissionCommand;
 use cfnav::system::config_block::RadioSettings;
 use cfnav::system::cpu_load::Level;
 use cfnav::system::mission_start::{StartDecision, StartTracker};
@@ -52,8 +53,8 @@ use embassy_time::{Duration, Instant, with_deadline, with_timeout};
 use heapless::String;
 
 use super::{
-    BOOTED, DECKS_OK, FAST_INPUTS, FAULT, FastInput, LOAD, MISSION_REQUESTS, MISSION_RUNNING, MissionRequest,
-    START_OUTCOME, cycles, fast_status, fault, log_state, update_log,
+    BOOTED, DECK_FLOW2, DECK_MULTIRANGER, DECKS_OK, FAST_INPUTS, FAULT, FastInput, LOAD, MISSION_REQUESTS,
+    MISSION_RUNNING, MissionRequest, START_OUTCOME, cycles, fast_status, fault, log_state, update_log,
 };
 
 /// Firmware version the platform service reports.
@@ -190,6 +191,8 @@ impl Crtp {
             let store = self.ep.param.store_mut();
             store.flying = fast_status().supervisor.flying;
             store.decks_ok = DECKS_OK.load(Ordering::Acquire);
+            store.flow2_deck = DECK_FLOW2.load(Ordering::Acquire);
+            store.multiranger_deck = DECK_MULTIRANGER.load(Ordering::Acquire);
         }
         let before = self.ep.param.store().start;
         let running = MISSION_RUNNING.load(Ordering::Acquire);
@@ -284,7 +287,18 @@ impl Crtp {
         {
             let _ = self.ep.router.enqueue(p);
         }
-        let state = log_state();
+        // kalman.resetEstimation: the control task re-anchors the estimate (as a mission start does); the
+        // parameter reads 0 again once the request is queued (retried next time if the queue is full).
+        if let Some(xy) = self.ep.param.store().pending_reset()
+            && FAST_INPUTS
+                .try_send(FastInput::Mission(MissionCommand::Started { start_m: xy }))
+                .is_ok()
+        {
+            self.ep.param.store_mut().reset_estimation = 0;
+            self.ep.param.notify(ID_RESET_ESTIMATION);
+        }
+        let mut state = log_state();
+        state.flight.supervisor_info = self.ep.supervisor.bitfield();
         let now_ms = now.as_millis() as u32;
         while let Some(p) = self.ep.log.tick(now_ms, &state) {
             if self.ep.router.enqueue(p).is_err() {

@@ -1,5 +1,6 @@
 //! Radio (src/radio): the syslink and CRTP codecs and every CRTP service (commander, console, log, param,
-//! supervisor port), and the syslink transmitter (flow control, boot-setting echoes).
+//! supervisor port), the syslink transmitter (flow control, boot-setting echoes), and the stock parameter and
+//! log names clients use.
 
 mod codec;
 mod commander;
@@ -7,6 +8,7 @@ mod console;
 mod flow_control;
 mod log;
 mod param;
+mod stock;
 mod supervisor_port;
 
 use cfnav::radio::crtp::{CrtpPacket, Service};

@@ -35,7 +35,7 @@ use cfnav::radio::crtp::{CrtpPacket, NULL_HEADER, is_null_header};
 use cfnav::radio::endpoint::Endpoint;
 use cfnav::radio::log_registry::FlightLogState;
 use cfnav::radio::param::ParamService;
-use cfnav::radio::registry::{ID_START, MissionParamState};
+use cfnav::radio::registry::{ID_RESET_ESTIMATION, ID_START, MissionParamState};
 use cfnav::radio::supervisor_port::{SupervisorPortConfig, SupervisorStatus};
 use cfnav::types::{RangeReading, Setpoint};
 
@@ -59,16 +59,15 @@ const NO_RANGE_MM: u16 = 32767;
 
 type Params = ParamService<MissionParamState>;
 
-/// What the log service reads from the simulated drone.
-fn log_state(drone: &SimDrone) -> FlightLogState {
+/// What the log service reads from the simulated drone; `supervisor_info` is the supervisor port's bitfield.
+fn log_state(drone: &SimDrone, supervisor_info: u16) -> FlightLogState {
     let mm = |r: RangeReading| match r {
         Some(m) if m.is_finite() && m >= 0.0 => (m * 1000.0).round().min(f32::from(NO_RANGE_MM)) as u16,
         _ => NO_RANGE_MM,
     };
     let mr = &drone.last_multiranger;
-    FlightLogState {
+    let mut s = FlightLogState {
         mission_state: drone.core.mission_state().code(),
-        position_m: drone.core.estimate().position_m,
         ranges_mm: [
             mm(mr.front_m),
             mm(mr.back_m),
@@ -78,7 +77,12 @@ fn log_state(drone: &SimDrone) -> FlightLogState {
             mm(drone.last_zrange),
         ],
         vbat_v: drone.last_vbat,
-    }
+        supervisor_info,
+        battery_low: drone.core.supervisor().battery_low,
+        ..FlightLogState::default()
+    };
+    s.record_flight(&drone.core.estimate(), drone.core.control(), &drone.core.setpoint());
+    s
 }
 
 /// Simulated µs since power-on.
@@ -292,7 +296,8 @@ impl Radio {
         {
             let store = self.ep.param.store_mut();
             store.flying = drone.core.supervisor().flying;
-            store.decks_ok = true;
+            // The simulated drone carries both decks.
+            store.set_decks(true, true);
         }
         let before = self.ep.param.store().start;
         self.ep.supervisor.set_status(supervisor_status(drone));
@@ -309,6 +314,17 @@ impl Radio {
         }
         self.apply_commander(drone);
         self.apply_supervisor(drone);
+        if let Some(xy) = self.ep.param.store().pending_reset() {
+            drone.core.reset_estimate(xy);
+            eprintln!(
+                "{:8.3} s  kalman.resetEstimation: estimate re-anchored at ({:.2}, {:.2})",
+                seconds(drone),
+                xy.0,
+                xy.1
+            );
+            self.ep.param.store_mut().reset_estimation = 0;
+            self.ep.param.notify(ID_RESET_ESTIMATION);
+        }
         let after = self.ep.param.store().start;
         match (before, after) {
             (0, 1) if self.ep.supervisor.emergency_stopped() => {
@@ -404,7 +420,8 @@ pub fn serve(world: &World, port: u16, speed: f64) -> Result<(), String> {
             if radio.ep.supervisor.poll(now_us(&drone)) {
                 radio.apply_supervisor(&mut drone);
             }
-            let log_state = log_state(&drone);
+            radio.ep.supervisor.set_status(supervisor_status(&drone));
+            let log_state = log_state(&drone, radio.ep.supervisor.bitfield());
             let now_ms = drone.tick() as u32;
             while let Some(p) = radio.ep.log.tick(now_ms, &log_state) {
                 radio.send(&p);
@@ -563,6 +580,42 @@ mod tests {
         b.uplink(2, 2, &[0, 0, 1]);
         assert_eq!(b.radio.ep.param.store().start, 0);
         assert_eq!(b.drone.core.mission_state().code(), 0, "no mission started");
+    }
+
+    #[test]
+    fn kalman_reset_estimation_re_anchors_the_estimate_at_the_start_parameters() {
+        let mut b = Bench::new();
+        b.step_ms(1500); // estimator settles on the ground
+        // cflib set_value: port 2 ch 2, `<H` id then the value; the ids come from the declarations.
+        let write = |b: &mut Bench, id: u16, value: &[u8]| {
+            let mut data = id.to_le_bytes().to_vec();
+            data.extend_from_slice(value);
+            b.uplink(2, 2, &data);
+        };
+        use cfnav::radio::registry::{ID_START_X, ID_START_Y};
+        write(&mut b, ID_START_X, &1.5f32.to_le_bytes());
+        write(&mut b, ID_START_Y, &2.0f32.to_le_bytes());
+        let before = b.drone.core.estimate().position_m;
+        assert!(
+            (before[0] - 1.5).abs() > 0.5,
+            "the estimate starts elsewhere: {before:?}"
+        );
+        write(&mut b, ID_RESET_ESTIMATION, &[1]);
+        let after = b.drone.core.estimate().position_m;
+        assert!(
+            (after[0] - 1.5).abs() < 1e-4 && (after[1] - 2.0).abs() < 1e-4,
+            "{after:?}"
+        );
+        // The parameter reads 0 again, announced by a VALUE_UPDATED (2/3 `[1, id u16, 0]`).
+        assert_eq!(b.radio.ep.param.store().reset_estimation, 0);
+        let id = ID_RESET_ESTIMATION.to_le_bytes();
+        loop {
+            let p = b.received(2);
+            if p[0] & 0x03 == 3 && p[1] == 1 {
+                assert_eq!(&p[2..], &[id[0], id[1], 0]);
+                break;
+            }
+        }
     }
 
     #[test]

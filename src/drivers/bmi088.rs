@@ -21,14 +21,20 @@
 //! | accel | 0x18 (SDO1 low, "primary") | 0x1E | ±24 g (ACC_RANGE 0x41 = 0x03) | ODR 1600 Hz, OSR4 ≈ 145 Hz (ACC_CONF 0x40 = 0x8C) | power on + active mode |
 //!
 //! Sequence and delays: gyro soft reset (0x14 ← 0xB6) then 30 ms (BMI08x API
-//! `BMI08_GYRO_SOFTRESET_DELAY`); gyro normal mode (LPM1 0x11 ← 0x00) then 30 ms
+//! `BMI08_GYRO_SOFTRESET_DELAY`), then the chip id again; gyro normal mode (LPM1 0x11 ← 0x00) then 30 ms
 //! (`BMI08_GYRO_POWER_MODE_CONFIG_DELAY`); accelerometer soft reset (0x7E ← 0xB6) then 1 ms
-//! (`BMI08_ACCEL_SOFTRESET_DELAY_MS`); accelerometer on (ACC_PWR_CTRL 0x7D ← 0x04) then 5 ms (stock
+//! (`BMI08_ACCEL_SOFTRESET_DELAY_MS`), then the chip id again; accelerometer on (ACC_PWR_CTRL 0x7D ← 0x04) then 5 ms (stock
 //! `delay_ms(5)`, = `BMI08_POWER_CONFIG_DELAY`); active mode (ACC_PWR_CONF 0x7C ← 0x00) then 10 ms (stock).
 //! The accelerometer's "dummy read" of the datasheet (§6.1) is only needed to switch it to **SPI** (a rising
 //! CSB1 edge); it starts in I2C mode after power-on and soft reset, so on the Crazyflie it is not needed.
 //! The caller must leave the chip its start-up time after power-on first (stock waits 1000 ms,
 //! `SENSORS_STARTUP_TIME_MS`, mostly for the other sensors on the bus).
+//!
+//! **Soft resets are fire-and-forget.** A chip that resets while it receives the command may not
+//! acknowledge the data byte or the STOP, so an error on the reset write is ignored; after the reset
+//! delay the chip id is read again, up to [`RESET_ID_ATTEMPTS`] times [`RESET_RETRY_MS`] apart, and that
+//! read decides whether the chip is there. (Stock never soft-resets the BMI088 on the Crazyflie:
+//! `bmi088_*_soft_reset` exist in its Bosch driver but `sensorsBmi088Bmp3xxInit` does not call them.)
 //!
 //! After configuring, [`Bmi088::init`] reads ACC_ERR_REG (0x02: bit 0 `fatal_err`, bits 4:2 `error_code`,
 //! 1 = invalid ACC_CONF), reads ACC_CONF/ACC_RANGE back, and waits (polling, 1 ms apart, at most
@@ -94,6 +100,12 @@ pub const ACCEL_M_S2_PER_LSB: f32 = 48.0 / 65536.0 * GRAVITY_M_S2;
 /// How many times [`Bmi088::init`] polls each data-ready flag (1 ms apart) before giving up. The slowest
 /// configured rate is the gyro's 1 kHz, so a working chip sets its flag within ~1 ms of being configured.
 pub const DATA_READY_POLLS: u32 = 20;
+
+/// How many times the chip id is read after a soft reset before init gives up (the first read comes after
+/// the datasheet reset delay; the others [`RESET_RETRY_MS`] apart).
+pub const RESET_ID_ATTEMPTS: u32 = 3;
+/// Wait between two identity reads after a soft reset, ms.
+pub const RESET_RETRY_MS: u32 = 5;
 
 /// Register map (datasheet §5.2 accelerometer, §5.4 gyroscope; BMI08x API `bmi08_defs.h`).
 mod reg {
@@ -231,8 +243,10 @@ impl<I: I2c> Bmi088<I> {
 
     async fn init_gyro<D: DelayNs>(&mut self, delay: &mut D) -> Result<(), DriverError<I::Error>> {
         self.check_chip_id(GYRO_ADDR, reg::GYRO_CHIP_ID, GYRO_CHIP_ID).await?;
-        self.write(GYRO_ADDR, reg::GYRO_SOFTRESET, val::SOFTRESET).await?;
-        delay.delay_ms(GYRO_SOFTRESET_DELAY_MS).await;
+        self.soft_reset(GYRO_ADDR, reg::GYRO_SOFTRESET, GYRO_SOFTRESET_DELAY_MS, delay)
+            .await;
+        self.check_chip_id_after_reset(GYRO_ADDR, reg::GYRO_CHIP_ID, GYRO_CHIP_ID, delay)
+            .await?;
         self.write(GYRO_ADDR, reg::GYRO_LPM1, val::GYRO_NORMAL).await?;
         delay.delay_ms(GYRO_POWER_MODE_DELAY_MS).await;
         self.write(GYRO_ADDR, reg::GYRO_RANGE, val::GYRO_RANGE_2000DPS).await?;
@@ -247,8 +261,10 @@ impl<I: I2c> Bmi088<I> {
 
     async fn init_accel<D: DelayNs>(&mut self, delay: &mut D) -> Result<(), DriverError<I::Error>> {
         self.check_chip_id(ACCEL_ADDR, reg::ACC_CHIP_ID, ACCEL_CHIP_ID).await?;
-        self.write(ACCEL_ADDR, reg::ACC_SOFTRESET, val::SOFTRESET).await?;
-        delay.delay_ms(ACC_SOFTRESET_DELAY_MS).await;
+        self.soft_reset(ACCEL_ADDR, reg::ACC_SOFTRESET, ACC_SOFTRESET_DELAY_MS, delay)
+            .await;
+        self.check_chip_id_after_reset(ACCEL_ADDR, reg::ACC_CHIP_ID, ACCEL_CHIP_ID, delay)
+            .await?;
         self.write(ACCEL_ADDR, reg::ACC_PWR_CTRL, val::ACC_ENABLE).await?;
         delay.delay_ms(ACC_POWER_ON_DELAY_MS).await;
         self.write(ACCEL_ADDR, reg::ACC_PWR_CONF, val::ACC_ACTIVE).await?;
@@ -300,6 +316,36 @@ impl<I: I2c> Bmi088<I> {
             i16::from_le_bytes([b[2], b[3]]),
             i16::from_le_bytes([b[4], b[5]]),
         ])
+    }
+
+    /// Writes the soft-reset command and waits `delay_ms`. Fire-and-forget: the chip resets while it
+    /// receives the command and may not acknowledge it (or the STOP after it), so a bus error here says
+    /// nothing about the chip; the identity read that follows ([`Self::check_chip_id_after_reset`]) does.
+    async fn soft_reset<D: DelayNs>(&mut self, addr: u8, reset_reg: u8, delay_ms: u32, delay: &mut D) {
+        let _ = self.i2c.write(addr, &[reset_reg, val::SOFTRESET]).await;
+        delay.delay_ms(delay_ms).await;
+    }
+
+    /// The identity read after a soft reset: up to [`RESET_ID_ATTEMPTS`] tries, [`RESET_RETRY_MS`] apart,
+    /// for a chip that is still booting; the last failure is returned.
+    async fn check_chip_id_after_reset<D: DelayNs>(
+        &mut self,
+        addr: u8,
+        id_reg: u8,
+        expected: u8,
+        delay: &mut D,
+    ) -> Result<(), DriverError<I::Error>> {
+        let mut result = Ok(());
+        for attempt in 0..RESET_ID_ATTEMPTS {
+            if attempt > 0 {
+                delay.delay_ms(RESET_RETRY_MS).await;
+            }
+            result = self.check_chip_id(addr, id_reg, expected).await;
+            if result.is_ok() {
+                break;
+            }
+        }
+        result
     }
 
     async fn check_chip_id(&mut self, addr: u8, id_reg: u8, expected: u8) -> Result<(), DriverError<I::Error>> {

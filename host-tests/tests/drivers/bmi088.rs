@@ -35,6 +35,7 @@ fn gyro_init() -> (Vec<T>, Vec<D>) {
         vec![
             reg_read(GYR, 0x00, 0x0F),  // GYRO_CHIP_ID
             reg_write(GYR, 0x14, 0xB6), // GYRO_SOFTRESET
+            reg_read(GYR, 0x00, 0x0F),  // back after the reset
             reg_write(GYR, 0x11, 0x00), // GYRO_LPM1: normal
             reg_write(GYR, 0x0F, 0x00), // GYRO_RANGE: ±2000 °/s
             reg_write(GYR, 0x10, 0x02), // GYRO_BANDWIDTH: ODR 1000 Hz, 116 Hz
@@ -52,6 +53,7 @@ fn accel_config() -> (Vec<T>, Vec<D>) {
         vec![
             reg_read(ACC, 0x00, 0x1E),  // ACC_CHIP_ID
             reg_write(ACC, 0x7E, 0xB6), // ACC_SOFTRESET
+            reg_read(ACC, 0x00, 0x1E),  // back after the reset
             reg_write(ACC, 0x7D, 0x04), // ACC_PWR_CTRL: on
             reg_write(ACC, 0x7C, 0x00), // ACC_PWR_CONF: active
             reg_write(ACC, 0x40, 0x8C), // ACC_CONF: bwp OSR4 (0x8 << 4) | odr 1600 Hz (0xC)
@@ -200,10 +202,59 @@ fn nack_at_the_accelerometer_probe_is_a_bus_error() {
 #[test]
 fn nack_during_configuration_is_a_bus_error() {
     let (mut bus, _) = gyro_init();
-    bus.truncate(2);
-    bus[1] = reg_write(GYR, 0x14, 0xB6).with_error(ErrorKind::ArbitrationLoss);
-    let (result, imu, delay) = run_init(&bus, &[]);
+    // GYRO_LPM1 (normal mode) lost.
+    bus.truncate(4);
+    bus[3] = reg_write(GYR, 0x11, 0x00).with_error(ErrorKind::ArbitrationLoss);
+    let (result, imu, delay) = run_init(&bus, &[D::delay_ms(30)]);
     assert_eq!(result, Err(DriverError::Bus(ErrorKind::ArbitrationLoss)));
+    finish(imu, delay);
+}
+
+/// The soft-reset write of both halves NACKed (the chip resets while it receives the command): init goes
+/// on, the chip id read after the reset decides.
+#[test]
+fn soft_reset_that_is_not_acknowledged_does_not_abort_init() {
+    let (mut bus, mut delays) = full_init();
+    for t in bus.iter_mut() {
+        if *t == reg_write(GYR, 0x14, 0xB6) || *t == reg_write(ACC, 0x7E, 0xB6) {
+            *t = t
+                .clone()
+                .with_error(ErrorKind::NoAcknowledge(NoAcknowledgeSource::Data));
+        }
+    }
+    // The gyro is still booting at the first id read after its reset: one NACK, then it answers 5 ms later.
+    let at = bus
+        .iter()
+        .position(|t| *t == reg_write(GYR, 0x14, 0xB6).with_error(ErrorKind::NoAcknowledge(NoAcknowledgeSource::Data)));
+    let at = at.expect("gyro reset in the script") + 1;
+    bus.insert(at, reg_read(GYR, 0x00, 0x00).with_error(nack()));
+    delays.insert(1, D::delay_ms(5));
+    let (result, imu, delay) = run_init(&bus, &delays);
+    assert_eq!(result, Ok(()));
+    assert!(imu.is_initialised());
+    finish(imu, delay);
+}
+
+/// A chip that never comes back after the reset: three id reads (5 ms apart), then the last error.
+#[test]
+fn chip_that_does_not_return_after_its_soft_reset_fails_init() {
+    let bus = [
+        reg_read(GYR, 0x00, 0x0F),
+        reg_write(GYR, 0x14, 0xB6).with_error(nack()),
+        reg_read(GYR, 0x00, 0x00).with_error(nack()),
+        reg_read(GYR, 0x00, 0x00).with_error(nack()),
+        reg_read(GYR, 0x00, 0xFF),
+    ];
+    let delays = [D::delay_ms(30), D::delay_ms(5), D::delay_ms(5)];
+    let (result, imu, delay) = run_init(&bus, &delays);
+    assert_eq!(
+        result,
+        Err(DriverError::WrongChipId {
+            expected: 0x0F,
+            found: 0xFF
+        })
+    );
+    assert!(!imu.is_initialised());
     finish(imu, delay);
 }
 

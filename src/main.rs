@@ -177,14 +177,13 @@ mod fw {
         interrupt::UART5.set_priority(IO_PRIORITY);
         let io = EXECUTOR_IO.start(interrupt::UART5);
 
-        // Deck bus: config block, then both decks' rangers (then owned by the deck task).
+        // Deck bus (every transfer under a deadline, with bus recovery): the config block first, the rangers
+        // after the syslink is up, so a stuck deck bus cannot keep the radio from starting.
         let mut i2c_config = i2c::Config::default();
         i2c_config.frequency = Hertz(400_000);
-        let mut deck_i2c = I2c::new(p.I2C1, p.PB6, p.PB7, p.DMA1_CH6, p.DMA1_CH0, Irqs, i2c_config);
+        let deck_bus = I2c::new(p.I2C1, p.PB6, p.PB7, p.DMA1_CH6, p.DMA1_CH0, Irqs, i2c_config);
+        let mut deck_i2c = sensors::guard(deck_bus, sensors::I2cRecoveryPins::deck(), sensors::DECK_GUARD);
         let settings = sensors::read_radio_settings(&mut deck_i2c).await;
-        let rangers = sensors::bring_up_rangers(&mut deck_i2c).await;
-        let rangers_ok = rangers.z.is_some() && rangers.multi.is_some();
-        spawn_send(&io, "deck_task", sensors::deck_task(deck_i2c, rangers));
 
         // Syslink.
         let mut uart_config = usart::Config::default();
@@ -209,6 +208,11 @@ mod fw {
             }
         }
 
+        // Both decks' rangers (then the deck task owns the bus).
+        let rangers = sensors::bring_up_rangers(&mut deck_i2c).await;
+        let rangers_ok = rangers.z.is_some() && rangers.multi.is_some();
+        spawn_send(&io, "deck_task", sensors::deck_task(deck_i2c, rangers));
+
         // Flow deck on SPI1, chip select PB4 (idle high), mode 0 at ≤ 1.3125 MHz like stock.
         let mut spi_config = spi::Config::default();
         spi_config.frequency = Hertz(1_312_500);
@@ -229,7 +233,8 @@ mod fw {
 
         // The IMU, at the stock start-up time after power-on.
         Timer::at(Instant::from_millis(SENSORS_STARTUP_MS)).await;
-        let sensor_i2c = I2c::new(p.I2C3, p.PA8, p.PC9, p.DMA1_CH4, p.DMA1_CH2, Irqs, i2c_config);
+        let sensor_bus = I2c::new(p.I2C3, p.PA8, p.PC9, p.DMA1_CH4, p.DMA1_CH2, Irqs, i2c_config);
+        let sensor_i2c = sensors::guard(sensor_bus, sensors::I2cRecoveryPins::sensors(), sensors::IMU_GUARD);
         let mut imu = Bmi088::new(sensor_i2c);
         let imu_ok = match imu.init(&mut Delay).await {
             Ok(()) => true,

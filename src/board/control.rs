@@ -5,8 +5,11 @@
 //! Each step: wait for the edge, read gyro + accelerometer (async I2C, ~0.5 ms of bus time during which
 //! lower priorities run), then, without awaiting: drain [`super::FAST_INPUTS`], run
 //! [`Stabilizer::on_imu`], write the motors (zero unless booted, no fault and the supervisor allows them),
-//! publish the [`cfnav::stack::FastStatus`], account the cycles. Motors stop on any fault, on a missing
-//! data-ready edge ([`DRDY_TIMEOUT`]) and after [`MAX_IMU_ERRORS`] failed reads in a row.
+//! publish the [`cfnav::stack::FastStatus`], account the cycles. The IMU bus is guarded (every read has a
+//! 1 ms deadline, a hung bus is recovered: `cfnav::drivers::i2c_guard`); a missing data-ready edge
+//! ([`DRDY_TIMEOUT`]) or a failed read is a missed sample: the motors stay level for at most
+//! `cfnav::stack::IMU_LEVEL_US`, then stop and the supervisor latches Crashed. Motors stop on any fault
+//! and [`MAX_IMU_ERRORS`] missed samples in a row raise one.
 
 use core::sync::atomic::Ordering;
 
@@ -16,8 +19,6 @@ use cfnav::system::cpu_load::{Level, LoopTiming, LoopWindow};
 use defmt::warn;
 use embassy_executor::InterruptExecutor;
 use embassy_stm32::exti::ExtiInput;
-use embassy_stm32::i2c::I2c;
-use embassy_stm32::i2c::mode::Master as I2cMaster;
 use embassy_stm32::interrupt;
 use embassy_stm32::interrupt::Priority;
 use embassy_stm32::mode::Async;
@@ -33,8 +34,8 @@ use super::{
 
 /// NVIC priority of the control executor (P0 is the most urgent; HAL interrupt handlers keep P0).
 pub const PRIORITY: Priority = Priority::P6;
-/// A gyro edge later than this (5 periods) stops the motors for that step and counts as a miss.
-pub const DRDY_TIMEOUT: Duration = Duration::from_millis(5);
+/// A gyro edge later than this (2 periods) counts as a missed sample (`Stabilizer::on_imu_missed`).
+pub const DRDY_TIMEOUT: Duration = Duration::from_millis(2);
 /// Consecutive failed IMU reads (or missed edges) that make a fault.
 pub const MAX_IMU_ERRORS: u32 = 50;
 
@@ -53,7 +54,7 @@ fn UART4() {
 }
 
 /// The IMU on the sensor bus.
-pub type Imu = Bmi088<I2c<'static, Async, I2cMaster>>;
+pub type Imu = Bmi088<super::sensors::GuardedBus>;
 
 /// Drains the inputs queued for the stabilizer since the previous step.
 fn drain_inputs(stab: &mut Stabilizer) {
@@ -88,7 +89,14 @@ pub async fn control_task(mut stab: Stabilizer, mut imu: Imu, mut drdy: ExtiInpu
             Err(_) => None,
         };
         let Some(sample) = sample else {
-            motors.stop();
+            // Level for a few periods, then off and latched (`Stabilizer::on_imu_missed`).
+            let duty = stab.on_imu_missed(now_us());
+            if BOOTED.load(Ordering::Acquire) && !FAULT.load(Ordering::Acquire) {
+                motors.set(duty);
+            } else {
+                motors.stop();
+            }
+            publish_fast_status(stab.status());
             errors += 1;
             if errors == MAX_IMU_ERRORS {
                 fault("IMU: no data-ready edge or read failures");

@@ -249,7 +249,8 @@ pub async fn bring_up_rangers(i2c: &mut DeckI2c) -> DeckRangers {
     if !expander {
         warn!("Multi-ranger deck not found (no PCA95x4 at 0x20)");
     }
-    let z = match Vl53l1x::bring_up(i2c, &mut Delay, FLOW_DECK_Z_ADDRESS, &RangingConfig::FLOW_DECK_Z).await {
+    // Probes 0x6A first: after a watchdog reset the ranger (no XSHUT) is still there.
+    let z = match Vl53l1x::bring_up_or_find(i2c, &mut Delay, FLOW_DECK_Z_ADDRESS, &RangingConfig::FLOW_DECK_Z).await {
         Ok(mut z) => match z.start_ranging(i2c).await {
             Ok(()) => {
                 info!("flow deck: height ranger up at {=u8:#x}", FLOW_DECK_Z_ADDRESS);

@@ -8,9 +8,9 @@
 //!    driver runs on TIM5 (TIM2/TIM4 drive the motors); the DWT cycle counter is started for the load figures;
 //! 2. LEDs ("booting"), motors (TIM2/TIM4 PWM, all off), the independent watchdog;
 //! 3. the navigator (map + planner) built in CCM;
-//! 4. deck I2C1: the EEPROM config block (radio settings), the Multi-ranger probe; SPI1: the Flow deck's
-//!    PMW3901; then syslink on USART6 with the radio task (settings, battery auto-update; RADIO_READY once
-//!    booted);
+//! 4. deck I2C1 (guarded: deadlines and bus recovery): the EEPROM config block (radio settings); syslink on
+//!    USART6 with the radio task (settings, battery auto-update; RADIO_READY once booted); then the deck
+//!    rangers (so a stuck deck bus cannot delay the radio) and SPI1: the Flow deck's PMW3901;
 //! 5. at 1 s after power-on (stock waits as long before touching the IMU) the BMI088 on I2C3, then the
 //!    control loop on the gyro data-ready edge (PC14);
 //! 6. the mission task and the statistics; "booted": motors may run from now on, RADIO_READY goes out.
@@ -34,7 +34,7 @@ mod board;
 mod fw {
     use core::sync::atomic::Ordering;
 
-    use cfnav::drivers::bmi088::Bmi088;
+    use cfnav::drivers::bmi088::{AccelTrim, Bmi088};
     use cfnav::stack::{FlightConfig, Stabilizer};
     use defmt::{error, info, warn};
     use embassy_executor::{SendSpawner, SpawnError, SpawnToken, Spawner};
@@ -245,6 +245,7 @@ mod fw {
             }
         };
         let drdy = ExtiInput::new(p.PC14, p.EXTI14, Pull::None, Irqs);
+        let trim = AccelTrim::from_degrees(settings.calib_roll_deg, settings.calib_pitch_deg);
         match (
             Stabilizer::new(&config, cfnav::mission::MissionParams::SEED.start_m, 0.0),
             motors,
@@ -253,7 +254,11 @@ mod fw {
                 // The priority must be set before `start()`, which unmasks the interrupt.
                 interrupt::UART4.set_priority(control::PRIORITY);
                 let ctrl = control::EXECUTOR.start(interrupt::UART4);
-                spawn_send(&ctrl, "control_task", control::control_task(stab, imu, drdy, motors));
+                spawn_send(
+                    &ctrl,
+                    "control_task",
+                    control::control_task(stab, imu, trim, drdy, motors),
+                );
                 board::CONTROL_RUNNING.store(true, Ordering::Release);
             }
             (Err(_), _) => board::fault("stabilizer: invalid configuration"),

@@ -13,7 +13,7 @@
 
 use core::sync::atomic::Ordering;
 
-use cfnav::drivers::bmi088::Bmi088;
+use cfnav::drivers::bmi088::{AccelTrim, Bmi088};
 use cfnav::stack::Stabilizer;
 use cfnav::system::cpu_load::{Level, LoopTiming, LoopWindow};
 use defmt::warn;
@@ -76,7 +76,13 @@ fn drain_inputs(stab: &mut Stabilizer) {
 
 /// The 1 kHz loop. Never returns; on a fault the motors stay off and the loop keeps publishing the estimate.
 #[embassy_executor::task]
-pub async fn control_task(mut stab: Stabilizer, mut imu: Imu, mut drdy: ExtiInput<'static, Async>, mut motors: Motors) {
+pub async fn control_task(
+    mut stab: Stabilizer,
+    mut imu: Imu,
+    trim: AccelTrim,
+    mut drdy: ExtiInput<'static, Async>,
+    mut motors: Motors,
+) {
     motors.stop();
     let mut timing = LoopTiming::new();
     let mut window_start = cycles();
@@ -85,7 +91,8 @@ pub async fn control_task(mut stab: Stabilizer, mut imu: Imu, mut drdy: ExtiInpu
         let edge = with_timeout(DRDY_TIMEOUT, drdy.wait_for_rising_edge()).await;
         let wake = cycles();
         let sample = match edge {
-            Ok(()) => imu.read().await.ok(),
+            // The config block's board trim, on the accelerometer (stock `sensorsAccAlignToGravity`).
+            Ok(()) => imu.read().await.ok().map(|s| trim.apply_to(s)),
             Err(_) => None,
         };
         let Some(sample) = sample else {

@@ -63,8 +63,8 @@
 //! platform_defaults.h`, applied in `sensorsAlignToAirframe`), so the mapping is the identity and a level
 //! drone at rest reads accel ≈ (0, 0, +g). This is what the simulator's `Imu` model (tools/src/sim/
 //! sensors.rs) produces from the true body rates and specific force, so SITL and the real chip feed the
-//! estimator the same quantities. (Stock's board-level trim `calibPitch/calibRoll` from the config block is
-//! not applied here.)
+//! estimator the same quantities. Stock's board-level trim `calibRoll/calibPitch` from the config block is
+//! applied by the caller with [`AccelTrim`], to the accelerometer only, as stock does.
 //!
 //! ## Errors
 //!
@@ -191,6 +191,67 @@ impl RawImu {
         ImuSample {
             gyro_rad_s: self.gyro.map(|v| f32::from(v) * GYRO_RAD_S_PER_LSB),
             accel_m_s2: self.accel.map(|v| f32::from(v) * ACCEL_M_S2_PER_LSB),
+        }
+    }
+}
+
+/// The config block's board trim `calibRoll/calibPitch` (degrees), applied to the accelerometer as stock
+/// `sensorsAccAlignToGravity` (crazyflie-firmware `sensors_bmi088_bmp3xx.c`): rotate about x by the roll
+/// trim, then about y by the pitch trim; the gyro is left alone (stock too). Non-finite trims, or trims
+/// beyond ±[`AccelTrim::MAX_DEG`] (a corrupt block), give the identity.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct AccelTrim {
+    cos_roll: f32,
+    sin_roll: f32,
+    cos_pitch: f32,
+    sin_pitch: f32,
+}
+
+impl AccelTrim {
+    /// The largest trim accepted, degrees (cfclient's trim is a few degrees).
+    pub const MAX_DEG: f32 = 20.0;
+    /// No trim.
+    pub const IDENTITY: Self = Self {
+        cos_roll: 1.0,
+        sin_roll: 0.0,
+        cos_pitch: 1.0,
+        sin_pitch: 0.0,
+    };
+
+    /// From the config block's `calib_roll_deg` and `calib_pitch_deg`.
+    pub fn from_degrees(roll_deg: f32, pitch_deg: f32) -> Self {
+        let ok = |d: f32| d.is_finite() && d.abs() <= Self::MAX_DEG;
+        if !(ok(roll_deg) && ok(pitch_deg)) {
+            return Self::IDENTITY;
+        }
+        let (r, p) = (roll_deg.to_radians(), pitch_deg.to_radians());
+        Self {
+            cos_roll: libm::cosf(r),
+            sin_roll: libm::sinf(r),
+            cos_pitch: libm::cosf(p),
+            sin_pitch: libm::sinf(p),
+        }
+    }
+
+    /// The trimmed accelerometer vector (stock's two rotations, in its order).
+    pub fn apply(&self, a: [f32; 3]) -> [f32; 3] {
+        let rx = [
+            a[0],
+            a[1] * self.cos_roll - a[2] * self.sin_roll,
+            a[1] * self.sin_roll + a[2] * self.cos_roll,
+        ];
+        [
+            rx[0] * self.cos_pitch - rx[2] * self.sin_pitch,
+            rx[1],
+            rx[0] * self.sin_pitch + rx[2] * self.cos_pitch,
+        ]
+    }
+
+    /// `sample` with its accelerometer trimmed.
+    pub fn apply_to(&self, sample: ImuSample) -> ImuSample {
+        ImuSample {
+            accel_m_s2: self.apply(sample.accel_m_s2),
+            ..sample
         }
     }
 }

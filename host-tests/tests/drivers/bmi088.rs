@@ -542,3 +542,46 @@ fn driver_state_beyond_the_bus_handle_is_two_bytes() {
     // Module doc: the last ACC_ERR_REG value and the initialised flag.
     assert_eq!(size_of::<Bmi088<()>>(), 2);
 }
+
+/// Stock `sensorsAccAlignToGravity`, written out in f64 from its C source (rotate about x by the roll trim,
+/// then about y by the pitch trim).
+fn stock_align(a: [f64; 3], roll_deg: f64, pitch_deg: f64) -> [f64; 3] {
+    let (cr, sr) = (roll_deg.to_radians().cos(), roll_deg.to_radians().sin());
+    let (cp, sp) = (pitch_deg.to_radians().cos(), pitch_deg.to_radians().sin());
+    let rx = [a[0], a[1] * cr - a[2] * sr, a[1] * sr + a[2] * cr];
+    [rx[0] * cp - rx[2] * sp, rx[1], rx[0] * sp + rx[2] * cp]
+}
+
+#[test]
+fn config_block_trim_rotates_the_accelerometer_as_stock() {
+    use cfnav::drivers::bmi088::AccelTrim;
+    let a = [0.3f32, -0.2, 9.7];
+    for (roll, pitch) in [(0.0f32, 0.0f32), (2.0, 0.0), (0.0, -3.0), (1.5, 2.5), (-20.0, 20.0)] {
+        let got = AccelTrim::from_degrees(roll, pitch).apply(a);
+        let want = stock_align(a.map(f64::from), f64::from(roll), f64::from(pitch));
+        for i in 0..3 {
+            assert!(
+                (f64::from(got[i]) - want[i]).abs() < 1e-5,
+                "{roll}/{pitch}: {got:?} vs {want:?}"
+            );
+        }
+    }
+    // A 2° roll trim on a board whose accelerometer reads 2° of roll when the frame is level: level again.
+    let tilted = [0.0, 9.81 * 2f32.to_radians().sin(), 9.81 * 2f32.to_radians().cos()];
+    let level = AccelTrim::from_degrees(2.0, 0.0).apply(tilted);
+    assert!(level[1].abs() < 1e-4 && (level[2] - 9.81).abs() < 1e-4, "{level:?}");
+    // The gyro is not trimmed (stock).
+    let s = cfnav::types::ImuSample {
+        gyro_rad_s: [0.1, 0.2, 0.3],
+        accel_m_s2: a,
+    };
+    assert_eq!(
+        AccelTrim::from_degrees(3.0, 1.0).apply_to(s).gyro_rad_s,
+        [0.1, 0.2, 0.3]
+    );
+    // A corrupt block does nothing.
+    for (roll, pitch) in [(f32::NAN, 0.0), (0.0, f32::INFINITY), (45.0, 0.0)] {
+        assert_eq!(AccelTrim::from_degrees(roll, pitch), AccelTrim::IDENTITY);
+        assert_eq!(AccelTrim::from_degrees(roll, pitch).apply(a), a);
+    }
+}

@@ -10,9 +10,9 @@
 //! 2. LEDs ("booting"), motors (TIM2/TIM4 PWM, all off), the independent watchdog (fed from the I/O
 //!    executor once it runs);
 //! 3. the navigator (map + planner) built in CCM;
-//! 4. deck I2C1: the EEPROM config block (radio settings), the Multi-ranger probe; SPI1: the Flow deck's
-//!    PMW3901; then syslink on USART6 with the radio task (settings, battery auto-update; RADIO_READY once
-//!    booted);
+//! 4. deck I2C1 (guarded: deadlines and bus recovery): the EEPROM config block (radio settings); syslink on
+//!    USART6 with the radio task (settings, battery auto-update; RADIO_READY once booted); then the deck
+//!    rangers (so a stuck deck bus cannot delay the radio) and SPI1: the Flow deck's PMW3901;
 //! 5. at 1 s after power-on (stock waits as long before touching the IMU) the BMI088 on I2C3, then the
 //!    control loop on the gyro data-ready edge (PC14);
 //! 6. the mission task and the statistics; "booted": motors may run from now on, RADIO_READY goes out.
@@ -36,7 +36,7 @@ mod board;
 mod fw {
     use core::sync::atomic::Ordering;
 
-    use cfnav::drivers::bmi088::Bmi088;
+    use cfnav::drivers::bmi088::{AccelTrim, Bmi088};
     use cfnav::stack::{FlightConfig, Stabilizer};
     use defmt::{error, info, warn};
     use defmt_rtt as _;
@@ -188,15 +188,13 @@ mod fw {
         // Fed from the I/O executor, which preempts thread mode: no planner slice can delay a feed.
         spawn_send(&io, "watchdog_task", system::watchdog_task(wdg));
 
-        // Deck bus: config block, then both decks' rangers (then owned by the deck task).
+        // Deck bus (every transfer under a deadline, with bus recovery): the config block first, the rangers
+        // after the syslink is up, so a stuck deck bus cannot keep the radio from starting.
         let mut i2c_config = i2c::Config::default();
         i2c_config.frequency = Hertz(400_000);
-        let mut deck_i2c = I2c::new(p.I2C1, p.PB6, p.PB7, p.DMA1_CH6, p.DMA1_CH0, Irqs, i2c_config);
+        let deck_bus = I2c::new(p.I2C1, p.PB6, p.PB7, p.DMA1_CH6, p.DMA1_CH0, Irqs, i2c_config);
+        let mut deck_i2c = sensors::guard(deck_bus, sensors::I2cRecoveryPins::deck(), sensors::DECK_GUARD);
         let settings = sensors::read_radio_settings(&mut deck_i2c).await;
-        let rangers = sensors::bring_up_rangers(&mut deck_i2c).await;
-        let rangers_ok = rangers.z.is_some() && rangers.multi.is_some();
-        DECK_MULTIRANGER.store(rangers.multi.is_some(), Ordering::Release);
-        spawn_send(&io, "deck_task", sensors::deck_task(deck_i2c, rangers));
 
         // Syslink.
         let mut uart_config = usart::Config::default();
@@ -231,6 +229,12 @@ mod fw {
             }
         }
 
+        // Both decks' rangers (then the deck task owns the bus).
+        let rangers = sensors::bring_up_rangers(&mut deck_i2c).await;
+        let rangers_ok = rangers.z.is_some() && rangers.multi.is_some();
+        DECK_MULTIRANGER.store(rangers.multi.is_some(), Ordering::Release);
+        spawn_send(&io, "deck_task", sensors::deck_task(deck_i2c, rangers));
+
         // Flow deck on SPI1, chip select PB4 (idle high), mode 0 at ≤ 1.3125 MHz like stock.
         let mut spi_config = spi::Config::default();
         spi_config.frequency = Hertz(1_312_500);
@@ -252,7 +256,8 @@ mod fw {
 
         // The IMU, at the stock start-up time after power-on.
         Timer::at(Instant::from_millis(SENSORS_STARTUP_MS)).await;
-        let sensor_i2c = I2c::new(p.I2C3, p.PA8, p.PC9, p.DMA1_CH4, p.DMA1_CH2, Irqs, i2c_config);
+        let sensor_bus = I2c::new(p.I2C3, p.PA8, p.PC9, p.DMA1_CH4, p.DMA1_CH2, Irqs, i2c_config);
+        let sensor_i2c = sensors::guard(sensor_bus, sensors::I2cRecoveryPins::sensors(), sensors::IMU_GUARD);
         let mut imu = Bmi088::new(sensor_i2c);
         let imu_ok = match imu.init(&mut Delay).await {
             Ok(()) => true,
@@ -263,6 +268,7 @@ mod fw {
             }
         };
         let drdy = ExtiInput::new(p.PC14, p.EXTI14, Pull::None, Irqs);
+        let trim = AccelTrim::from_degrees(settings.calib_roll_deg, settings.calib_pitch_deg);
         match (
             Stabilizer::new(&config, cfnav::mission::MissionParams::SEED.start_m, 0.0),
             motors,
@@ -271,7 +277,11 @@ mod fw {
                 // The priority must be set before `start()`, which unmasks the interrupt.
                 interrupt::UART4.set_priority(control::PRIORITY);
                 let ctrl = control::EXECUTOR.start(interrupt::UART4);
-                spawn_send(&ctrl, "control_task", control::control_task(stab, imu, drdy, motors));
+                spawn_send(
+                    &ctrl,
+                    "control_task",
+                    control::control_task(stab, imu, trim, drdy, motors),
+                );
                 board::CONTROL_RUNNING.store(true, Ordering::Release);
             }
             (Err(_), _) => board::fault("stabilizer: invalid configuration"),

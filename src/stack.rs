@@ -54,6 +54,10 @@ const HOLD_MAX_CLIMB_M_S: f32 = 0.15;
 /// timeout, `crazyflie-hardware.md` §10.1), µs.
 pub const COMMANDER_HOLD_US: Micros = 2_000_000;
 
+/// How long after the last good IMU sample [`Stabilizer::on_imu_missed`] keeps the motors level before
+/// it stops them, µs (5 control periods).
+pub const IMU_LEVEL_US: Micros = 5_000;
+
 /// Why the flight core could not be built.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum FlightConfigError {
@@ -197,6 +201,31 @@ impl Stabilizer {
         };
         self.last_control = output;
         self.last_supervisor = verdict;
+        self.duty
+    }
+
+    /// The control loop got no IMU sample this period (no data-ready edge, or the read failed or timed
+    /// out). Returns the duties to write now: for up to [`IMU_LEVEL_US`] after the last good sample the
+    /// four motors get the mean of the last duties (the collective without torque: level, no attitude
+    /// loop is possible blind; zero if they were off); after that all zero, and the supervisor latches
+    /// Crashed if it was flying ([`Supervisor::imu_lost`]). A good sample resumes normal steps
+    /// (except from Crashed, which stays until reset).
+    pub fn on_imu_missed(&mut self, now: Micros) -> MotorDuty {
+        let within = self
+            .last_imu_time
+            .is_some_and(|t| now.saturating_sub(t) <= IMU_LEVEL_US);
+        let running = self.duty != MotorDuty::default();
+        self.duty = if !within {
+            self.last_supervisor = self.supervisor.imu_lost();
+            self.estimator.set_flying(false);
+            MotorDuty::default()
+        } else if running && self.last_supervisor.motors_allowed {
+            let sum: u32 = self.duty.0.iter().map(|&d| u32::from(d)).sum();
+            let mean = u8::try_from(sum.div_ceil(4)).unwrap_or(u8::MAX);
+            MotorDuty([mean; 4])
+        } else {
+            MotorDuty::default()
+        };
         self.duty
     }
 

@@ -585,6 +585,38 @@ impl Supervisor {
         }
     }
 
+    /// The IMU gave no sample for longer than the stabilizer's level window (a hung bus, a dead chip):
+    /// [`Supervisor::update`] cannot run without one, so its accelerometer timer would never fire. Flying
+    /// → Crashed (latched, [`Reason::AccelFault`]); Armed → Idle; the other states are kept. The motors
+    /// are not allowed in the returned verdict whatever the state.
+    pub fn imu_lost(&mut self) -> SupervisorOutput {
+        use SupervisorState as S;
+        match self.state {
+            S::Flying => (self.state, self.reason) = (S::Crashed, Reason::AccelFault),
+            S::Armed => (self.state, self.reason) = (S::Idle, Reason::AccelFault),
+            _ => {}
+        }
+        self.level_out = false;
+        self.hold = None;
+        let mut flags = SupervisorFlags::from_bits(0);
+        flags.set(SupervisorFlags::ACCEL_FAULT, true);
+        flags.set(SupervisorFlags::BATTERY_LOW, self.battery_low);
+        SupervisorOutput {
+            state: self.state,
+            motors_allowed: false,
+            flying: false,
+            level_out: false,
+            battery_low: self.battery_low,
+            battery_v_filtered: self.vbat.unwrap_or(0.0),
+            reason: if self.reason == Reason::None {
+                Reason::AccelFault
+            } else {
+                self.reason
+            },
+            flags,
+        }
+    }
+
     /// The setpoint to feed the controller, given the mission's: Stop when the motors are not allowed;
     /// while levelling out, zero velocity at the held height and heading (stock WarningLevelOut: level,
     /// hold z); otherwise the mission's with [`clamp_min_height`] applied. Uses the state of the last

@@ -2,6 +2,7 @@
 //! buses.
 
 mod bmi088;
+mod i2c_guard;
 mod multiranger;
 mod pca95x4;
 mod pmw3901;

@@ -465,16 +465,90 @@ fn battery_compensation_raises_duty_as_the_voltage_drops() {
     let d33 = duty_at(3.3, &mut c);
     assert!(d33 > d42, "{d33} > {d42}");
 
-    // Below THRUST_MIN the motor is off; below 2 V compensation is off (ratio = command).
+    // Below THRUST_MIN the motor is off.
     let tiny = (THRUST_MIN_N * 0.9 / THRUST_MAX_N * CMD_MAX) as u16;
     assert_eq!(compensated_ratio(tiny, 3.7), 0.0);
-    assert!((compensated_ratio(30000, 1.5) - 30000.0 / CMD_MAX).abs() < 1e-6);
-    assert!((compensated_ratio(30000, f32::NAN) - 30000.0 / CMD_MAX).abs() < 1e-6);
     assert_eq!(
         compensated_ratio(65535, 2.5),
         1.0,
         "a flat battery saturates at full duty"
     );
+}
+
+/// Stock `motorsCompensateBatteryVoltage` returns 0 below 2.0 V: a broken battery reading stops the
+/// motors instead of running them uncompensated.
+#[test]
+fn battery_reading_below_two_volts_turns_the_motors_off_as_stock() {
+    for vbat in [1.99f32, 1.5, 0.0, f32::NAN] {
+        let (ratio, duty) = compensate([30000, 40000, 50000, 65535], vbat);
+        assert_eq!(duty.0, [0; 4], "{vbat} V");
+        assert_eq!(ratio, [0; 4], "{vbat} V");
+    }
+    // At 2.0 V compensation is on again (a motor that needs more than the battery has is at full duty).
+    let (_, duty) = compensate([30000; 4], 2.0);
+    assert!(duty.0.iter().all(|&d| d > 0), "{duty:?}");
+    // The controller does the same with a filtered reading below 2 V; before any reading it flies
+    // uncompensated (ratio = command).
+    let sp = pos(0.0, 0.0, 1.0, 0.0);
+    let est = StateEstimate {
+        position_m: [0.0, 0.0, 1.0],
+        valid: true,
+        ..StateEstimate::default()
+    };
+    let mut c = Controller::new(ControllerConfig::default()).expect("valid");
+    let out = c.update(&sp, &est, [0.0; 3], 1.2, 0);
+    assert!(out.thrust_cmd.iter().all(|&t| t > 0), "{:?}", out.thrust_cmd);
+    assert_eq!(out.duty.0, [0; 4]);
+    let mut c = Controller::new(ControllerConfig::default()).expect("valid");
+    let out = c.update(&sp, &est, [0.0; 3], f32::NAN, 0);
+    let expect = out.thrust_cmd.map(|t| (f32::from(t) / CMD_MAX * 255.0).round() as u8);
+    assert_eq!(out.duty.0, expect);
+}
+
+/// Stock order: compensate each motor, then cap the four together. On a sagging battery two motors that
+/// both need more than the battery gives keep their difference (the roll/pitch torque), at the cost of
+/// collective thrust; clamping each motor at full duty would flatten them.
+#[test]
+fn saturated_compensation_keeps_the_differential_thrust() {
+    let vbat = 2.9f32;
+    // Roll: the left motors (M3, M4) at full command, the right ones a bit lower; all beyond 2.9 V.
+    let cmd = [60000u16, 60000, 65535, 65535];
+    // The motor voltages from the cubic fit, found by bisection here (independent of the driver's Newton).
+    let volts = cmd.map(|c| {
+        let thrust = f64::from(c) / 65535.0 * 0.12;
+        let f = |v: f64| -0.024765 + 0.065238 * v - 0.026793 * v * v + 0.0067768 * v * v * v;
+        let (mut lo, mut hi) = (0.0f64, 8.0f64);
+        for _ in 0..60 {
+            let mid = 0.5 * (lo + hi);
+            if f(mid) < thrust { lo = mid } else { hi = mid }
+        }
+        lo
+    });
+    assert!(
+        volts.iter().all(|&v| v > f64::from(vbat)),
+        "the battery cannot give any of them: {volts:?}"
+    );
+    let (ratio, duty) = compensate(cmd, vbat);
+    let r = ratio.map(|x| f64::from(x) / 65535.0);
+    // The fullest motors at full duty, the difference as uncapped.
+    assert_eq!(duty.0[2], 255);
+    assert_eq!(duty.0[3], 255);
+    let want = (volts[2] - volts[0]) / f64::from(vbat);
+    assert!(want > 0.02);
+    for (lo, hi) in [(0, 2), (1, 3)] {
+        assert!(
+            (r[hi] - r[lo] - want).abs() < 1e-3,
+            "difference {} vs {want}",
+            r[hi] - r[lo]
+        );
+    }
+    assert!(duty.0[0] < duty.0[2] && duty.0[1] < duty.0[3], "{duty:?}");
+    // Unsaturated: the ratio is V_motor / V_bat per motor, untouched by the cap.
+    let (ratio, _) = compensate(cmd, 4.2);
+    for i in 0..4 {
+        let r = f64::from(ratio[i]) / 65535.0;
+        assert!((r - volts[i] / 4.2).abs() < 1e-3, "motor {i}: {r}");
+    }
 }
 
 /// A default controller already at its setpoint, 1 m above the origin: only the battery changes its output.

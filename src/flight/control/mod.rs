@@ -622,12 +622,12 @@ impl Controller {
         if mix.yaw_limited != 0 {
             self.yaw_limited_recent = mix.yaw_limited;
         }
-        let vbat_for_comp = if self.battery_comp_active() {
-            self.vbat.unwrap_or(0.0)
-        } else {
-            0.0
+        // Stock: compensate each motor, then cap the four together; a reading below 2 V turns the motors
+        // off. Before the first reading (or with compensation off) the ratio is the command.
+        let (motor_ratio, duty) = match self.vbat {
+            Some(v) if self.cfg.battery_compensation => mixer::compensate(mix.cmd, v),
+            _ => mixer::uncompensated(mix.cmd),
         };
-        let (motor_ratio, duty) = mixer::compensate(mix.cmd, vbat_for_comp);
 
         let mut flags = ControlFlags::default();
         flags.set(ControlFlags::ON_GROUND, s.on_ground);

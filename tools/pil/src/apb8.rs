@@ -87,7 +87,12 @@ impl MemOps for Ops {
         }
         let mut bytes = [0u8; 4];
         bytes[lane..lane + src.len()].copy_from_slice(src);
-        space.write(self.base + aligned, Width::U32, u64::from(u32::from_le_bytes(bytes)), attrs)
+        space.write(
+            self.base + aligned,
+            Width::U32,
+            u64::from(u32::from_le_bytes(bytes)),
+            attrs,
+        )
     }
 
     fn constraints(&self) -> AccessConstraints {

@@ -81,16 +81,16 @@ pub fn load_image(elf: &[u8]) -> Result<Image> {
         .symbols()
         .find(|s| s.name() == Ok("_SEGGER_RTT"))
         .map(|s| s.address());
-    Ok(Image {
-        flash,
-        rtt_address,
-    })
+    Ok(Image { flash, rtt_address })
 }
 
 /// The physical address of the program header whose file range starts at `offset` (ELF32 little-endian;
 /// `object`'s segment API gives only the virtual address).
 fn physical_address(elf: &[u8], offset: u64) -> Option<u64> {
-    let u32_at = |at: usize| elf.get(at..at + 4).map(|b| u32::from_le_bytes([b[0], b[1], b[2], b[3]]));
+    let u32_at = |at: usize| {
+        elf.get(at..at + 4)
+            .map(|b| u32::from_le_bytes([b[0], b[1], b[2], b[3]]))
+    };
     let u16_at = |at: usize| elf.get(at..at + 2).map(|b| u16::from_le_bytes([b[0], b[1]]));
     if elf.get(4) != Some(&1) {
         return None; // not ELF32
@@ -119,7 +119,7 @@ pub struct Board {
 
 impl Board {
     /// Builds the machine around `flash` with the device models and faults.
-    pub fn new(flash: Vec<u8>, faults: Faults) -> Result<Self> {
+    pub fn new(flash: Vec<u8>, faults: Faults, usart6_dma: bool) -> Result<Self> {
         let mut registry = catalog::registry().map_err(|e| anyhow!("rsemu registry: {e}"))?;
         registry
             .add(&dreq::CLASS)
@@ -138,7 +138,9 @@ impl Board {
         let handle = imu_int3.clone();
         options
             .bindings
-            .bind(pin::CLASS_NAME, move |_props| Ok(Arc::new(pin::Pin::new(handle.clone()))))
+            .bind(pin::CLASS_NAME, move |_props| {
+                Ok(Arc::new(pin::Pin::new(handle.clone())))
+            })
             .map_err(|e| anyhow!("binding pil.pin: {e}"))?;
         options
             .bindings
@@ -159,7 +161,12 @@ impl Board {
             .map_err(|e| anyhow!("attaching the EEPROM: {e}"))?;
         let syslink = ports::open(&hosts, "syslink").map_err(|e| anyhow!("USART6 port: {e}"))?;
         options.realize.media.insert("firmware", flash);
-        let machine = rsemu::machine::build("crazyflie21", MACHINE_TEXT, &registry, &options)
+        let text = if usart6_dma {
+            MACHINE_TEXT.replace("#usart6-dma ", "")
+        } else {
+            MACHINE_TEXT.to_string()
+        };
+        let machine = rsemu::machine::build("crazyflie21", &text, &registry, &options)
             .map_err(|e| anyhow!("the machine does not build: {e}"))?;
         let mem = Arc::clone(
             machine

@@ -188,7 +188,11 @@ impl I2cSlave for Bmi088 {
             if reg == softreset_reg && byte == SOFTRESET_CMD {
                 half.power_on();
                 reset = true;
-                return if self.faults.bmi088_reset_nack { Ack::Nack } else { Ack::Ack };
+                return if self.faults.bmi088_reset_nack {
+                    Ack::Nack
+                } else {
+                    Ack::Ack
+                };
             }
             if !half.is_read_only(reg) {
                 half.regs[usize::from(reg)] = byte;
@@ -205,16 +209,11 @@ impl I2cSlave for Bmi088 {
     }
 
     fn read(&self) -> u8 {
-        let v = self.with_halves(|h| {
+        self.with_halves(|h| {
             h.iter()
                 .find(|h| h.addressed)
                 .map_or(0xFF, |half| half.regs[usize::from(half.pointer)])
-        });
-        if std::env::var_os("PIL_TRACE_IMU").is_some() {
-            let p = self.with_halves(|h| h.iter().find(|h| h.addressed).map(|h| (h.address, h.pointer)));
-            eprintln!("imu read {p:x?} -> {v:#04x}");
-        }
-        v
+        })
     }
 
     fn read_ack(&self, _ack: Ack) {
@@ -326,7 +325,13 @@ impl I2cSlave for Eeprom {
     }
 
     fn read(&self) -> u8 {
-        self.with(|s| if s.addressed { s.bytes[usize::from(s.pointer)] } else { 0xFF })
+        self.with(|s| {
+            if s.addressed {
+                s.bytes[usize::from(s.pointer)]
+            } else {
+                0xFF
+            }
+        })
     }
 
     fn read_ack(&self, _ack: Ack) {

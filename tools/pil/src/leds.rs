@@ -104,7 +104,11 @@ mod tests {
     fn every_status_is_recognised_from_its_own_pattern_and_only_as_itself() {
         for status in STATUSES {
             for start in [0, 1234, 5000] {
-                assert_eq!(classify(&window(status, start, 3)), Some(status), "{status:?} at {start}");
+                assert_eq!(
+                    classify(&window(status, start, 3)),
+                    Some(status),
+                    "{status:?} at {start}"
+                );
             }
         }
     }
@@ -114,7 +118,11 @@ mod tests {
         let mut w = window(BoardStatus::Booting, 0, 0);
         assert_eq!(classify(&w[..100]), None, "less than a second");
         w.extend(window(BoardStatus::Ready, 1000, 0));
-        assert_eq!(classify(&w), None, "booting then ready is neither over the whole window");
+        assert_eq!(
+            classify(&w),
+            None,
+            "booting then ready is neither over the whole window"
+        );
     }
 
     #[test]

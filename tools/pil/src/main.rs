@@ -32,7 +32,10 @@ use crate::board::{Board, FLASH_ACR, GPIOC_ODR, GPIOD_ODR, RCC_CSR};
 use crate::devices::{BusStats, Faults};
 
 #[derive(Parser, Debug)]
-#[command(name = "cfnav-pil", about = "Run the unmodified cfnav firmware ELF on an emulated Crazyflie 2.1")]
+#[command(
+    name = "cfnav-pil",
+    about = "Run the unmodified cfnav firmware ELF on an emulated Crazyflie 2.1"
+)]
 struct Args {
     /// The firmware ELF (default: $CARGO_TARGET_DIR or target, then thumbv7em-none-eabihf/release/firmware).
     #[arg(long)]
@@ -47,6 +50,12 @@ struct Args {
     /// (nothing on I2C3 acknowledges). Repeatable.
     #[arg(long = "fault")]
     faults: Vec<String>,
+    /// The nRF51 end stays silent (no echo of the radio settings): a syslink whose radio chip does not answer.
+    #[arg(long)]
+    silent_nrf: bool,
+    /// Wire USART6's DMA request lines (milestone 2 work in progress: the image then stops at 52 ms).
+    #[arg(long)]
+    usart6_dma: bool,
     /// Write the report as JSON.
     #[arg(long)]
     json: Option<PathBuf>,
@@ -70,6 +79,8 @@ struct Acr {
 #[derive(Debug, Serialize)]
 struct Report {
     elf: String,
+    /// FNV-1a of the ELF file, to tell images apart.
+    elf_fnv: String,
     faults: Vec<String>,
     outcome: &'static str,
     ready: bool,
@@ -84,6 +95,8 @@ struct Report {
     acr: Option<Acr>,
     acr_caches_on: bool,
     iwdg_reset_flag: bool,
+    /// USART6 SR, CR1, CR3 at the end (RM0090 §30.6).
+    usart6_sr_cr1_cr3: [u32; 3],
     boots_logged: usize,
     faults_logged: Vec<String>,
     log_lines: usize,
@@ -159,7 +172,7 @@ fn run(args: &Args) -> Result<(Report, bool)> {
         .context("reading the .defmt table")?
         .context("the ELF has no .defmt table")?;
     let rtt_address = image.rtt_address.context("the ELF has no _SEGGER_RTT symbol")?;
-    let mut board = Board::new(image.flash, faults)?;
+    let mut board = Board::new(image.flash, faults, args.usart6_dma)?;
     let mut rtt = rtt::Rtt::new(rtt_address, &table);
 
     let wall = Instant::now();
@@ -230,7 +243,8 @@ fn run(args: &Args) -> Result<(Report, bool)> {
         for b in sent {
             if let Some(Ok(packet)) = decoder.push(b) {
                 from_image.push(format!("{:#04x}", packet.kind));
-                if let Some(answer) = nrf_answer(&packet)
+                if !args.silent_nrf
+                    && let Some(answer) = nrf_answer(&packet)
                     && let Ok(n) = encode(&answer, &mut out)
                 {
                     board.syslink.feed(&out[..n]);
@@ -239,18 +253,6 @@ fn run(args: &Args) -> Result<(Report, bool)> {
         }
         if ready_at_ms.is_some() && !args.no_stop {
             break;
-        }
-    }
-    if std::env::var_os("PIL_DEBUG_DMA").is_some() {
-        for (dma, base) in [("dma1", 0x4002_6000u64), ("dma2", 0x4002_6400)] {
-            for st in 0..8u64 {
-                let r = base + 0x10 + 0x18 * st;
-                let v: Vec<String> = (0..4)
-                    .map(|i| format!("{:08x}", board.peek32(r + 4 * i).unwrap_or(0)))
-                    .collect();
-                eprintln!("{dma} s{st}: CR NDTR PAR M0AR = {}", v.join(" "));
-            }
-            eprintln!("{dma} LISR {:08x} HISR {:08x}", board.peek32(base).unwrap_or(0), board.peek32(base + 4).unwrap_or(0));
         }
     }
     let acr = board.peek32(FLASH_ACR).map(|raw| Acr {
@@ -272,6 +274,11 @@ fn run(args: &Args) -> Result<(Report, bool)> {
     let ready = ready_at_ms.is_some();
     let report = Report {
         elf: elf_path.display().to_string(),
+        elf_fnv: {
+            let mut h = Fnv::new();
+            h.bytes(&elf);
+            format!("{:016x}", h.0)
+        },
         faults: args.faults.clone(),
         outcome: if ready { "ready" } else { "not_ready" },
         ready,
@@ -283,6 +290,7 @@ fn run(args: &Args) -> Result<(Report, bool)> {
         acr,
         acr_caches_on,
         iwdg_reset_flag,
+        usart6_sr_cr1_cr3: [0x00, 0x0C, 0x14].map(|off| board.peek32(0x4001_1400 + off).unwrap_or(0)),
         boots_logged,
         faults_logged,
         log_lines: log.len(),

@@ -119,7 +119,7 @@ pub struct Board {
 
 impl Board {
     /// Builds the machine around `flash` with the device models and faults.
-    pub fn new(flash: Vec<u8>, faults: Faults, usart6_dma: bool) -> Result<Self> {
+    pub fn new(flash: Vec<u8>, faults: Faults) -> Result<Self> {
         let mut registry = catalog::registry().map_err(|e| anyhow!("rsemu registry: {e}"))?;
         registry
             .add(&dreq::CLASS)
@@ -161,12 +161,7 @@ impl Board {
             .map_err(|e| anyhow!("attaching the EEPROM: {e}"))?;
         let syslink = ports::open(&hosts, "syslink").map_err(|e| anyhow!("USART6 port: {e}"))?;
         options.realize.media.insert("firmware", flash);
-        let text = if usart6_dma {
-            MACHINE_TEXT.replace("#usart6-dma ", "")
-        } else {
-            MACHINE_TEXT.to_string()
-        };
-        let machine = rsemu::machine::build("crazyflie21", &text, &registry, &options)
+        let machine = rsemu::machine::build("crazyflie21", MACHINE_TEXT, &registry, &options)
             .map_err(|e| anyhow!("the machine does not build: {e}"))?;
         let mem = Arc::clone(
             machine

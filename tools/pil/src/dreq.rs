@@ -223,3 +223,30 @@ pub fn schema() -> ClassSchema {
         .prop(PropSchema::new("dir", ValueKind::Str).values(&["tx", "rx"]))
         .port("req", PortDir::Out)
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn a_request_needs_both_the_enable_bit_and_the_flag() {
+        // I2C: CR2.DMAEN (bit 11), SR1.TXE (bit 7) / RXNE (bit 6), RM0090 §27.6.
+        let tx = RequestRule::new(Kind::I2c, true);
+        assert!(tx.level(1 << 11, 1 << 7));
+        assert!(!tx.level(0, 1 << 7), "DMAEN clear");
+        assert!(!tx.level(1 << 11, 1 << 6), "RXNE is not a transmit request");
+        let rx = RequestRule::new(Kind::I2c, false);
+        assert!(rx.level(1 << 11, 1 << 6) && !rx.level(1 << 11, 1 << 7));
+        // USART: CR3.DMAT (bit 7) / DMAR (bit 6), SR.TXE (bit 7) / RXNE (bit 5), §30.6.
+        let utx = RequestRule::new(Kind::Usart, true);
+        let urx = RequestRule::new(Kind::Usart, false);
+        assert_eq!((utx.enable_off, utx.status_off), (0x14, 0x00));
+        assert!(utx.level(1 << 7, 1 << 7) && !utx.level(1 << 6, 1 << 7));
+        assert!(urx.level(1 << 6, 1 << 5) && !urx.level(1 << 6, 1 << 7));
+        // SPI: CR2.TXDMAEN (bit 1) / RXDMAEN (bit 0), SR.TXE (bit 1) / RXNE (bit 0), §28.5.
+        let stx = RequestRule::new(Kind::Spi, true);
+        let srx = RequestRule::new(Kind::Spi, false);
+        assert!(stx.level(0b10, 0b10) && !stx.level(0b01, 0b10));
+        assert!(srx.level(0b01, 0b01) && !srx.level(0b01, 0b10));
+    }
+}

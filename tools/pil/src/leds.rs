@@ -90,8 +90,8 @@ mod tests {
     use super::*;
 
     fn window(status: BoardStatus, start_ms: u64, lag_ms: u64) -> Vec<(u64, LedFrame)> {
+        // One sample a millisecond, as the tool takes them.
         (start_ms..start_ms + WINDOW_MS)
-            .step_by(5)
             .map(|t| {
                 // The LED task draws every 25 ms: the pins hold the frame of the last redraw.
                 let drawn = (t.saturating_sub(lag_ms) / 25) * 25;

@@ -53,9 +53,6 @@ struct Args {
     /// The nRF51 end stays silent (no echo of the radio settings): a syslink whose radio chip does not answer.
     #[arg(long)]
     silent_nrf: bool,
-    /// Wire USART6's DMA request lines (milestone 2 work in progress: the image then stops at 52 ms).
-    #[arg(long)]
-    usart6_dma: bool,
     /// Write the report as JSON.
     #[arg(long)]
     json: Option<PathBuf>,
@@ -172,7 +169,7 @@ fn run(args: &Args) -> Result<(Report, bool)> {
         .context("reading the .defmt table")?
         .context("the ELF has no .defmt table")?;
     let rtt_address = image.rtt_address.context("the ELF has no _SEGGER_RTT symbol")?;
-    let mut board = Board::new(image.flash, faults, args.usart6_dma)?;
+    let mut board = Board::new(image.flash, faults)?;
     let mut rtt = rtt::Rtt::new(rtt_address, &table);
 
     let wall = Instant::now();

@@ -176,7 +176,6 @@ impl Stabilizer {
             battery_v: self.battery_v,
             arm_request: false,
         });
-        self.estimator.set_flying(verdict.flying);
         let setpoint = if verdict.motors_allowed {
             let guarded = self.supervisor.guard_setpoint(self.setpoint);
             if verdict.flying {
@@ -187,6 +186,13 @@ impl Stabilizer {
         } else {
             Setpoint::Stop
         };
+        // The estimator flies only while thrust is commanded. The supervisor keeps `flying` for 2 s after
+        // the motors stop (stock's is-flying window); a drone stopped in the air falls, and its impact is
+        // not in the IMU (a crash exceeds the accelerometer's range, or lasts less than a sample), so the
+        // estimator must be free to apply its on-the-ground rest update as soon as the drone lies still,
+        // or it integrates the fall speed on for those 2 s (−2.8 m/s: z swung to −4 m after a drop from
+        // 0.5 m).
+        self.estimator.set_flying(verdict.flying && setpoint != Setpoint::Stop);
         let output = self
             .controller
             .update(&setpoint, &state, sample.gyro_rad_s, self.battery_v, now);

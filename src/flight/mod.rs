@@ -2,7 +2,8 @@
 //!
 //! Holds the 9-state error-state EKF with its flow, height and wall updates and the surface tracker
 //! ([`estimator`]), the cascaded PID controller, mixer and battery compensation ([`control`]) and the
-//! safety state machine that decides whether the motors may run ([`supervisor`]).
+//! safety state machine that decides whether the motors may run ([`supervisor`]), and the high-level
+//! commander's trajectory follower ([`high_level`]: take-off, land, go-to as smooth 7th-order segments).
 //!
 //! May depend on: [`crate::types`] only. Nothing here plans, maps or talks to the radio; the stabilizer in
 //! [`crate::stack`] wires these three together at the gyro's rate.
@@ -10,4 +11,5 @@
 
 pub mod control;
 pub mod estimator;
+pub mod high_level;
 pub mod supervisor;

@@ -4,6 +4,7 @@
 mod codec;
 mod commander;
 mod console;
+mod high_level;
 mod log;
 mod param;
 mod supervisor_port;

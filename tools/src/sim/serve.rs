@@ -18,6 +18,10 @@
 //! watchdog sees the real packet age), and only while no mission runs. Packets cfnav cannot fly (RPYT or
 //! manual with thrust, tilted z-distance, full state) or that are refused get a rate-limited console note.
 //!
+//! High-level commander (port 8): each accepted command goes to `FlightCore::high_level_command` with its
+//! arrival time; the flight core flies the trajectory and keeps its setpoint fresh. A command refused (by
+//! the decoder, the group mask, a running mission or the trajectory follower) gets one console line.
+//!
 //! Supervisor (port 9): answered from the flight core's supervisor verdict. Arming cannot be changed (the
 //! core auto-arms), recovery is refused while crashed (the core has no supervisor reset). An emergency stop
 //! (command or watchdog) is latched: with no mission running a Stop setpoint is flown and every later
@@ -34,12 +38,14 @@ use cfnav::radio::commander::{Command, CommanderService, SetpointFollower};
 use cfnav::radio::console::ConsoleService;
 use cfnav::radio::crtp::{CrtpPacket, NULL_HEADER, PlatformService, Router, is_null_header};
 use cfnav::radio::endpoint::EndpointServices;
+use cfnav::radio::high_level::HighLevelService;
 use cfnav::radio::log::LogService;
 use cfnav::radio::log_registry::FlightLogState;
 use cfnav::radio::mem::MemService;
 use cfnav::radio::param::ParamService;
 use cfnav::radio::registry::{ID_START, MissionParamState};
 use cfnav::radio::supervisor_port::{SupervisorPortConfig, SupervisorPortService, SupervisorStatus};
+use cfnav::stack::HighLevelError;
 use cfnav::types::{RangeReading, Setpoint};
 
 use super::runner::{Faults, SIM_CELLS, SimDrone, mission_params};
@@ -128,6 +134,7 @@ struct Radio {
     mem: MemService,
     commander: CommanderService,
     follower: SetpointFollower,
+    high_level: HighLevelService,
     supervisor: SupervisorPortService,
     console: ConsoleService<CONSOLE_QUEUE>,
     commander_refused: u32,
@@ -148,6 +155,7 @@ impl Radio {
             mem: MemService,
             commander: CommanderService::new(),
             follower: SetpointFollower::new(),
+            high_level: HighLevelService::new(),
             // The sim's flight core auto-arms and has no supervisor reset.
             supervisor: SupervisorPortService::new(SupervisorPortConfig {
                 auto_arm: true,
@@ -250,6 +258,38 @@ impl Radio {
         }
     }
 
+    /// Flies the high-level commander's new command (port 8), or says on the console why not: every
+    /// port 8 packet cfnav does not act on gets one line.
+    fn apply_high_level(&mut self, drone: &mut SimDrone) {
+        if let Some(e) = self.high_level.take_error() {
+            let line = format!("high-level commander: packet not flown: {e:?}\n");
+            eprintln!("{:8.3} s  {}", seconds(drone), line.trim_end());
+            self.console(&line);
+        }
+        let Some((command, received_us)) = self.high_level.take() else {
+            return;
+        };
+        let refusal = if self.supervisor.emergency_stopped() {
+            Some("emergency stop latched (restart the simulator)".to_string())
+        } else {
+            match drone.core.high_level_command(command, received_us) {
+                Ok(()) => None,
+                Err(HighLevelError::MissionRunning) => {
+                    Some("a mission is running (write mission.start = 0 to abort it)".to_string())
+                }
+                Err(HighLevelError::Refused(r)) => Some(format!("{r:?}")),
+            }
+        };
+        match refusal {
+            None => eprintln!("{:8.3} s  high-level commander: {command:?}", seconds(drone)),
+            Some(why) => {
+                let line = format!("high-level command refused: {why}\n");
+                eprintln!("{:8.3} s  {}", seconds(drone), line.trim_end());
+                self.console(&line);
+            }
+        }
+    }
+
     /// Acts on the supervisor port's requests (emergency stop; arming and recovery are never granted here).
     fn apply_supervisor(&mut self, drone: &mut SimDrone) {
         let requests = self.supervisor.take_requests();
@@ -308,6 +348,7 @@ impl Radio {
         }
         let before = self.param.store().start;
         self.commander.set_now(now_us(drone));
+        self.high_level.set_now(now_us(drone));
         self.supervisor.set_now(now_us(drone));
         self.supervisor.set_status(supervisor_status(drone));
         let reply = {
@@ -316,6 +357,7 @@ impl Radio {
                 log: &mut self.log,
                 mem: &mut self.mem,
                 commander: &mut self.commander,
+                high_level: &mut self.high_level,
                 supervisor: &mut self.supervisor,
                 console: &mut self.console,
             }
@@ -332,6 +374,7 @@ impl Radio {
             }
         }
         self.apply_commander(drone);
+        self.apply_high_level(drone);
         self.apply_supervisor(drone);
         let after = self.param.store().start;
         match (before, after) {

@@ -127,9 +127,14 @@ impl Segment {
 
 /// The rest-to-rest 7th-order polynomial on τ ∈ [0, 1]: zero velocity, acceleration and jerk at both ends.
 pub fn smooth_step(tau: f32) -> f32 {
-    let t = tau.clamp(0.0, 1.0);
-    let t4 = t * t * t * t;
-    t4 * (35.0 + t * (-84.0 + t * (70.0 - 20.0 * t)))
+    let t = if tau.is_finite() { tau.clamp(0.0, 1.0) } else { 1.0 };
+    // s(τ) = 1 − s(1 − τ): the second half from the symmetric first, so that f32 rounding near τ = 1
+    // (where the four terms nearly cancel) cannot make the curve step backwards.
+    let half = |t: f32| {
+        let t4 = t * t * t * t;
+        t4 * (35.0 + t * (-84.0 + t * (70.0 - 20.0 * t)))
+    };
+    if t <= 0.5 { half(t) } else { 1.0 - half(1.0 - t) }
 }
 
 /// The high-level commander's state: idle or one segment. See the module documentation.

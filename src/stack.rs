@@ -38,6 +38,7 @@
 
 use crate::flight::control::{ControlOutput, Controller, ControllerConfig};
 use crate::flight::estimator::{Estimator, EstimatorConfig};
+use crate::flight::high_level::{HighLevel, HlCommand, HlPhase, HlRefusal};
 use crate::flight::supervisor::{
     Supervisor, SupervisorConfig, SupervisorInput, SupervisorOutput, SupervisorState, clamp_min_height,
 };
@@ -65,6 +66,15 @@ pub enum FlightConfigError {
     Controller,
     /// The mission's configuration is invalid.
     Mission,
+}
+
+/// Why a high-level command was refused.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum HighLevelError {
+    /// A mission runs: it owns the setpoint.
+    MissionRunning,
+    /// The trajectory follower refused it (see [`HlRefusal`]).
+    Refused(HlRefusal),
 }
 
 /// Why a mission start was refused (on top of the mission's own parameter checks).
@@ -136,6 +146,8 @@ pub struct Stabilizer {
     duty: MotorDuty,
     /// When the commander last sent a setpoint.
     commander_time: Option<Micros>,
+    /// The high-level commander's trajectory (port 8), in control while active.
+    high_level: HighLevel,
 }
 
 impl Stabilizer {
@@ -155,6 +167,7 @@ impl Stabilizer {
             last_supervisor: SupervisorOutput::default(),
             duty: MotorDuty::default(),
             commander_time: None,
+            high_level: HighLevel::new(),
         })
     }
 
@@ -166,6 +179,13 @@ impl Stabilizer {
             _ => 0.001,
         };
         self.last_imu_time = Some(now);
+        // The high-level commander keeps its setpoint fresh while it is in control, as stock's planner
+        // does: the watchdog then only guards the low-level commander and the mission.
+        if let Some(setpoint) = self.high_level.setpoint(now) {
+            self.setpoint = setpoint;
+            self.setpoint_time = Some(now);
+            self.commander_time = Some(now);
+        }
         self.estimator.on_imu(sample, dt_s);
         let state = self.estimator.state();
 
@@ -180,7 +200,6 @@ impl Stabilizer {
             battery_v: self.battery_v,
             arm_request: false,
         });
-        self.estimator.set_flying(verdict.flying);
         let setpoint = if verdict.motors_allowed {
             let guarded = self.supervisor.guard_setpoint(self.setpoint);
             if verdict.flying {
@@ -191,6 +210,13 @@ impl Stabilizer {
         } else {
             Setpoint::Stop
         };
+        // The estimator flies only while thrust is commanded. The supervisor keeps `flying` for 2 s after
+        // the motors stop (stock's is-flying window); a drone stopped in the air falls, and its impact is
+        // not in the IMU (a crash exceeds the accelerometer's range, or lasts less than a sample), so the
+        // estimator must be free to apply its on-the-ground rest update as soon as the drone lies still,
+        // or it integrates the fall speed on for those 2 s (−2.8 m/s: z swung to −4 m after a drop from
+        // 0.5 m).
+        self.estimator.set_flying(verdict.flying && setpoint != Setpoint::Stop);
         let output = self
             .controller
             .update(&setpoint, &state, sample.gyro_rad_s, self.battery_v, now);
@@ -201,6 +227,15 @@ impl Stabilizer {
         };
         self.last_control = output;
         self.last_supervisor = verdict;
+        // A high-level landing ends at the touchdown; a crash or a lock ends any trajectory.
+        let landed = matches!(verdict.state, SupervisorState::Landed) && self.high_level.phase() == HlPhase::Landing;
+        if self.high_level.is_active()
+            && (landed || matches!(verdict.state, SupervisorState::Crashed | SupervisorState::Locked))
+        {
+            self.high_level.disable();
+            self.setpoint = Setpoint::Stop;
+            self.setpoint_time = Some(now);
+        }
         self.duty
     }
 
@@ -264,10 +299,28 @@ impl Stabilizer {
 
     /// A setpoint from the radio commander. The caller checks that no mission runs
     /// ([`Navigator::is_running`]): the stabilizer flies whatever it is given last.
+    /// A low-level setpoint outranks the high-level commander (stock priorities), which gives up control.
     pub fn commander_setpoint(&mut self, setpoint: Setpoint, now: Micros) {
+        self.high_level.disable();
         self.setpoint = setpoint;
         self.setpoint_time = Some(now);
         self.commander_time = Some(now);
+    }
+
+    /// A high-level command (port 8) received at `now`. The caller checks that no mission runs, as for
+    /// [`Stabilizer::commander_setpoint`]. A stop cuts the motors at once; a refused command changes nothing.
+    pub fn high_level_command(&mut self, command: HlCommand, now: Micros) -> Result<(), HlRefusal> {
+        let estimate = self.estimator.state();
+        self.high_level.command(command, now, &estimate)?;
+        self.commander_time = Some(now);
+        self.setpoint_time = Some(now);
+        self.setpoint = self.high_level.setpoint(now).unwrap_or(Setpoint::Stop);
+        Ok(())
+    }
+
+    /// The high-level commander's state.
+    pub fn high_level(&self) -> &HighLevel {
+        &self.high_level
     }
 
     /// Applies a message from the navigator.
@@ -279,6 +332,7 @@ impl Stabilizer {
             }
             MissionCommand::Started { start_m } => {
                 self.commander_time = None;
+                self.high_level.disable();
                 // The drone stands where the parameters say: that is the arena frame's anchor for the flight.
                 let yaw = self.estimator.state().attitude_rad[2];
                 self.estimator.reset([start_m.0, start_m.1, 0.0], yaw);
@@ -498,6 +552,17 @@ impl<const CELLS: usize, const QUEUE: usize> FlightCore<CELLS, QUEUE> {
         if !self.navigator.is_running() {
             self.stabilizer.commander_setpoint(setpoint, now);
         }
+    }
+
+    /// A high-level command (port 8): refused while a mission runs, or when the trajectory follower
+    /// refuses it (nothing changes then).
+    pub fn high_level_command(&mut self, command: HlCommand, now: Micros) -> Result<(), HighLevelError> {
+        if self.navigator.is_running() {
+            return Err(HighLevelError::MissionRunning);
+        }
+        self.stabilizer
+            .high_level_command(command, now)
+            .map_err(HighLevelError::Refused)
     }
 
     /// 50 Hz: one mission step; its setpoint is flown by the next [`FlightCore::on_imu`] calls. Does

@@ -95,6 +95,11 @@ fn apply_input(stab: &mut Stabilizer, input: FastInput) {
             FastInput::Battery(volts) => stab.on_battery(volts),
             FastInput::Mission(command) => stab.apply(command),
             FastInput::Commander(setpoint, time) => stab.commander_setpoint(setpoint, time),
+            FastInput::HighLevel(command, time) => {
+                if let Err(e) = stab.high_level_command(command, time) {
+                    defmt::warn!("high-level command refused: {}", defmt::Debug2Format(&e));
+                }
+            }
         }
     }
 }

@@ -36,6 +36,7 @@ use core::future::poll_fn;
 use core::sync::atomic::{AtomicBool, AtomicU32, Ordering};
 use core::task::Poll;
 
+use cfnav::flight::high_level::HlCommand;
 use cfnav::mission::MissionParams;
 use cfnav::radio::log_registry::FirmwareLogState;
 use cfnav::stack::{FastStatus, MissionCommand, StartError};
@@ -69,6 +70,8 @@ pub enum FastInput {
     Mission(MissionCommand),
     /// A radio commander setpoint and when it arrived, µs (the radio task drops them while a mission runs).
     Commander(Setpoint, Micros),
+    /// A high-level commander command (port 8) and when it arrived, µs (dropped while a mission runs).
+    HighLevel(HlCommand, Micros),
 }
 
 /// Inputs of the mission task from the sensors.

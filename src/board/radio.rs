@@ -18,6 +18,8 @@
 //!
 //! Commander (ports 3 and 7): each accepted setpoint is mapped by [`SetpointFollower`] and handed to the
 //! control task with its arrival time, once, and only while no mission runs (as `cfnav sim --serve` does).
+//! High-level commander (port 8): each accepted command goes to the control task, whose stabilizer flies the
+//! trajectory; refused ones (decoder, group mask, a running mission, a fault) get one console line.
 //! Console (port 0): refusal notes and firmware messages through [`cfnav::radio::console::ConsoleService`].
 //! Supervisor (port 9): state bits from the stabilizer's verdict; arming cannot be changed (auto-arming, as
 //! the stock Crazyflie 2.1); an emergency stop (command or its watchdog) cuts the motors at once and is
@@ -184,6 +186,29 @@ impl Crtp {
         }
     }
 
+    /// Hands a high-level command (port 8) to the control task, or says on the console why not: every port 8
+    /// packet not acted on gets one line.
+    fn apply_high_level(&mut self) {
+        let mut line: String<96> = String::new();
+        if let Some(e) = self.ep.high_level.take_error() {
+            let _ = writeln!(line, "high-level commander: packet not flown: {e:?}");
+        } else if let Some((command, received_us)) = self.ep.high_level.take() {
+            if MISSION_RUNNING.load(Ordering::Acquire) || self.start.pending() {
+                let _ = writeln!(line, "high-level command refused: a mission is running");
+            } else if FAULT.load(Ordering::Acquire) {
+                let _ = writeln!(line, "high-level command refused: fault latched (power-cycle)");
+            } else if FAST_INPUTS
+                .try_send(FastInput::HighLevel(command, received_us))
+                .is_err()
+            {
+                let _ = writeln!(line, "high-level command dropped: control queue full, send it again");
+            }
+        }
+        if !line.is_empty() {
+            self.console(&line);
+        }
+    }
+
     /// One uplink CRTP packet: returns the one downlink packet it may carry.
     fn on_uplink(&mut self, bytes: &[u8], now: Instant) -> Option<CrtpPacket> {
         self.last_uplink = Some(now);
@@ -204,6 +229,7 @@ impl Crtp {
         });
         let reply = self.ep.handle_uplink(bytes, now.as_micros());
         self.apply_commander();
+        self.apply_high_level();
         let after = self.ep.param.store().start;
         let fault = FAULT.load(Ordering::Acquire);
         match self.start.on_write(before, after, fault) {

@@ -617,15 +617,18 @@ impl Supervisor {
         }
     }
 
-    /// The setpoint to feed the controller, given the mission's: Stop when the motors are not allowed;
-    /// while levelling out, zero velocity at the held height and heading (stock WarningLevelOut: level,
+    /// The setpoint to feed the controller, given the mission's: Stop when the motors are not allowed or
+    /// the setpoint is Stop; while levelling out, zero velocity at the held height and heading (stock WarningLevelOut: level,
     /// hold z); otherwise the mission's with [`clamp_min_height`] applied. Uses the state of the last
     /// [`Supervisor::update`].
     pub fn guard_setpoint(&self, setpoint: Setpoint) -> Setpoint {
         if !matches!(self.state, SupervisorState::Armed | SupervisorState::Flying) {
             return Setpoint::Stop;
         }
-        if self.level_out {
+        // A Stop stays a Stop, stale or not: stock's level-out keeps the setpoint's z mode, and a stop
+        // setpoint has none (thrust 0), so a drone told to stop in the air falls instead of climbing back to
+        // the height it held before the stop.
+        if self.level_out && setpoint != Setpoint::Stop {
             // The held height is not raised to the minimum: a landing that loses its setpoints holds
             // where it is instead of climbing.
             let (z, yaw) = self.hold.unwrap_or((self.cfg.min_height_m, 0.0));

@@ -11,6 +11,7 @@
 use super::commander::CommanderService;
 use super::console::ConsoleService;
 use super::crtp::{CrtpPacket, PlatformService, Router, Service};
+use super::high_level::HighLevelService;
 use super::log::LogService;
 use super::log_registry::LogSource;
 use super::mem::MemService;
@@ -20,7 +21,7 @@ use super::supervisor_port::{SupervisorPortConfig, SupervisorPortService};
 use crate::types::Micros;
 
 /// One endpoint's router and services: parameters (port 2), logs (5), memory (4), commander (3 and 7),
-/// supervisor (9) and console (0); link (15) and platform (13) live in the router.
+/// high-level commander (8), supervisor (9) and console (0); link (15) and platform (13) live in the router.
 pub struct Endpoint<P: ParamStore, L: LogSource, const C: usize, const Q: usize> {
     /// The router (link and platform services, reply queue).
     pub router: Router<Q>,
@@ -32,6 +33,8 @@ pub struct Endpoint<P: ParamStore, L: LogSource, const C: usize, const Q: usize>
     pub mem: MemService,
     /// Setpoint commander (ports 3 and 7).
     pub commander: CommanderService,
+    /// High-level commander (port 8).
+    pub high_level: HighLevelService,
     /// Supervisor port.
     pub supervisor: SupervisorPortService,
     /// Console.
@@ -48,6 +51,7 @@ impl<P: ParamStore, L: LogSource, const C: usize, const Q: usize> Endpoint<P, L,
             log: LogService::new(),
             mem: MemService,
             commander: CommanderService::new(),
+            high_level: HighLevelService::new(),
             supervisor: SupervisorPortService::new(supervisor),
             console: ConsoleService::new(),
         }
@@ -58,13 +62,15 @@ impl<P: ParamStore, L: LogSource, const C: usize, const Q: usize> Endpoint<P, L,
     pub fn handle_uplink(&mut self, bytes: &[u8], now_us: Micros) -> Option<CrtpPacket> {
         self.commander.set_now(now_us);
         self.supervisor.set_now(now_us);
+        self.high_level.set_now(now_us);
         let [mut rpyt, mut generic] = self.commander.ports();
-        let mut services: [&mut dyn Service; 7] = [
+        let mut services: [&mut dyn Service; 8] = [
             &mut self.param,
             &mut self.log,
             &mut self.mem,
             &mut rpyt,
             &mut generic,
+            &mut self.high_level,
             &mut self.supervisor,
             &mut self.console,
         ];

@@ -8,7 +8,8 @@
 //! [`param::ParamService`] (port 2) over a [`registry::ParamStore`], the log protocol [`log::LogService`]
 //! (port 5) over a [`log_registry::LogSource`], the memory count [`mem::MemService`] (port 4), the commander
 //! ports 3 and 7 through [`commander::CommanderService::ports`] (decoded setpoint commands with the RPYT
-//! thrust lock; [`commander::SetpointFollower`] maps them to [`crate::types::Setpoint`]), the supervisor port 9
+//! thrust lock; [`commander::SetpointFollower`] maps them to [`crate::types::Setpoint`]), the high-level
+//! commander port 8 [`high_level::HighLevelService`] (take-off, land, go-to, stop, group masks), the supervisor port 9
 //! [`supervisor_port::SupervisorPortService`] (state bits, arming, recovery, emergency stop and its watchdog,
 //! as requests for the caller) and the console port 0 [`console::ConsoleService`] (text lines cut into
 //! ≤ 30-byte packets, handed out one per downlink opportunity). [`syslink_tx`] is the transmit side towards the
@@ -26,6 +27,7 @@ pub mod commander;
 pub mod console;
 pub mod crtp;
 pub mod endpoint;
+pub mod high_level;
 pub mod log;
 pub mod log_registry;
 pub mod mem;

@@ -6,6 +6,7 @@ mod codec;
 mod commander;
 mod console;
 mod flow_control;
+mod high_level;
 mod log;
 mod param;
 mod stock;

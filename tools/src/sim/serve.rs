@@ -18,6 +18,10 @@
 //! watchdog sees the real packet age), and only while no mission runs. Packets cfnav cannot fly (RPYT or
 //! manual with thrust, tilted z-distance, full state) or that are refused get a rate-limited console note.
 //!
+//! High-level commander (port 8): each accepted command goes to `FlightCore::high_level_command` with its
+//! arrival time; the flight core flies the trajectory and keeps its setpoint fresh. A command refused (by
+//! the decoder, the group mask, a running mission or the trajectory follower) gets one console line.
+//!
 //! Supervisor (port 9): answered from the flight core's supervisor verdict. Arming cannot be changed (the
 //! core auto-arms), recovery is refused while crashed (the core has no supervisor reset). An emergency stop
 //! (command or watchdog) is latched: with no mission running a Stop setpoint is flown and every later
@@ -37,6 +41,7 @@ use cfnav::radio::log_registry::FlightLogState;
 use cfnav::radio::param::ParamService;
 use cfnav::radio::registry::{ID_RESET_ESTIMATION, ID_START, MissionParamState};
 use cfnav::radio::supervisor_port::{SupervisorPortConfig, SupervisorStatus};
+use cfnav::stack::HighLevelError;
 use cfnav::types::{RangeReading, Setpoint};
 
 use super::runner::{Faults, SIM_CELLS, SimDrone, mission_params};
@@ -242,6 +247,38 @@ impl Radio {
         }
     }
 
+    /// Flies the high-level commander's new command (port 8), or says on the console why not: every
+    /// port 8 packet cfnav does not act on gets one line.
+    fn apply_high_level(&mut self, drone: &mut SimDrone) {
+        if let Some(e) = self.ep.high_level.take_error() {
+            let line = format!("high-level commander: packet not flown: {e:?}\n");
+            eprintln!("{:8.3} s  {}", seconds(drone), line.trim_end());
+            self.console(&line);
+        }
+        let Some((command, received_us)) = self.ep.high_level.take() else {
+            return;
+        };
+        let refusal = if self.ep.supervisor.emergency_stopped() {
+            Some("emergency stop latched (restart the simulator)".to_string())
+        } else {
+            match drone.core.high_level_command(command, received_us) {
+                Ok(()) => None,
+                Err(HighLevelError::MissionRunning) => {
+                    Some("a mission is running (write mission.start = 0 to abort it)".to_string())
+                }
+                Err(HighLevelError::Refused(r)) => Some(format!("{r:?}")),
+            }
+        };
+        match refusal {
+            None => eprintln!("{:8.3} s  high-level commander: {command:?}", seconds(drone)),
+            Some(why) => {
+                let line = format!("high-level command refused: {why}\n");
+                eprintln!("{:8.3} s  {}", seconds(drone), line.trim_end());
+                self.console(&line);
+            }
+        }
+    }
+
     /// Acts on the supervisor port's requests (emergency stop; arming and recovery are never granted here).
     fn apply_supervisor(&mut self, drone: &mut SimDrone) {
         let requests = self.ep.supervisor.take_requests();
@@ -313,6 +350,7 @@ impl Radio {
             }
         }
         self.apply_commander(drone);
+        self.apply_high_level(drone);
         self.apply_supervisor(drone);
         if let Some(xy) = self.ep.param.store().pending_reset() {
             drone.core.reset_estimate(xy);

@@ -26,9 +26,9 @@ use cfnav::nav::dstar::{ArenaPlanner, PlanError, PlanStatus};
 use cfnav::nav::map::Cell;
 use cfnav::stack::{FlightConfig, Stabilizer};
 use cfnav::system::step_pacing::HeavyInputGate;
-use cfnav::types::{FlowSample, GRAVITY_M_S2, ImuSample, MultiRangerSample, Setpoint};
+use cfnav::types::{GRAVITY_M_S2, ImuSample, Setpoint};
 use cortex_m_semihosting::hprintln;
-use qemu_bench::{Meter, SEED_MAP, World, summarize};
+use qemu_bench::{Meter, SEED_MAP, STILL_FLOW, WALLS_AT_1M, World, summarize};
 
 /// Measured steps (two simulated seconds).
 const STEPS: usize = 2000;
@@ -88,20 +88,8 @@ fn control_step_run(meter: &mut impl Meter, gated: bool) -> Result<(), ()> {
         z_m: 0.5,
         yaw_rad: 0.0,
     };
-    let flow = FlowSample {
-        dpixel_x: 0,
-        dpixel_y: 0,
-        squal: 140,
-        motion_valid: true,
-        dt_s: 0.01,
-    };
-    let walls = MultiRangerSample {
-        front_m: Some(1.0),
-        back_m: Some(1.0),
-        left_m: Some(1.0),
-        right_m: Some(1.0),
-        up_m: None,
-    };
+    let flow = STILL_FLOW;
+    let walls = WALLS_AT_1M;
     let mut all = [0u32; STEPS];
     let mut imu_only = [0u32; STEPS];
     let mut n_imu_only = 0;

@@ -152,13 +152,42 @@ fn candidate(rng: &mut SmallRng, seed: u64) -> World {
         }
     }
 
+    let count = rng.random_range(0..=4);
     let mut cylinders = Vec::new();
-    for _ in 0..rng.random_range(0..=4) {
+    scatter_cylinders(rng, count, [w, h], ceiling, &keep, &mut cylinders);
+
+    generated_world(seed, [w, h], ceiling, [start, goal], [home, goal_pad], boxes, cylinders)
+}
+
+// ---------------------------------------------------------------------------------------------------------
+// The widened generator
+
+/// Smallest and largest arena of the widened generator, metres (the largest is the `large-arena` build's).
+pub const WIDE_ARENA_MIN_M: [f32; 2] = [4.0, 2.0];
+/// See [`WIDE_ARENA_MIN_M`].
+pub const WIDE_ARENA_MAX_M: [f32; 2] = [6.4, 3.2];
+/// Edge-to-edge gap between the goal pad and the wall or obstacle it is placed next to, metres.
+pub const NEAR_PAD_GAP_M: (f32, f32) = (0.1, 0.25);
+/// Radii of a forest's thin cylinders, metres.
+pub const FOREST_RADIUS_M: (f32, f32) = (0.08, 0.15);
+/// Least edge gap between a forest cylinder and the goal pad, metres.
+pub const FOREST_PAD_GAP_M: f32 = 0.1;
+
+/// Up to `count` cylinders of radius 5–25 cm where `keep` allows them (20 tries each), appended to `out`.
+fn scatter_cylinders(
+    rng: &mut SmallRng,
+    count: u32,
+    [w, h]: [f32; 2],
+    ceiling: f32,
+    keep: &KeepOut,
+    out: &mut Vec<Cylinder>,
+) {
+    for _ in 0..count {
         for _ in 0..20 {
             let r = cm(rng.random_range(0.05..=0.25));
             let center = [cm(rng.random_range(r..=w - r)), cm(rng.random_range(r..=h - r))];
             if keep.allows_disc(center, r) {
-                cylinders.push(Cylinder {
+                out.push(Cylinder {
                     center,
                     radius: r,
                     height: obstacle_height(rng, ceiling),
@@ -167,10 +196,21 @@ fn candidate(rng: &mut SmallRng, seed: u64) -> World {
             }
         }
     }
+}
 
+/// A generated world with the default mission settings: `[start, goal]`, `[home pad, goal pad]`.
+fn generated_world(
+    seed: u64,
+    size: [f32; 2],
+    ceiling: f32,
+    [start, goal]: [[f32; 2]; 2],
+    [home, goal_pad]: [Pad; 2],
+    boxes: Vec<BoxObstacle>,
+    cylinders: Vec<Cylinder>,
+) -> World {
     World {
         name: format!("random-{seed}"),
-        arena: Arena { size: [w, h], ceiling },
+        arena: Arena { size, ceiling },
         mission: Mission {
             start,
             goal,
@@ -188,20 +228,6 @@ fn candidate(rng: &mut SmallRng, seed: u64) -> World {
         stress: Stress::default(),
     }
 }
-
-// ---------------------------------------------------------------------------------------------------------
-// The widened generator
-
-/// Smallest and largest arena of the widened generator, metres (the largest is the `large-arena` build's).
-pub const WIDE_ARENA_MIN_M: [f32; 2] = [4.0, 2.0];
-/// See [`WIDE_ARENA_MIN_M`].
-pub const WIDE_ARENA_MAX_M: [f32; 2] = [6.4, 3.2];
-/// Edge-to-edge gap between the goal pad and the wall or obstacle it is placed next to, metres.
-pub const NEAR_PAD_GAP_M: (f32, f32) = (0.1, 0.25);
-/// Radii of a forest's thin cylinders, metres.
-pub const FOREST_RADIUS_M: (f32, f32) = (0.08, 0.15);
-/// Least edge gap between a forest cylinder and the goal pad, metres.
-pub const FOREST_PAD_GAP_M: f32 = 0.1;
 
 /// A random obstacle placed `gap` (edge to edge) from the pad's footprint on a random side.
 fn obstacle_next_to(rng: &mut SmallRng, pad: &Pad, gap: f32, ceiling: f32) -> (Option<BoxObstacle>, Option<Cylinder>) {
@@ -458,40 +484,10 @@ fn candidate_wide(rng: &mut SmallRng, seed: u64) -> World {
             }
         }
     }
-    for _ in 0..rng.random_range(0..=3) {
-        for _ in 0..20 {
-            let r = cm(rng.random_range(0.05..=0.25));
-            let center = [cm(rng.random_range(r..=w - r)), cm(rng.random_range(r..=h - r))];
-            if keep.allows_disc(center, r) {
-                cylinders.push(Cylinder {
-                    center,
-                    radius: r,
-                    height: obstacle_height(rng, ceiling),
-                });
-                break;
-            }
-        }
-    }
+    let count = rng.random_range(0..=3);
+    scatter_cylinders(rng, count, [w, h], ceiling, &keep, &mut cylinders);
 
-    World {
-        name: format!("random-{seed}"),
-        arena: Arena { size: [w, h], ceiling },
-        mission: Mission {
-            start,
-            goal,
-            height: DEFAULT_HEIGHT_M,
-            speed: DEFAULT_SPEED_MPS,
-        },
-        pads: vec![home, goal_pad],
-        boxes,
-        cylinders,
-        sim: SimSettings {
-            seed,
-            time_limit: DEFAULT_TIME_LIMIT_S,
-            expect: Expect::Completed,
-        },
-        stress: Stress::default(),
-    }
+    generated_world(seed, [w, h], ceiling, [start, goal], [home, goal_pad], boxes, cylinders)
 }
 
 /// The last resort: the default world's arena, mission and pads without obstacles.

@@ -6,11 +6,13 @@
 //! Boot, in order (the board layer's module documentation has the priorities and the messages):
 //! 1. clocks: 8 MHz HSE through the PLL at 168 MHz (APB1 42 MHz, APB2 84 MHz, PLL-Q 48 MHz); the embassy time
 //!    driver runs on TIM5 (TIM2/TIM4 drive the motors); the DWT cycle counter is started for the load figures;
-//! 2. LEDs ("booting"), motors (TIM2/TIM4 PWM, all off), the independent watchdog;
+//!    then the flash accelerator (prefetch, I- and D-cache: embassy leaves them off; checked, fault if not on);
+//! 2. LEDs ("booting"), motors (TIM2/TIM4 PWM, all off), the independent watchdog (fed from the I/O
+//!    executor once it runs);
 //! 3. the navigator (map + planner) built in CCM;
-//! 4. deck I2C1: the EEPROM config block (radio settings), the Multi-ranger probe; SPI1: the Flow deck's
-//!    PMW3901; then syslink on USART6 with the radio task (settings, battery auto-update; RADIO_READY once
-//!    booted);
+//! 4. deck I2C1 (guarded: deadlines and bus recovery): the EEPROM config block (radio settings); syslink on
+//!    USART6 with the radio task (settings, battery auto-update; RADIO_READY once booted); then the deck
+//!    rangers (so a stuck deck bus cannot delay the radio) and SPI1: the Flow deck's PMW3901;
 //! 5. at 1 s after power-on (stock waits as long before touching the IMU) the BMI088 on I2C3, then the
 //!    control loop on the gyro data-ready edge (PC14);
 //! 6. the mission task and the statistics; "booted": motors may run from now on, RADIO_READY goes out.
@@ -34,9 +36,10 @@ mod board;
 mod fw {
     use core::sync::atomic::Ordering;
 
-    use cfnav::drivers::bmi088::Bmi088;
+    use cfnav::drivers::bmi088::{AccelTrim, Bmi088};
     use cfnav::stack::{FlightConfig, Stabilizer};
     use defmt::{error, info, warn};
+    use defmt_rtt as _;
     use embassy_executor::{SendSpawner, SpawnError, SpawnToken, Spawner};
     use embassy_stm32::exti::{self, ExtiInput};
     use embassy_stm32::gpio::{Level, Output, Pull, Speed};
@@ -50,9 +53,11 @@ mod fw {
     use embassy_stm32::{bind_interrupts, dma, peripherals};
     use embassy_time::{Delay, Instant, Timer};
     use static_cell::StaticCell;
-    use {defmt_rtt as _, panic_probe as _};
 
-    use crate::board::{self, BOOTED, DECKS_OK, IO_PRIORITY, control, leds, mission, motors, radio, sensors, system};
+    use crate::board::{
+        self, BOOTED, DECK_FLOW2, DECK_MULTIRANGER, DECKS_OK, IO_PRIORITY, control, leds, mission, motors, radio,
+        sensors, system,
+    };
 
     bind_interrupts!(struct Irqs {
         USART6 => usart::InterruptHandler<peripherals::USART6>;
@@ -139,6 +144,11 @@ mod fw {
     async fn main(spawner: Spawner) {
         let p = embassy_stm32::init(clock_config());
         info!("cfnav firmware {} booting", env!("CARGO_PKG_VERSION"));
+        // embassy's clock setup left the flash caches and prefetch off: every CPU figure assumes them on.
+        if let Err(acr) = system::enable_flash_accelerator() {
+            error!("FLASH_ACR reads {=u32:#x}", acr);
+            board::fault("flash accelerator not enabled");
+        }
 
         // The cycle counter for the load and jitter figures.
         match cortex_m::Peripherals::take() {
@@ -163,7 +173,6 @@ mod fw {
             }
         };
         let wdg = IndependentWatchdog::new(p.IWDG, system::WATCHDOG_TIMEOUT_US);
-        spawn(&spawner, "watchdog_task", system::watchdog_task(wdg));
 
         // The navigator first, while the stack is shallow (today the compiler builds it in place in CCM; the
         // largest stack frame of the image is 13 KB, see BENCHMARKS.md §6).
@@ -176,15 +185,16 @@ mod fw {
         // The I/O executor: sensors and radio.
         interrupt::UART5.set_priority(IO_PRIORITY);
         let io = EXECUTOR_IO.start(interrupt::UART5);
+        // Fed from the I/O executor, which preempts thread mode: no planner slice can delay a feed.
+        spawn_send(&io, "watchdog_task", system::watchdog_task(wdg));
 
-        // Deck bus: config block, then both decks' rangers (then owned by the deck task).
+        // Deck bus (every transfer under a deadline, with bus recovery): the config block first, the rangers
+        // after the syslink is up, so a stuck deck bus cannot keep the radio from starting.
         let mut i2c_config = i2c::Config::default();
         i2c_config.frequency = Hertz(400_000);
-        let mut deck_i2c = I2c::new(p.I2C1, p.PB6, p.PB7, p.DMA1_CH6, p.DMA1_CH0, Irqs, i2c_config);
+        let deck_bus = I2c::new(p.I2C1, p.PB6, p.PB7, p.DMA1_CH6, p.DMA1_CH0, Irqs, i2c_config);
+        let mut deck_i2c = sensors::guard(deck_bus, sensors::I2cRecoveryPins::deck(), sensors::DECK_GUARD);
         let settings = sensors::read_radio_settings(&mut deck_i2c).await;
-        let rangers = sensors::bring_up_rangers(&mut deck_i2c).await;
-        let rangers_ok = rangers.z.is_some() && rangers.multi.is_some();
-        spawn_send(&io, "deck_task", sensors::deck_task(deck_i2c, rangers));
 
         // Syslink.
         let mut uart_config = usart::Config::default();
@@ -194,13 +204,23 @@ mod fw {
         match Uart::new(p.USART6, p.PC7, p.PC6, p.DMA2_CH7, p.DMA2_CH1, Irqs, uart_config) {
             Ok(uart) => {
                 let (tx, rx) = uart.split();
-                let rx = rx.into_ring_buffered(SYSLINK_RX_RING.init([0; 1024]));
+                let mut rx = rx.into_ring_buffered(SYSLINK_RX_RING.init([0; 1024]));
+                // Receive from now on: the nRF's echoes of the boot settings come while they are sent.
+                rx.start_uart();
                 // PA4: the nRF's RTS, pulled up as stock (high = stop sending).
                 let flow = ExtiInput::new(p.PA4, p.EXTI4, Pull::Up, Irqs);
                 spawn_send(
                     &io,
                     "radio_task",
-                    radio::radio_task(radio::SyslinkUart { tx, rx, flow }, settings),
+                    radio::radio_task(
+                        radio::SyslinkUart {
+                            tx,
+                            rx,
+                            flow,
+                            frame_tx: cfnav::radio::syslink_tx::FlowTx::new(),
+                        },
+                        settings,
+                    ),
                 );
             }
             Err(e) => {
@@ -208,6 +228,12 @@ mod fw {
                 board::fault("syslink UART");
             }
         }
+
+        // Both decks' rangers (then the deck task owns the bus).
+        let rangers = sensors::bring_up_rangers(&mut deck_i2c).await;
+        let rangers_ok = rangers.z.is_some() && rangers.multi.is_some();
+        DECK_MULTIRANGER.store(rangers.multi.is_some(), Ordering::Release);
+        spawn_send(&io, "deck_task", sensors::deck_task(deck_i2c, rangers));
 
         // Flow deck on SPI1, chip select PB4 (idle high), mode 0 at ≤ 1.3125 MHz like stock.
         let mut spi_config = spi::Config::default();
@@ -217,6 +243,7 @@ mod fw {
         let cs = Output::new(p.PB4, Level::High, Speed::VeryHigh);
         let flow = sensors::init_flow(sensors::SpiWithCs::new(spi, cs)).await;
         let flow_ok = flow.is_some();
+        DECK_FLOW2.store(flow_ok, Ordering::Release);
         if let Some(flow) = flow {
             spawn_send(&io, "flow_task", sensors::flow_task(flow));
         }
@@ -229,7 +256,8 @@ mod fw {
 
         // The IMU, at the stock start-up time after power-on.
         Timer::at(Instant::from_millis(SENSORS_STARTUP_MS)).await;
-        let sensor_i2c = I2c::new(p.I2C3, p.PA8, p.PC9, p.DMA1_CH4, p.DMA1_CH2, Irqs, i2c_config);
+        let sensor_bus = I2c::new(p.I2C3, p.PA8, p.PC9, p.DMA1_CH4, p.DMA1_CH2, Irqs, i2c_config);
+        let sensor_i2c = sensors::guard(sensor_bus, sensors::I2cRecoveryPins::sensors(), sensors::IMU_GUARD);
         let mut imu = Bmi088::new(sensor_i2c);
         let imu_ok = match imu.init(&mut Delay).await {
             Ok(()) => true,
@@ -240,6 +268,7 @@ mod fw {
             }
         };
         let drdy = ExtiInput::new(p.PC14, p.EXTI14, Pull::None, Irqs);
+        let trim = AccelTrim::from_degrees(settings.calib_roll_deg, settings.calib_pitch_deg);
         match (
             Stabilizer::new(&config, cfnav::mission::MissionParams::SEED.start_m, 0.0),
             motors,
@@ -248,7 +277,11 @@ mod fw {
                 // The priority must be set before `start()`, which unmasks the interrupt.
                 interrupt::UART4.set_priority(control::PRIORITY);
                 let ctrl = control::EXECUTOR.start(interrupt::UART4);
-                spawn_send(&ctrl, "control_task", control::control_task(stab, imu, drdy, motors));
+                spawn_send(
+                    &ctrl,
+                    "control_task",
+                    control::control_task(stab, imu, trim, drdy, motors),
+                );
                 board::CONTROL_RUNNING.store(true, Ordering::Release);
             }
             (Err(_), _) => board::fault("stabilizer: invalid configuration"),

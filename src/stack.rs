@@ -38,6 +38,7 @@
 
 use crate::flight::control::{ControlOutput, Controller, ControllerConfig};
 use crate::flight::estimator::{Estimator, EstimatorConfig};
+use crate::flight::high_level::{HighLevel, HlCommand, HlPhase, HlRefusal};
 use crate::flight::supervisor::{
     Supervisor, SupervisorConfig, SupervisorInput, SupervisorOutput, SupervisorState, clamp_min_height,
 };
@@ -54,6 +55,10 @@ const HOLD_MAX_CLIMB_M_S: f32 = 0.15;
 /// timeout, `crazyflie-hardware.md` §10.1), µs.
 pub const COMMANDER_HOLD_US: Micros = 2_000_000;
 
+/// How long after the last good IMU sample [`Stabilizer::on_imu_missed`] keeps the motors level before
+/// it stops them, µs (5 control periods).
+pub const IMU_LEVEL_US: Micros = 5_000;
+
 /// Why the flight core could not be built.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum FlightConfigError {
@@ -61,6 +66,15 @@ pub enum FlightConfigError {
     Controller,
     /// The mission's configuration is invalid.
     Mission,
+}
+
+/// Why a high-level command was refused.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum HighLevelError {
+    /// A mission runs: it owns the setpoint.
+    MissionRunning,
+    /// The trajectory follower refused it (see [`HlRefusal`]).
+    Refused(HlRefusal),
 }
 
 /// Why a mission start was refused (on top of the mission's own parameter checks).
@@ -132,6 +146,8 @@ pub struct Stabilizer {
     duty: MotorDuty,
     /// When the commander last sent a setpoint.
     commander_time: Option<Micros>,
+    /// The high-level commander's trajectory (port 8), in control while active.
+    high_level: HighLevel,
 }
 
 impl Stabilizer {
@@ -151,6 +167,7 @@ impl Stabilizer {
             last_supervisor: SupervisorOutput::default(),
             duty: MotorDuty::default(),
             commander_time: None,
+            high_level: HighLevel::new(),
         })
     }
 
@@ -162,6 +179,13 @@ impl Stabilizer {
             _ => 0.001,
         };
         self.last_imu_time = Some(now);
+        // The high-level commander keeps its setpoint fresh while it is in control, as stock's planner
+        // does: the watchdog then only guards the low-level commander and the mission.
+        if let Some(setpoint) = self.high_level.setpoint(now) {
+            self.setpoint = setpoint;
+            self.setpoint_time = Some(now);
+            self.commander_time = Some(now);
+        }
         self.estimator.on_imu(sample, dt_s);
         let state = self.estimator.state();
 
@@ -176,7 +200,6 @@ impl Stabilizer {
             battery_v: self.battery_v,
             arm_request: false,
         });
-        self.estimator.set_flying(verdict.flying);
         let setpoint = if verdict.motors_allowed {
             let guarded = self.supervisor.guard_setpoint(self.setpoint);
             if verdict.flying {
@@ -187,6 +210,13 @@ impl Stabilizer {
         } else {
             Setpoint::Stop
         };
+        // The estimator flies only while thrust is commanded. The supervisor keeps `flying` for 2 s after
+        // the motors stop (stock's is-flying window); a drone stopped in the air falls, and its impact is
+        // not in the IMU (a crash exceeds the accelerometer's range, or lasts less than a sample), so the
+        // estimator must be free to apply its on-the-ground rest update as soon as the drone lies still,
+        // or it integrates the fall speed on for those 2 s (−2.8 m/s: z swung to −4 m after a drop from
+        // 0.5 m).
+        self.estimator.set_flying(verdict.flying && setpoint != Setpoint::Stop);
         let output = self
             .controller
             .update(&setpoint, &state, sample.gyro_rad_s, self.battery_v, now);
@@ -197,6 +227,40 @@ impl Stabilizer {
         };
         self.last_control = output;
         self.last_supervisor = verdict;
+        // A high-level landing ends at the touchdown; a crash or a lock ends any trajectory.
+        let landed = matches!(verdict.state, SupervisorState::Landed) && self.high_level.phase() == HlPhase::Landing;
+        if self.high_level.is_active()
+            && (landed || matches!(verdict.state, SupervisorState::Crashed | SupervisorState::Locked))
+        {
+            self.high_level.disable();
+            self.setpoint = Setpoint::Stop;
+            self.setpoint_time = Some(now);
+        }
+        self.duty
+    }
+
+    /// The control loop got no IMU sample this period (no data-ready edge, or the read failed or timed
+    /// out). Returns the duties to write now: for up to [`IMU_LEVEL_US`] after the last good sample the
+    /// four motors get the mean of the last duties (the collective without torque: level, no attitude
+    /// loop is possible blind; zero if they were off); after that all zero, and the supervisor latches
+    /// Crashed if it was flying ([`Supervisor::imu_lost`]). A good sample resumes normal steps
+    /// (except from Crashed, which stays until reset).
+    pub fn on_imu_missed(&mut self, now: Micros) -> MotorDuty {
+        let within = self
+            .last_imu_time
+            .is_some_and(|t| now.saturating_sub(t) <= IMU_LEVEL_US);
+        let running = self.duty != MotorDuty::default();
+        self.duty = if !within {
+            self.last_supervisor = self.supervisor.imu_lost();
+            self.estimator.set_flying(false);
+            MotorDuty::default()
+        } else if running && self.last_supervisor.motors_allowed {
+            let sum: u32 = self.duty.0.iter().map(|&d| u32::from(d)).sum();
+            let mean = u8::try_from(sum.div_ceil(4)).unwrap_or(u8::MAX);
+            MotorDuty([mean; 4])
+        } else {
+            MotorDuty::default()
+        };
         self.duty
     }
 
@@ -235,10 +299,28 @@ impl Stabilizer {
 
     /// A setpoint from the radio commander. The caller checks that no mission runs
     /// ([`Navigator::is_running`]): the stabilizer flies whatever it is given last.
+    /// A low-level setpoint outranks the high-level commander (stock priorities), which gives up control.
     pub fn commander_setpoint(&mut self, setpoint: Setpoint, now: Micros) {
+        self.high_level.disable();
         self.setpoint = setpoint;
         self.setpoint_time = Some(now);
         self.commander_time = Some(now);
+    }
+
+    /// A high-level command (port 8) received at `now`. The caller checks that no mission runs, as for
+    /// [`Stabilizer::commander_setpoint`]. A stop cuts the motors at once; a refused command changes nothing.
+    pub fn high_level_command(&mut self, command: HlCommand, now: Micros) -> Result<(), HlRefusal> {
+        let estimate = self.estimator.state();
+        self.high_level.command(command, now, &estimate)?;
+        self.commander_time = Some(now);
+        self.setpoint_time = Some(now);
+        self.setpoint = self.high_level.setpoint(now).unwrap_or(Setpoint::Stop);
+        Ok(())
+    }
+
+    /// The high-level commander's state.
+    pub fn high_level(&self) -> &HighLevel {
+        &self.high_level
     }
 
     /// Applies a message from the navigator.
@@ -250,6 +332,7 @@ impl Stabilizer {
             }
             MissionCommand::Started { start_m } => {
                 self.commander_time = None;
+                self.high_level.disable();
                 // The drone stands where the parameters say: that is the arena frame's anchor for the flight.
                 let yaw = self.estimator.state().attitude_rad[2];
                 self.estimator.reset([start_m.0, start_m.1, 0.0], yaw);
@@ -421,6 +504,14 @@ impl<const CELLS: usize, const QUEUE: usize> FlightCore<CELLS, QUEUE> {
         Ok(())
     }
 
+    /// `kalman.resetEstimation`: re-anchor the estimate's horizontal position at `xy_m` (arena frame, m),
+    /// heading kept, as a mission start does. Ignored while a mission runs.
+    pub fn reset_estimate(&mut self, xy_m: (f32, f32)) {
+        if !self.navigator.is_running() {
+            self.stabilizer.apply(MissionCommand::Started { start_m: xy_m });
+        }
+    }
+
     /// Abort (`mission.start = 0` during a mission): land where it is.
     pub fn abort_mission(&mut self) {
         self.navigator.abort(&self.stabilizer.status());
@@ -461,6 +552,17 @@ impl<const CELLS: usize, const QUEUE: usize> FlightCore<CELLS, QUEUE> {
         if !self.navigator.is_running() {
             self.stabilizer.commander_setpoint(setpoint, now);
         }
+    }
+
+    /// A high-level command (port 8): refused while a mission runs, or when the trajectory follower
+    /// refuses it (nothing changes then).
+    pub fn high_level_command(&mut self, command: HlCommand, now: Micros) -> Result<(), HighLevelError> {
+        if self.navigator.is_running() {
+            return Err(HighLevelError::MissionRunning);
+        }
+        self.stabilizer
+            .high_level_command(command, now)
+            .map_err(HighLevelError::Refused)
     }
 
     /// 50 Hz: one mission step; its setpoint is flown by the next [`FlightCore::on_imu`] calls. Does

@@ -138,44 +138,29 @@ pub enum Setpoint {
     },
 }
 
+impl Setpoint {
+    /// Every number in it is finite (Stop has none).
+    pub fn is_finite(&self) -> bool {
+        match *self {
+            Setpoint::Stop => true,
+            Setpoint::Position { x_m, y_m, z_m, yaw_rad } => [x_m, y_m, z_m, yaw_rad].iter().all(|v| v.is_finite()),
+            Setpoint::Velocity {
+                vx_m_s,
+                vy_m_s,
+                z_m,
+                yaw_rad,
+            } => [vx_m_s, vy_m_s, z_m, yaw_rad].iter().all(|v| v.is_finite()),
+            Setpoint::Descend {
+                x_m,
+                y_m,
+                vz_m_s,
+                yaw_rad,
+            } => [x_m, y_m, vz_m_s, yaw_rad].iter().all(|v| v.is_finite()),
+        }
+    }
+}
+
 /// The four motor duties as the firmware writes them to TIM2/TIM4 (8-bit, 0..=255), in the stock motor
 /// numbering: M1 front-right, M2 back-right, M3 back-left, M4 front-left (crazyflie-hardware.md §6).
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
 pub struct MotorDuty(pub [u8; 4]);
-
-/// Wrap an angle to (−π, π].
-pub fn wrap_angle(a: f32) -> f32 {
-    if !a.is_finite() {
-        return 0.0;
-    }
-    let two_pi = 2.0 * core::f32::consts::PI;
-    let mut w = libm::fmodf(a + core::f32::consts::PI, two_pi);
-    if w < 0.0 {
-        w += two_pi;
-    }
-    w - core::f32::consts::PI
-}
-
-/// The rotation matrix `R = Rz(yaw)·Ry(pitch)·Rx(roll)` (body → arena) of the attitude `[roll, pitch, yaw]`.
-pub fn rotation(attitude_rad: [f32; 3]) -> [[f32; 3]; 3] {
-    let (sr, cr) = (libm::sinf(attitude_rad[0]), libm::cosf(attitude_rad[0]));
-    let (sp, cp) = (libm::sinf(attitude_rad[1]), libm::cosf(attitude_rad[1]));
-    let (sy, cy) = (libm::sinf(attitude_rad[2]), libm::cosf(attitude_rad[2]));
-    [
-        [cy * cp, cy * sp * sr - sy * cr, cy * sp * cr + sy * sr],
-        [sy * cp, sy * sp * sr + cy * cr, sy * sp * cr - cy * sr],
-        [-sp, cp * sr, cp * cr],
-    ]
-}
-
-/// Rotate a body-frame vector into the arena frame with the attitude `[roll, pitch, yaw]`.
-pub fn body_to_arena(v: [f32; 3], attitude_rad: [f32; 3]) -> [f32; 3] {
-    let r = rotation(attitude_rad);
-    core::array::from_fn(|i| r[i][0] * v[0] + r[i][1] * v[1] + r[i][2] * v[2])
-}
-
-/// Rotate an arena-frame vector into the body frame (the transpose of [`body_to_arena`]).
-pub fn arena_to_body(v: [f32; 3], attitude_rad: [f32; 3]) -> [f32; 3] {
-    let r = rotation(attitude_rad);
-    core::array::from_fn(|i| r[0][i] * v[0] + r[1][i] * v[1] + r[2][i] * v[2])
-}

@@ -26,6 +26,7 @@ fuzz_target!(|data: &[u8]| {
         position_m: [1.0, 2.0, 0.5],
         ranges_mm: [100, 200, 300, 400, 500, 600],
         vbat_v: 3.9,
+        ..FlightLogState::default()
     };
     let mut now_ms: u32 = 0;
     let mut rest = data;

@@ -9,6 +9,22 @@ fn mission() -> Box<M> {
     Box::new(Mission::new(MissionConfig::default()).expect("default config is valid"))
 }
 
+/// Armed inputs with nothing else to report.
+fn armed() -> MissionInputs {
+    MissionInputs {
+        armed: true,
+        ..MissionInputs::default()
+    }
+}
+
+/// A mission started with the seed parameters that has seen its first tick on the pad at (0.6, 1.3).
+fn started_on_the_pad() -> Box<M> {
+    let mut m = mission();
+    m.start(MissionParams::SEED).unwrap();
+    m.tick(20_000, &at(0.6, 1.3, 0.0), &armed());
+    m
+}
+
 fn at(x: f32, y: f32, z: f32) -> StateEstimate {
     StateEstimate {
         position_m: [x, y, z],
@@ -103,13 +119,8 @@ fn preflight_waits_for_a_valid_estimate_and_the_armed_supervisor() {
 
 #[test]
 fn abort_lands_where_it_is_and_ends_aborted() {
-    let mut m = mission();
-    m.start(MissionParams::SEED).unwrap();
-    let inputs = MissionInputs {
-        armed: true,
-        ..MissionInputs::default()
-    };
-    m.tick(20_000, &at(0.6, 1.3, 0.0), &inputs);
+    let mut m = started_on_the_pad();
+    let inputs = armed();
     m.tick(40_000, &at(0.6, 1.3, 0.3), &inputs);
     m.abort(&at(0.7, 1.2, 0.3));
     let sp = m.tick(60_000, &at(0.7, 1.2, 0.3), &inputs);
@@ -128,13 +139,8 @@ fn abort_lands_where_it_is_and_ends_aborted() {
 
 #[test]
 fn battery_low_and_crash_end_flying_phases() {
-    let mut m = mission();
-    m.start(MissionParams::SEED).unwrap();
-    let inputs = MissionInputs {
-        armed: true,
-        ..MissionInputs::default()
-    };
-    m.tick(20_000, &at(0.6, 1.3, 0.0), &inputs);
+    let mut m = started_on_the_pad();
+    let inputs = armed();
     m.tick(
         40_000,
         &at(0.6, 1.3, 0.3),
@@ -147,9 +153,7 @@ fn battery_low_and_crash_end_flying_phases() {
     m.tick(60_000, &at(0.6, 1.3, 0.0), &MissionInputs { landed: true, ..inputs });
     assert_eq!(m.state(), MissionState::BatteryLow);
 
-    let mut m = mission();
-    m.start(MissionParams::SEED).unwrap();
-    m.tick(20_000, &at(0.6, 1.3, 0.0), &inputs);
+    let mut m = started_on_the_pad();
     assert_eq!(
         m.tick(
             40_000,

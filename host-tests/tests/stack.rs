@@ -152,3 +152,104 @@ fn the_core_is_the_two_parts_with_messages_delivered_at_once() {
     // The comparison ran on a started mission, not on an idle core.
     assert_ne!(core.mission_state(), MissionState::Idle);
 }
+
+/// A stabilizer flying at 0.5 m on commander setpoints (level IMU samples, 4 V battery), and the time of
+/// its last step, µs.
+fn flying_stabilizer() -> (Stabilizer, u64) {
+    let (mut stab, _) = parts();
+    let mut now = 0;
+    for tick in 0u64..3000 {
+        now = tick * 1000;
+        if tick.is_multiple_of(10) {
+            stab.on_battery(4.0);
+            // Still over a textured floor: no motion, good surface quality.
+            stab.on_flow(&cfnav::types::FlowSample {
+                dpixel_x: 0,
+                dpixel_y: 0,
+                squal: 100,
+                motion_valid: true,
+                dt_s: 0.01,
+            });
+        }
+        if tick.is_multiple_of(25) {
+            // The ranger agrees with the estimate (a steady climb in still air).
+            let z = stab.estimate().position_m[2].max(0.0);
+            stab.on_zrange(Some(z));
+        }
+        let setpoint = if tick < 1500 {
+            Setpoint::Stop
+        } else {
+            Setpoint::Position {
+                x_m: 0.5,
+                y_m: 0.5,
+                z_m: 0.5,
+                yaw_rad: 0.0,
+            }
+        };
+        stab.commander_setpoint(setpoint, now);
+        stab.on_imu(&LEVEL, now);
+    }
+    assert!(stab.supervisor().flying, "{:?}", stab.supervisor());
+    assert_ne!(stab.duty(), cfnav::types::MotorDuty::default());
+    (stab, now)
+}
+
+/// A hung IMU read in flight: the control loop reports missed samples. The supervisor's own accelerometer
+/// timeout (1 s) only runs when a sample arrives, so without `on_imu_missed` nothing would stop the
+/// motors. Oracle: level (four equal duties, their mean) for at most 5 ms, then off and latched.
+#[test]
+fn missed_imu_samples_in_flight_level_then_stop_the_motors_and_latch() {
+    use cfnav::flight::supervisor::{Reason, SupervisorState};
+    use cfnav::stack::IMU_LEVEL_US;
+    let (mut stab, last) = flying_stabilizer();
+    let before = stab.duty().0;
+    let mean = (before.iter().map(|&d| u32::from(d)).sum::<u32>()).div_ceil(4) as u8;
+    // Misses reported every 2 ms (the board's data-ready / read deadline).
+    let mut t = last;
+    let mut off_at = None;
+    while t < last + 20_000 {
+        t += 2_000;
+        let duty = stab.on_imu_missed(t);
+        if t - last <= IMU_LEVEL_US {
+            assert_eq!(duty.0, [mean; 4], "level at +{} µs", t - last);
+        } else {
+            assert_eq!(duty.0, [0; 4], "off at +{} µs", t - last);
+            off_at.get_or_insert(t - last);
+        }
+    }
+    assert!(off_at.is_some_and(|d| d <= IMU_LEVEL_US + 2_000), "{off_at:?}");
+    assert_eq!(stab.supervisor().state, SupervisorState::Crashed);
+    assert_eq!(stab.supervisor().reason, Reason::AccelFault);
+    assert!(stab.status().motors_stopped);
+    // The IMU comes back: the crash stays latched, the motors stay off.
+    for k in 1..100 {
+        assert_eq!(stab.on_imu(&LEVEL, t + k * 1000).0, [0; 4]);
+    }
+    assert_eq!(stab.supervisor().state, SupervisorState::Crashed);
+}
+
+/// One missed sample is not a crash: the next good sample resumes the attitude loop.
+#[test]
+fn a_single_missed_imu_sample_is_bridged_level() {
+    use cfnav::flight::supervisor::SupervisorState;
+    let (mut stab, last) = flying_stabilizer();
+    let duty = stab.on_imu_missed(last + 2_000);
+    assert!(duty.0.iter().all(|&d| d == duty.0[0] && d > 0), "{duty:?}");
+    stab.on_imu(&LEVEL, last + 3_000);
+    assert_eq!(stab.supervisor().state, SupervisorState::Flying);
+    assert!(stab.duty().0.iter().all(|&d| d > 0));
+}
+
+/// On the ground (motors off) a missed sample keeps them off and does not latch anything.
+#[test]
+fn missed_imu_samples_on_the_ground_keep_the_motors_off() {
+    use cfnav::flight::supervisor::SupervisorState;
+    let (mut stab, _) = parts();
+    for tick in 0u64..200 {
+        stab.on_imu(&LEVEL, tick * 1000);
+    }
+    assert_eq!(stab.on_imu_missed(201_000).0, [0; 4]);
+    assert_ne!(stab.supervisor().state, SupervisorState::Crashed);
+    assert_eq!(stab.on_imu_missed(400_000).0, [0; 4]);
+    assert_ne!(stab.supervisor().state, SupervisorState::Crashed);
+}

@@ -3,21 +3,24 @@
 //! I2C3 and writing the motors.
 //!
 //! Each step: wait for the edge, read gyro + accelerometer (async I2C, ~0.5 ms of bus time during which
-//! lower priorities run), then, without awaiting: drain [`super::FAST_INPUTS`], run
+//! lower priorities run), then, without awaiting: drain [`super::FAST_INPUTS`] (at most one costly estimator
+//! update, flow or Multi-ranger, per step: a second one waits one step in a [`HeavyInputGate`]), run
 //! [`Stabilizer::on_imu`], write the motors (zero unless booted, no fault and the supervisor allows them),
-//! publish the [`cfnav::stack::FastStatus`], account the cycles. Motors stop on any fault, on a missing
-//! data-ready edge ([`DRDY_TIMEOUT`]) and after [`MAX_IMU_ERRORS`] failed reads in a row.
+//! publish the [`cfnav::stack::FastStatus`] (and, every tenth step, the log variables), account the cycles.
+//! The IMU bus is guarded (every read has a 1 ms deadline, a hung bus is recovered:
+//! `cfnav::drivers::i2c_guard`); a missing data-ready edge ([`DRDY_TIMEOUT`]) or a failed read is a missed
+//! sample: the motors stay level for at most `cfnav::stack::IMU_LEVEL_US`, then stop and the supervisor
+//! latches Crashed. Motors stop on any fault and [`MAX_IMU_ERRORS`] missed samples in a row raise one.
 
 use core::sync::atomic::Ordering;
 
-use cfnav::drivers::bmi088::Bmi088;
+use cfnav::drivers::bmi088::{AccelTrim, Bmi088};
 use cfnav::stack::Stabilizer;
 use cfnav::system::cpu_load::{Level, LoopTiming, LoopWindow};
+use cfnav::system::step_pacing::HeavyInputGate;
 use defmt::warn;
 use embassy_executor::InterruptExecutor;
 use embassy_stm32::exti::ExtiInput;
-use embassy_stm32::i2c::I2c;
-use embassy_stm32::i2c::mode::Master as I2cMaster;
 use embassy_stm32::interrupt;
 use embassy_stm32::interrupt::Priority;
 use embassy_stm32::mode::Async;
@@ -28,15 +31,17 @@ use embassy_time::{Duration, with_timeout};
 use super::motors::Motors;
 use super::{
     BOOTED, CONTROL_STEPS, FAST_INPUTS, FAULT, FastInput, LOAD, NAV_INPUTS, NavInput, cycles, fault, now_us,
-    publish_fast_status,
+    publish_fast_status, update_log,
 };
 
 /// NVIC priority of the control executor (P0 is the most urgent; HAL interrupt handlers keep P0).
 pub const PRIORITY: Priority = Priority::P6;
-/// A gyro edge later than this (5 periods) stops the motors for that step and counts as a miss.
-pub const DRDY_TIMEOUT: Duration = Duration::from_millis(5);
+/// A gyro edge later than this (2 periods) counts as a missed sample (`Stabilizer::on_imu_missed`).
+pub const DRDY_TIMEOUT: Duration = Duration::from_millis(2);
 /// Consecutive failed IMU reads (or missed edges) that make a fault.
 pub const MAX_IMU_ERRORS: u32 = 50;
+/// The log state is refreshed every this many control steps (1 kHz / 10 = 100 Hz).
+const LOG_DECIMATION: u32 = 10;
 
 /// The control executor, on the otherwise unused UART4 vector (the Crazyflie 2.1's UARTs are USART2/3 on
 /// the deck and USART6 for syslink: `crazyflie-hardware.md` §5).
@@ -53,11 +58,32 @@ fn UART4() {
 }
 
 /// The IMU on the sensor bus.
-pub type Imu = Bmi088<I2c<'static, Async, I2cMaster>>;
+pub type Imu = Bmi088<super::sensors::GuardedBus>;
 
-/// Drains the inputs queued for the stabilizer since the previous step.
-fn drain_inputs(stab: &mut Stabilizer) {
-    while let Ok(input) = FAST_INPUTS.try_receive() {
+/// The inputs whose estimator update is costly (flow ≈ 14 k, Multi-ranger with wall anchors ≈ 20 k
+/// instructions; BENCHMARKS.md §6).
+fn is_heavy(input: &FastInput) -> bool {
+    matches!(input, FastInput::Flow(_) | FastInput::MultiRanger(_))
+}
+
+/// Drains the inputs queued for the stabilizer since the previous step, at most one costly one.
+fn drain_inputs(stab: &mut Stabilizer, gate: &mut HeavyInputGate<FastInput>) {
+    if let Some(input) = gate.begin_step() {
+        apply_input(stab, input);
+    }
+    while !gate.holding() {
+        let Ok(input) = FAST_INPUTS.try_receive() else {
+            break;
+        };
+        let heavy = is_heavy(&input);
+        if let Some(input) = gate.admit(input, heavy) {
+            apply_input(stab, input);
+        }
+    }
+}
+
+fn apply_input(stab: &mut Stabilizer, input: FastInput) {
+    {
         match input {
             FastInput::Flow(sample) => stab.on_flow(&sample),
             FastInput::ZRange(range) => {
@@ -69,26 +95,46 @@ fn drain_inputs(stab: &mut Stabilizer) {
             FastInput::Battery(volts) => stab.on_battery(volts),
             FastInput::Mission(command) => stab.apply(command),
             FastInput::Commander(setpoint, time) => stab.commander_setpoint(setpoint, time),
+            FastInput::HighLevel(command, time) => {
+                if let Err(e) = stab.high_level_command(command, time) {
+                    defmt::warn!("high-level command refused: {}", defmt::Debug2Format(&e));
+                }
+            }
         }
     }
 }
 
 /// The 1 kHz loop. Never returns; on a fault the motors stay off and the loop keeps publishing the estimate.
 #[embassy_executor::task]
-pub async fn control_task(mut stab: Stabilizer, mut imu: Imu, mut drdy: ExtiInput<'static, Async>, mut motors: Motors) {
+pub async fn control_task(
+    mut stab: Stabilizer,
+    mut imu: Imu,
+    trim: AccelTrim,
+    mut drdy: ExtiInput<'static, Async>,
+    mut motors: Motors,
+) {
     motors.stop();
     let mut timing = LoopTiming::new();
     let mut window_start = cycles();
     let mut errors = 0u32;
+    let mut gate = HeavyInputGate::new();
     loop {
         let edge = with_timeout(DRDY_TIMEOUT, drdy.wait_for_rising_edge()).await;
         let wake = cycles();
         let sample = match edge {
-            Ok(()) => imu.read().await.ok(),
+            // The config block's board trim, on the accelerometer (stock `sensorsAccAlignToGravity`).
+            Ok(()) => imu.read().await.ok().map(|s| trim.apply_to(s)),
             Err(_) => None,
         };
         let Some(sample) = sample else {
-            motors.stop();
+            // Level for a few periods, then off and latched (`Stabilizer::on_imu_missed`).
+            let duty = stab.on_imu_missed(now_us());
+            if BOOTED.load(Ordering::Acquire) && !FAULT.load(Ordering::Acquire) {
+                motors.set(duty);
+            } else {
+                motors.stop();
+            }
+            publish_fast_status(stab.status());
             errors += 1;
             if errors == MAX_IMU_ERRORS {
                 fault("IMU: no data-ready edge or read failures");
@@ -100,7 +146,7 @@ pub async fn control_task(mut stab: Stabilizer, mut imu: Imu, mut drdy: ExtiInpu
         errors = 0;
 
         let section = LOAD.begin(Level::Control, cycles());
-        drain_inputs(&mut stab);
+        drain_inputs(&mut stab, &mut gate);
         let duty = stab.on_imu(&sample, now_us());
         if BOOTED.load(Ordering::Acquire) && !FAULT.load(Ordering::Acquire) {
             motors.set(duty);
@@ -108,7 +154,16 @@ pub async fn control_task(mut stab: Stabilizer, mut imu: Imu, mut drdy: ExtiInpu
             motors.stop();
         }
         publish_fast_status(stab.status());
-        CONTROL_STEPS.fetch_add(1, Ordering::Relaxed);
+        let step = CONTROL_STEPS.fetch_add(1, Ordering::Relaxed);
+        if step.is_multiple_of(LOG_DECIMATION) {
+            // The log variables at 100 Hz (the fastest period cflib asks for is 10 ms).
+            let (estimate, control, setpoint) = (stab.estimate(), *stab.control(), stab.setpoint());
+            let battery_low = stab.supervisor().battery_low;
+            update_log(|s| {
+                s.flight.record_flight(&estimate, &control, &setpoint);
+                s.flight.battery_low = battery_low;
+            });
+        }
         let end = cycles();
         LOAD.end(section, end);
         timing.record(wake, end);

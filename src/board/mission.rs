@@ -20,7 +20,7 @@ use embassy_time::{Duration, Ticker, Timer};
 
 use super::{
     CONTROL_STEPS, DECKS_OK, FAST_INPUTS, FastInput, LOAD, MISSION_REQUESTS, MISSION_RUNNING, MissionRequest,
-    NAV_INPUTS, NavInput, START_OUTCOME, cycles, fast_status, now_us, update_log, yield_now,
+    NAV_INPUTS, NavInput, START_OUTCOME, THREAD_BEATS, cycles, fast_status, now_us, update_log, yield_now,
 };
 
 /// The navigator sized for the firmware's arena.
@@ -59,6 +59,8 @@ pub async fn mission_task(nav: &'static mut FwNavigator) {
     let mut was_running = false;
     loop {
         ticker.next().await;
+        // Thread mode's heartbeat for the watchdog feeder (`system::watchdog_task`).
+        THREAD_BEATS.fetch_add(1, Ordering::Relaxed);
         nav.set_decks_ok(DECKS_OK.load(Ordering::Acquire));
 
         let section = LOAD.begin(Level::Mission, cycles());

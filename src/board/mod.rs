@@ -7,8 +7,8 @@
 //! |---|---|---|
 //! | P0 (HAL default) | interrupt handlers | TIM5 time driver, DMA, USART6, I2C, EXTI: they only wake tasks |
 //! | [`control::PRIORITY`] (P6) | interrupt executor on the UART4 vector | estimation + control, paced by the gyro data-ready edge (PC14) |
-//! | [`IO_PRIORITY`] (P9) | interrupt executor on the UART5 vector | syslink + CRTP services, deck sensors, CPU-load statistics |
-//! | thread mode | `#[embassy_executor::main]` | mission + planner (budgeted slices), LEDs, watchdog |
+//! | [`IO_PRIORITY`] (P9) | interrupt executor on the UART5 vector | syslink + CRTP services, deck sensors, CPU-load statistics, the watchdog feeder |
+//! | thread mode | `#[embassy_executor::main]` | mission + planner (budgeted slices), LEDs |
 //!
 //! Messages (each crossing holds a critical section for a copy of at most a few hundred bytes, i.e.
 //! microseconds; nothing is locked while a task computes):
@@ -36,6 +36,7 @@ use core::future::poll_fn;
 use core::sync::atomic::{AtomicBool, AtomicU32, Ordering};
 use core::task::Poll;
 
+use cfnav::flight::high_level::HlCommand;
 use cfnav::mission::MissionParams;
 use cfnav::radio::log_registry::FirmwareLogState;
 use cfnav::stack::{FastStatus, MissionCommand, StartError};
@@ -69,6 +70,8 @@ pub enum FastInput {
     Mission(MissionCommand),
     /// A radio commander setpoint and when it arrived, µs (the radio task drops them while a mission runs).
     Commander(Setpoint, Micros),
+    /// A high-level commander command (port 8) and when it arrived, µs (dropped while a mission runs).
+    HighLevel(HlCommand, Micros),
 }
 
 /// Inputs of the mission task from the sensors.
@@ -116,10 +119,16 @@ pub static FAULT: AtomicBool = AtomicBool::new(false);
 pub static MISSION_RUNNING: AtomicBool = AtomicBool::new(false);
 /// Both decks the mission needs answered their probes.
 pub static DECKS_OK: AtomicBool = AtomicBool::new(false);
+/// The Flow deck v2's PMW3901 answered at boot (`deck.bcFlow2`).
+pub static DECK_FLOW2: AtomicBool = AtomicBool::new(false);
+/// The Multi-ranger's beams answered at boot (`deck.bcMultiranger`).
+pub static DECK_MULTIRANGER: AtomicBool = AtomicBool::new(false);
 /// The control task was started (the watchdog then wants [`CONTROL_STEPS`] to advance).
 pub static CONTROL_RUNNING: AtomicBool = AtomicBool::new(false);
 /// Control steps run since boot (the watchdog is fed only while this advances).
 pub static CONTROL_STEPS: AtomicU32 = AtomicU32::new(0);
+/// Mission ticks run since boot: thread mode's heartbeat (the watchdog is fed only while this advances).
+pub static THREAD_BEATS: AtomicU32 = AtomicU32::new(0);
 
 /// The latest stabilizer status.
 pub fn fast_status() -> FastStatus {

@@ -3,7 +3,8 @@
 //! so a [`MotorDuty`] byte is the compare value as is (`crazyflie-hardware.md` §6; bitcraze
 //! crazyflie-firmware `src/drivers/interface/motors.h`, `motors_def.c`).
 //!
-//! Safety: the outputs are low from construction; [`Motors::stop`] is what every fault path calls.
+//! Safety: the outputs are low from construction; [`Motors::stop`] is what every fault path calls, and
+//! [`zero_compare_registers`] is what the panic and HardFault handlers call, without the driver object.
 
 use cfnav::types::MotorDuty;
 use embassy_stm32::gpio::OutputType;
@@ -11,7 +12,7 @@ use embassy_stm32::time::Hertz;
 use embassy_stm32::timer::Channel;
 use embassy_stm32::timer::low_level::CountingMode;
 use embassy_stm32::timer::simple_pwm::{PwmPin, SimplePwm};
-use embassy_stm32::{Peri, peripherals};
+use embassy_stm32::{Peri, pac, peripherals};
 
 /// Stock PWM frequency: 84 MHz / 256.
 pub const PWM_HZ: u32 = 328_125;
@@ -84,5 +85,16 @@ impl Motors {
     /// All motors off.
     pub fn stop(&mut self) {
         self.set(MotorDuty::default());
+    }
+}
+
+/// Writes 0 to every compare register of TIM2 and TIM4 (CCR1..CCR4 at offsets 0x34..0x40, RM0090 §18.4):
+/// with PWM mode 1 active high a compare value of 0 holds the output low from the next period (3 µs). For
+/// the panic and HardFault handlers, which cannot reach the [`Motors`] object; plain register writes, no
+/// lock, no allocation, safe to call in any state.
+pub fn zero_compare_registers() {
+    for n in 0..4 {
+        pac::TIM2.ccr(n).write_value(Default::default());
+        pac::TIM4.ccr(n).write_value(Default::default());
     }
 }

@@ -2,16 +2,25 @@
 //! input (high = the nRF's buffer is full: pause sending), and the CRTP services answering over it
 //! (`crazyflie-hardware.md` §3, §4).
 //!
+//! Flow control at byte granularity: every frame goes out through [`FlowTx`] in chunks of
+//! [`cfnav::radio::syslink_tx::CHUNK`] bytes, PA4 read before each and each chunk awaited to the USART's
+//! transmission-complete flag, so at most four bytes reach the nRF after it raises RTS (its FIFO's headroom;
+//! see `cfnav::radio::syslink_tx`). PA4 held high longer than [`FLOW_CONTROL_TIMEOUT`] drops the rest of
+//! the frame. The RX DMA ring is started in `main` before anything is sent, so the nRF's echoes are kept.
+//!
 //! Boot order (§3.4): RADIO_CHANNEL, RADIO_DATARATE, RADIO_ADDRESS from the EEPROM config block (or the
-//! defaults), PM_BATTERY_AUTOUPDATE, then RADIO_READY once the firmware has finished booting (the nRF keeps
-//! its receiver off until then, or 3 s after its boot).
+//! defaults), each resent until the nRF echoes it ([`BootSettings`]), PM_BATTERY_AUTOUPDATE, SYS_NRF_VERSION
+//! (the reply is logged), then RADIO_READY once the firmware has finished booting (the nRF keeps its
+//! receiver off until then, or 3 s after its boot).
 //!
 //! Pacing (§3.3): one downlink RADIO_RAW per uplink RADIO_RAW, at most; log data, parameter updates and
 //! console lines wait in the router's queue for the next uplink (cfclient and cflib poll continuously).
 //!
 //! Commander (ports 3 and 7): each accepted setpoint is mapped by [`SetpointFollower`] and handed to the
 //! control task with its arrival time, once, and only while no mission runs (as `cfnav sim --serve` does).
-//! Console (port 0): refusal notes and firmware messages through [`ConsoleService`].
+//! High-level commander (port 8): each accepted command goes to the control task, whose stabilizer flies the
+//! trajectory; refused ones (decoder, group mask, a running mission, a fault) get one console line.
+//! Console (port 0): refusal notes and firmware messages through [`cfnav::radio::console::ConsoleService`].
 //! Supervisor (port 9): state bits from the stabilizer's verdict; arming cannot be changed (auto-arming, as
 //! the stock Crazyflie 2.1); an emergency stop (command or its watchdog) cuts the motors at once and is
 //! latched until reset like a fault (stock: Locked, reboot required); a running mission is aborted.
@@ -25,17 +34,16 @@ use core::sync::atomic::Ordering;
 
 use cfnav::mission::MissionParams;
 use cfnav::nav::map::ARENA_CELLS;
-use cfnav::radio::commander::{CommanderService, SetpointFollower};
-use cfnav::radio::console::ConsoleService;
-use cfnav::radio::crtp::{CrtpPacket, PlatformService, Router};
-use cfnav::radio::endpoint::EndpointServices;
-use cfnav::radio::log::LogService;
+use cfnav::radio::commander::SetpointFollower;
+use cfnav::radio::crtp::CrtpPacket;
+use cfnav::radio::endpoint::Endpoint;
 use cfnav::radio::log_registry::FirmwareLogState;
-use cfnav::radio::mem::MemService;
 use cfnav::radio::param::ParamService;
-use cfnav::radio::registry::{ID_START, MissionParamState};
-use cfnav::radio::supervisor_port::{SupervisorPortConfig, SupervisorPortService, SupervisorStatus};
-use cfnav::radio::syslink::{BatteryState, MAX_FRAME, SyslinkDecoder, SyslinkPacket, encode, kind};
+use cfnav::radio::registry::{ID_RESET_ESTIMATION, ID_START, MissionParamState};
+use cfnav::radio::supervisor_port::{SupervisorPortConfig, SupervisorStatus};
+use cfnav::radio::syslink::{BatteryState, SyslinkDecoder, SyslinkPacket, kind};
+use cfnav::radio::syslink_tx::{BootSettings, FlowTx, TxStep, nrf_version, nrf_version_request};
+use cfnav::stack::MissionCommand;
 use cfnav::system::config_block::RadioSettings;
 use cfnav::system::cpu_load::Level;
 use cfnav::system::mission_start::{StartDecision, StartTracker};
@@ -43,12 +51,12 @@ use defmt::{info, warn};
 use embassy_stm32::exti::ExtiInput;
 use embassy_stm32::mode::Async;
 use embassy_stm32::usart::{RingBufferedUartRx, UartTx};
-use embassy_time::{Duration, Instant, with_timeout};
+use embassy_time::{Duration, Instant, with_deadline, with_timeout};
 use heapless::String;
 
 use super::{
-    BOOTED, DECKS_OK, FAST_INPUTS, FAULT, FastInput, LOAD, MISSION_REQUESTS, MISSION_RUNNING, MissionRequest,
-    START_OUTCOME, cycles, fast_status, fault, log_state, update_log,
+    BOOTED, DECK_FLOW2, DECK_MULTIRANGER, DECKS_OK, FAST_INPUTS, FAULT, FastInput, LOAD, MISSION_REQUESTS,
+    MISSION_RUNNING, MissionRequest, START_OUTCOME, cycles, fast_status, fault, log_state, update_log,
 };
 
 /// Firmware version the platform service reports.
@@ -57,7 +65,7 @@ pub const FIRMWARE_TAG: &str = concat!("cfnav-", env!("CARGO_PKG_VERSION"));
 pub const ROUTER_QUEUE: usize = 16;
 /// Console packets waiting for a downlink.
 const CONSOLE_QUEUE: usize = 16;
-/// How long PA4 may hold the link before a frame is dropped.
+/// How long PA4 may hold one frame back (in total) before the rest of it is dropped.
 const FLOW_CONTROL_TIMEOUT: Duration = Duration::from_millis(20);
 /// Log blocks are stopped when no uplink came for this long (cflib pings at least every 100 ms).
 const LINK_TIMEOUT: Duration = Duration::from_secs(3);
@@ -70,6 +78,8 @@ pub struct SyslinkUart {
     pub rx: RingBufferedUartRx<'static>,
     /// PA4, the nRF's RTS: high = stop sending.
     pub flow: ExtiInput<'static, Async>,
+    /// The frame being sent, in flow-controlled chunks.
+    pub frame_tx: FlowTx,
 }
 
 /// Why a frame was not sent.
@@ -84,29 +94,48 @@ enum SendError {
 }
 
 impl SyslinkUart {
+    /// Sends one frame, chunk by chunk, pausing while PA4 is high.
     async fn send(&mut self, packet: &SyslinkPacket) -> Result<(), SendError> {
-        let mut frame = [0u8; MAX_FRAME];
-        let n = encode(packet, &mut frame).map_err(|_| SendError::Encode)?;
-        with_timeout(FLOW_CONTROL_TIMEOUT, self.flow.wait_for_low())
-            .await
-            .map_err(|_| SendError::FlowControl)?;
-        self.tx.write(&frame[..n]).await.map_err(|_| SendError::Uart)
+        self.frame_tx.load(packet).map_err(|_| SendError::Encode)?;
+        let deadline = Instant::now() + FLOW_CONTROL_TIMEOUT;
+        loop {
+            match self.frame_tx.next(self.flow.is_high()) {
+                TxStep::Done => return Ok(()),
+                TxStep::WaitForClear => {
+                    if with_deadline(deadline, self.flow.wait_for_low()).await.is_err() {
+                        self.frame_tx.abandon();
+                        return Err(SendError::FlowControl);
+                    }
+                }
+                TxStep::Send(bytes) => {
+                    let n = bytes.len();
+                    // `flush` waits for TC: the chunk has left the shift register before PA4 is read again.
+                    let written = match self.tx.write(bytes).await {
+                        Ok(()) => self.tx.flush().await,
+                        Err(e) => Err(e),
+                    };
+                    if written.is_err() {
+                        self.frame_tx.abandon();
+                        return Err(SendError::Uart);
+                    }
+                    self.frame_tx.sent(n);
+                }
+            }
+        }
     }
 }
 
+/// Milliseconds since boot, wrapping (the echo timer's clock).
+fn now_ms() -> u32 {
+    Instant::now().as_millis() as u32
+}
+
 type Params = ParamService<MissionParamState>;
-type Logs = LogService<FirmwareLogState>;
 
 /// The CRTP side: router, services and the `mission.start` bookkeeping.
 struct Crtp {
-    router: Router<ROUTER_QUEUE>,
-    param: Params,
-    log: Logs,
-    mem: MemService,
-    commander: CommanderService,
+    ep: Endpoint<MissionParamState, FirmwareLogState, CONSOLE_QUEUE, ROUTER_QUEUE>,
     follower: SetpointFollower,
-    console: ConsoleService<CONSOLE_QUEUE>,
-    supervisor: SupervisorPortService,
     commander_dropped: u32,
     /// `mission.start` requests in flight.
     start: StartTracker,
@@ -117,17 +146,15 @@ struct Crtp {
 impl Crtp {
     fn new() -> Self {
         Self {
-            router: Router::new(PlatformService::new(FIRMWARE_TAG)),
-            param: ParamService::new(MissionParamState::new(MissionParams::SEED, ARENA_CELLS)),
-            log: LogService::new(),
-            mem: MemService,
-            commander: CommanderService::new(),
+            ep: Endpoint::new(
+                FIRMWARE_TAG,
+                MissionParamState::new(MissionParams::SEED, ARENA_CELLS),
+                SupervisorPortConfig {
+                    auto_arm: true,
+                    can_recover: false,
+                },
+            ),
             follower: SetpointFollower::new(),
-            console: ConsoleService::new(),
-            supervisor: SupervisorPortService::new(SupervisorPortConfig {
-                auto_arm: true,
-                can_recover: false,
-            }),
             commander_dropped: 0,
             start: StartTracker::new(),
             last_uplink: None,
@@ -137,12 +164,12 @@ impl Crtp {
 
     /// Queues a console line.
     fn console(&mut self, text: &str) {
-        self.console.print(text);
+        self.ep.console.print(text);
     }
 
     /// Hands the commander's new setpoint to the control task, if one arrived and no mission runs.
     fn apply_commander(&mut self) {
-        let Some((command, received_us)) = self.commander.take_fresh() else {
+        let Some((command, received_us)) = self.ep.commander.take_fresh() else {
             return;
         };
         if MISSION_RUNNING.load(Ordering::Acquire) || self.start.pending() {
@@ -159,41 +186,55 @@ impl Crtp {
         }
     }
 
+    /// Hands a high-level command (port 8) to the control task, or says on the console why not: every port 8
+    /// packet not acted on gets one line.
+    fn apply_high_level(&mut self) {
+        let mut line: String<96> = String::new();
+        if let Some(e) = self.ep.high_level.take_error() {
+            let _ = writeln!(line, "high-level commander: packet not flown: {e:?}");
+        } else if let Some((command, received_us)) = self.ep.high_level.take() {
+            if MISSION_RUNNING.load(Ordering::Acquire) || self.start.pending() {
+                let _ = writeln!(line, "high-level command refused: a mission is running");
+            } else if FAULT.load(Ordering::Acquire) {
+                let _ = writeln!(line, "high-level command refused: fault latched (power-cycle)");
+            } else if FAST_INPUTS
+                .try_send(FastInput::HighLevel(command, received_us))
+                .is_err()
+            {
+                let _ = writeln!(line, "high-level command dropped: control queue full, send it again");
+            }
+        }
+        if !line.is_empty() {
+            self.console(&line);
+        }
+    }
+
     /// One uplink CRTP packet: returns the one downlink packet it may carry.
     fn on_uplink(&mut self, bytes: &[u8], now: Instant) -> Option<CrtpPacket> {
         self.last_uplink = Some(now);
         {
-            let store = self.param.store_mut();
+            let store = self.ep.param.store_mut();
             store.flying = fast_status().supervisor.flying;
             store.decks_ok = DECKS_OK.load(Ordering::Acquire);
+            store.flow2_deck = DECK_FLOW2.load(Ordering::Acquire);
+            store.multiranger_deck = DECK_MULTIRANGER.load(Ordering::Acquire);
         }
-        let before = self.param.store().start;
-        self.commander.set_now(now.as_micros());
-        self.supervisor.set_now(now.as_micros());
+        let before = self.ep.param.store().start;
         let running = MISSION_RUNNING.load(Ordering::Acquire);
-        self.supervisor.set_status(SupervisorStatus {
+        self.ep.supervisor.set_status(SupervisorStatus {
             output: fast_status().supervisor,
             mission_running: running,
             mission_finished: !running && log_state().flight.mission_state != 0,
             decks_ok: DECKS_OK.load(Ordering::Acquire),
         });
-        let reply = {
-            EndpointServices {
-                param: &mut self.param,
-                log: &mut self.log,
-                mem: &mut self.mem,
-                commander: &mut self.commander,
-                supervisor: &mut self.supervisor,
-                console: &mut self.console,
-            }
-            .handle_uplink(&mut self.router, bytes)
-        };
+        let reply = self.ep.handle_uplink(bytes, now.as_micros());
         self.apply_commander();
-        let after = self.param.store().start;
+        self.apply_high_level();
+        let after = self.ep.param.store().start;
         let fault = FAULT.load(Ordering::Acquire);
         match self.start.on_write(before, after, fault) {
             StartDecision::RequestStart => {
-                let params = self.param.store().params;
+                let params = self.ep.param.store().params;
                 let queued = MISSION_REQUESTS.try_send(MissionRequest::Start(params)).is_ok();
                 if let Some(reason) = self.start.request_queued(queued) {
                     self.revert_start(reason);
@@ -212,16 +253,16 @@ impl Crtp {
     fn emergency_stop(&mut self) {
         fault("emergency stop (supervisor port)");
         let _ = MISSION_REQUESTS.try_send(MissionRequest::Abort);
-        if self.param.store().start != 0 {
-            self.param.store_mut().start = 0;
-            self.param.notify(ID_START);
+        if self.ep.param.store().start != 0 {
+            self.ep.param.store_mut().start = 0;
+            self.ep.param.notify(ID_START);
         }
         self.console("emergency stop: motors stopped; power-cycle to fly again\n");
     }
 
     fn revert_start(&mut self, line: &str) {
-        self.param.store_mut().start = 0;
-        self.param.notify(ID_START);
+        self.ep.param.store_mut().start = 0;
+        self.ep.param.notify(ID_START);
         warn!("{}", line.trim_end());
         self.console(line);
     }
@@ -229,8 +270,8 @@ impl Crtp {
     /// Everything that is not a reply: start outcomes, the end of a mission, parameter updates and refusal
     /// lines, due log data.
     fn housekeeping(&mut self, now: Instant) {
-        let fired = self.supervisor.poll(now.as_micros());
-        if fired || self.supervisor.take_requests().emergency_stop {
+        let fired = self.ep.supervisor.poll(now.as_micros());
+        if fired || self.ep.supervisor.take_requests().emergency_stop {
             self.emergency_stop();
         }
         if let Some(outcome) = START_OUTCOME.try_take()
@@ -243,18 +284,18 @@ impl Crtp {
         }
         if self
             .start
-            .must_clear(self.param.store().start, MISSION_RUNNING.load(Ordering::Acquire))
+            .must_clear(self.ep.param.store().start, MISSION_RUNNING.load(Ordering::Acquire))
         {
             // The mission ended (or never ran): interfaces.md §5 wants mission.start back at 0.
-            self.param.store_mut().start = 0;
-            self.param.notify(ID_START);
+            self.ep.param.store_mut().start = 0;
+            self.ep.param.notify(ID_START);
         }
-        while let Some(p) = self.param.next_notification() {
-            if self.router.enqueue(p).is_err() {
+        while let Some(p) = self.ep.param.next_notification() {
+            if self.ep.router.enqueue(p).is_err() {
                 self.dropped_downlinks = self.dropped_downlinks.saturating_add(1);
             }
         }
-        while let Some(note) = self.param.take_refusal() {
+        while let Some(note) = self.ep.param.take_refusal() {
             let line = Params::console_line(&note);
             self.console(&line);
         }
@@ -263,19 +304,30 @@ impl Crtp {
             .is_some_and(|t| now.saturating_duration_since(t) > LINK_TIMEOUT)
         {
             info!("radio link silent: log blocks stopped");
-            self.log.reset();
+            self.ep.log.reset();
             self.last_uplink = None;
         }
-        self.console.flush();
-        while self.router.pending() < ROUTER_QUEUE / 2
-            && let Some(p) = self.console.next_packet()
+        self.ep.console.flush();
+        while self.ep.router.pending() < ROUTER_QUEUE / 2
+            && let Some(p) = self.ep.console.next_packet()
         {
-            let _ = self.router.enqueue(p);
+            let _ = self.ep.router.enqueue(p);
         }
-        let state = log_state();
+        // kalman.resetEstimation: the control task re-anchors the estimate (as a mission start does); the
+        // parameter reads 0 again once the request is queued (retried next time if the queue is full).
+        if let Some(xy) = self.ep.param.store().pending_reset()
+            && FAST_INPUTS
+                .try_send(FastInput::Mission(MissionCommand::Started { start_m: xy }))
+                .is_ok()
+        {
+            self.ep.param.store_mut().reset_estimation = 0;
+            self.ep.param.notify(ID_RESET_ESTIMATION);
+        }
+        let mut state = log_state();
+        state.flight.supervisor_info = self.ep.supervisor.bitfield();
         let now_ms = now.as_millis() as u32;
-        while let Some(p) = self.log.tick(now_ms, &state) {
-            if self.router.enqueue(p).is_err() {
+        while let Some(p) = self.ep.log.tick(now_ms, &state) {
+            if self.ep.router.enqueue(p).is_err() {
                 self.dropped_downlinks = self.dropped_downlinks.saturating_add(1);
                 break;
             }
@@ -312,19 +364,21 @@ fn on_syslink(crtp: &mut Crtp, packet: &SyslinkPacket, now: Instant) -> Option<S
 /// The radio task: boot sequence, then receive, dispatch and answer forever.
 #[embassy_executor::task]
 pub async fn radio_task(mut uart: SyslinkUart, settings: RadioSettings) {
-    match settings.boot_packets() {
-        Ok(packets) => {
-            for p in &packets {
-                if let Err(e) = uart.send(p).await {
-                    warn!("syslink boot packet {=u8:#x} not sent: {}", p.kind, e);
-                }
-            }
+    let mut boot = match settings.boot_packets() {
+        Ok(packets) => BootSettings::new(&packets),
+        Err(_) => {
+            warn!("radio settings out of range: nRF keeps its own");
+            BootSettings::new(&[])
         }
-        Err(_) => warn!("radio settings out of range: nRF keeps its own"),
-    }
+    };
+    send_boot_settings(&mut uart, &mut boot).await;
     if let Err(e) = uart.send(&SyslinkPacket::pm_battery_autoupdate()).await {
         warn!("PM_BATTERY_AUTOUPDATE not sent: {}", e);
     }
+    if let Err(e) = uart.send(&nrf_version_request()).await {
+        warn!("SYS_NRF_VERSION not sent: {}", e);
+    }
+    let mut boot_reported = false;
     let mut crtp = Crtp::new();
     let mut decoder = SyslinkDecoder::new();
     let mut chunk = [0u8; 64];
@@ -354,6 +408,11 @@ pub async fn radio_task(mut uart: SyslinkUart, settings: RadioSettings) {
             let mut event = decoder.push(byte);
             while let Some(result) = event {
                 if let Ok(packet) = result {
+                    if boot.on_received(&packet) {
+                        info!("nRF confirmed radio setting {=u8:#x}", packet.kind);
+                    } else if let Some(version) = nrf_version(&packet) {
+                        info!("nRF51 firmware {}", version);
+                    }
                     let section = LOAD.begin(Level::Io, cycles());
                     let answer = on_syslink(&mut crtp, &packet, now);
                     LOAD.end(section, cycles());
@@ -366,8 +425,27 @@ pub async fn radio_task(mut uart: SyslinkUart, settings: RadioSettings) {
                 event = decoder.poll();
             }
         }
+        send_boot_settings(&mut uart, &mut boot).await;
+        if !boot_reported && boot.is_settled() {
+            boot_reported = true;
+            if boot.gave_up() > 0 {
+                warn!(
+                    "{} radio setting(s) never echoed: the nRF may use its defaults",
+                    boot.gave_up()
+                );
+            }
+        }
         let section = LOAD.begin(Level::Io, cycles());
         crtp.housekeeping(now);
         LOAD.end(section, cycles());
+    }
+}
+
+/// Sends the boot settings that are due: first sends, and resends of those whose echo is late.
+async fn send_boot_settings(uart: &mut SyslinkUart, boot: &mut BootSettings) {
+    while let Some(p) = boot.poll(now_ms()) {
+        if let Err(e) = uart.send(&p).await {
+            warn!("syslink radio setting {=u8:#x} not sent: {}", p.kind, e);
+        }
     }
 }

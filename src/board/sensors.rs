@@ -17,6 +17,7 @@
 //! mission may only start when every sensor it needs is present *and* has a reader running
 //! ([`super::DECKS_OK`]).
 
+use cfnav::drivers::i2c_guard::{BusRecovery, GuardConfig, GuardedI2c};
 use cfnav::drivers::multiranger::{FIRST_ADDRESS, FLOW_DECK_Z_ADDRESS, MultiRanger};
 use cfnav::drivers::pca95x4;
 use cfnav::drivers::pmw3901::Pmw3901;
@@ -28,15 +29,124 @@ use embassy_stm32::gpio::Output;
 use embassy_stm32::i2c::I2c;
 use embassy_stm32::i2c::mode::Master as I2cMaster;
 use embassy_stm32::mode::Async;
+use embassy_stm32::pac;
+use embassy_stm32::pac::gpio::vals as gpio_vals;
 use embassy_stm32::spi::Spi;
 use embassy_stm32::spi::mode::Master as SpiMaster;
 use embassy_time::{Delay, Duration, Ticker, Timer, with_timeout};
+use embedded_hal_async::i2c::I2c as _;
 use embedded_hal_async::spi::{ErrorType, Operation, SpiDevice};
 
 use super::{FAST_INPUTS, FastInput, NAV_INPUTS, NO_RANGE_MM, NavInput, fast_status, now_us, update_log};
 
 /// Deadline of one boot-time I2C transfer on the deck bus (a stuck bus must not hang the boot).
 const I2C_PROBE_TIMEOUT: Duration = Duration::from_millis(20);
+
+/// The bus recovery of one I2C peripheral (`cfnav::drivers::i2c_guard`), by register: the embassy I2C
+/// driver owns the pins, so the recovery switches their mode (MODER: alternate function ↔ output; they
+/// are already open-drain, OTYPER, as the I2C driver set them) and drives them through BSRR while the
+/// peripheral is disabled, then resets the peripheral (CR1.SWRST, the F4 errata workaround embassy also
+/// applies at init) and restores its timing registers (RM0090 §27.6.1, §8.4).
+pub struct I2cRecoveryPins {
+    i2c: pac::i2c::I2c,
+    scl_port: pac::gpio::Gpio,
+    scl: usize,
+    sda_port: pac::gpio::Gpio,
+    sda: usize,
+}
+
+impl I2cRecoveryPins {
+    /// Deck bus I2C1: SCL PB6, SDA PB7 (`crazyflie-hardware.md` §5).
+    pub fn deck() -> Self {
+        Self {
+            i2c: pac::I2C1,
+            scl_port: pac::GPIOB,
+            scl: 6,
+            sda_port: pac::GPIOB,
+            sda: 7,
+        }
+    }
+
+    /// Sensor bus I2C3: SCL PA8, SDA PC9 (stock `i2c_drv.c` `sensorBusDef`).
+    pub fn sensors() -> Self {
+        Self {
+            i2c: pac::I2C3,
+            scl_port: pac::GPIOA,
+            scl: 8,
+            sda_port: pac::GPIOC,
+            sda: 9,
+        }
+    }
+
+    fn set_mode(&self, mode: gpio_vals::Moder) {
+        self.scl_port.moder().modify(|w| w.set_moder(self.scl, mode));
+        self.sda_port.moder().modify(|w| w.set_moder(self.sda, mode));
+    }
+}
+
+impl<'d> BusRecovery<I2c<'d, Async, I2cMaster>> for I2cRecoveryPins {
+    fn begin(&mut self, _bus: &mut I2c<'d, Async, I2cMaster>) {
+        self.i2c.cr1().modify(|w| w.set_pe(false));
+        // Released (high) before they become outputs, so switching the mode makes no edge.
+        self.set_scl(true);
+        self.set_sda(true);
+        self.set_mode(gpio_vals::Moder::OUTPUT);
+    }
+
+    fn set_scl(&mut self, high: bool) {
+        let n = self.scl;
+        self.scl_port
+            .bsrr()
+            .write(|w| if high { w.set_bs(n, true) } else { w.set_br(n, true) });
+    }
+
+    fn set_sda(&mut self, high: bool) {
+        let n = self.sda;
+        self.sda_port
+            .bsrr()
+            .write(|w| if high { w.set_bs(n, true) } else { w.set_br(n, true) });
+    }
+
+    fn sda_is_high(&mut self) -> bool {
+        self.sda_port.idr().read().idr(self.sda) == gpio_vals::Idr::HIGH
+    }
+
+    fn end(&mut self, _bus: &mut I2c<'d, Async, I2cMaster>) {
+        self.set_mode(gpio_vals::Moder::ALTERNATE);
+        // The timing the driver configured (CR2.FREQ, CCR, TRISE) survives the reset by copy; the reset
+        // clears everything else (a stuck BUSY flag, a half-done transfer's state).
+        let cr2 = self.i2c.cr2().read();
+        let ccr = self.i2c.ccr().read();
+        let trise = self.i2c.trise().read();
+        self.i2c.cr1().modify(|w| w.set_swrst(true));
+        self.i2c.cr1().modify(|w| w.set_swrst(false));
+        self.i2c.cr2().write_value(cr2);
+        self.i2c.ccr().write_value(ccr);
+        self.i2c.trise().write_value(trise);
+        self.i2c.cr1().modify(|w| w.set_pe(true));
+    }
+}
+
+/// An embassy I2C bus behind the deadline-and-recovery guard.
+pub type GuardedBus = GuardedI2c<I2c<'static, Async, I2cMaster>, I2cRecoveryPins, Delay>;
+
+/// Deck bus transactions: the longest is a VL53L1x configuration burst (≈ 140 bytes, 3.5 ms at 400 kHz).
+pub const DECK_GUARD: GuardConfig = GuardConfig {
+    timeout_us: 10_000,
+    retries: 1,
+};
+
+/// IMU transactions: a 6-byte burst takes ≈ 0.25 ms at 400 kHz; two tries with their recoveries stay
+/// near 2 ms, two control periods.
+pub const IMU_GUARD: GuardConfig = GuardConfig {
+    timeout_us: 1_000,
+    retries: 1,
+};
+
+/// Wraps an I2C bus in the guard.
+pub fn guard(bus: I2c<'static, Async, I2cMaster>, pins: I2cRecoveryPins, config: GuardConfig) -> GuardedBus {
+    GuardedI2c::new(bus, pins, Delay, config)
+}
 /// Flow read period (stock `flowdeck_v1v2.c`: 10 ms).
 pub const FLOW_PERIOD: Duration = Duration::from_millis(10);
 
@@ -108,7 +218,7 @@ pub async fn read_radio_settings(i2c: &mut DeckI2c) -> RadioSettings {
             settings
         }
         Ok(Err(e)) => {
-            warn!("EEPROM read failed ({}): radio defaults", e);
+            warn!("EEPROM read failed ({}): radio defaults", defmt::Debug2Format(&e));
             RadioSettings::DEFAULT
         }
         Err(_) => {
@@ -118,8 +228,8 @@ pub async fn read_radio_settings(i2c: &mut DeckI2c) -> RadioSettings {
     }
 }
 
-/// The deck bus, owned by [`deck_task`] after boot.
-pub type DeckI2c = I2c<'static, Async, I2cMaster>;
+/// The deck bus (guarded), owned by [`deck_task`] after boot.
+pub type DeckI2c = GuardedBus;
 
 /// The rangers that came up at boot.
 pub struct DeckRangers {
@@ -139,7 +249,8 @@ pub async fn bring_up_rangers(i2c: &mut DeckI2c) -> DeckRangers {
     if !expander {
         warn!("Multi-ranger deck not found (no PCA95x4 at 0x20)");
     }
-    let z = match Vl53l1x::bring_up(i2c, &mut Delay, FLOW_DECK_Z_ADDRESS, &RangingConfig::FLOW_DECK_Z).await {
+    // Probes 0x6A first: after a watchdog reset the ranger (no XSHUT) is still there.
+    let z = match Vl53l1x::bring_up_or_find(i2c, &mut Delay, FLOW_DECK_Z_ADDRESS, &RangingConfig::FLOW_DECK_Z).await {
         Ok(mut z) => match z.start_ranging(i2c).await {
             Ok(()) => {
                 info!("flow deck: height ranger up at {=u8:#x}", FLOW_DECK_Z_ADDRESS);

@@ -21,14 +21,20 @@
 //! | accel | 0x18 (SDO1 low, "primary") | 0x1E | ±24 g (ACC_RANGE 0x41 = 0x03) | ODR 1600 Hz, OSR4 ≈ 145 Hz (ACC_CONF 0x40 = 0x8C) | power on + active mode |
 //!
 //! Sequence and delays: gyro soft reset (0x14 ← 0xB6) then 30 ms (BMI08x API
-//! `BMI08_GYRO_SOFTRESET_DELAY`); gyro normal mode (LPM1 0x11 ← 0x00) then 30 ms
+//! `BMI08_GYRO_SOFTRESET_DELAY`), then the chip id again; gyro normal mode (LPM1 0x11 ← 0x00) then 30 ms
 //! (`BMI08_GYRO_POWER_MODE_CONFIG_DELAY`); accelerometer soft reset (0x7E ← 0xB6) then 1 ms
-//! (`BMI08_ACCEL_SOFTRESET_DELAY_MS`); accelerometer on (ACC_PWR_CTRL 0x7D ← 0x04) then 5 ms (stock
+//! (`BMI08_ACCEL_SOFTRESET_DELAY_MS`), then the chip id again; accelerometer on (ACC_PWR_CTRL 0x7D ← 0x04) then 5 ms (stock
 //! `delay_ms(5)`, = `BMI08_POWER_CONFIG_DELAY`); active mode (ACC_PWR_CONF 0x7C ← 0x00) then 10 ms (stock).
 //! The accelerometer's "dummy read" of the datasheet (§6.1) is only needed to switch it to **SPI** (a rising
 //! CSB1 edge); it starts in I2C mode after power-on and soft reset, so on the Crazyflie it is not needed.
 //! The caller must leave the chip its start-up time after power-on first (stock waits 1000 ms,
 //! `SENSORS_STARTUP_TIME_MS`, mostly for the other sensors on the bus).
+//!
+//! **Soft resets are fire-and-forget.** A chip that resets while it receives the command may not
+//! acknowledge the data byte or the STOP, so an error on the reset write is ignored; after the reset
+//! delay the chip id is read again, up to [`RESET_ID_ATTEMPTS`] times [`RESET_RETRY_MS`] apart, and that
+//! read decides whether the chip is there. (Stock never soft-resets the BMI088 on the Crazyflie:
+//! `bmi088_*_soft_reset` exist in its Bosch driver but `sensorsBmi088Bmp3xxInit` does not call them.)
 //!
 //! After configuring, [`Bmi088::init`] reads ACC_ERR_REG (0x02: bit 0 `fatal_err`, bits 4:2 `error_code`,
 //! 1 = invalid ACC_CONF), reads ACC_CONF/ACC_RANGE back, and waits (polling, 1 ms apart, at most
@@ -57,8 +63,8 @@
 //! platform_defaults.h`, applied in `sensorsAlignToAirframe`), so the mapping is the identity and a level
 //! drone at rest reads accel ≈ (0, 0, +g). This is what the simulator's `Imu` model (tools/src/sim/
 //! sensors.rs) produces from the true body rates and specific force, so SITL and the real chip feed the
-//! estimator the same quantities. (Stock's board-level trim `calibPitch/calibRoll` from the config block is
-//! not applied here.)
+//! estimator the same quantities. Stock's board-level trim `calibRoll/calibPitch` from the config block is
+//! applied by the caller with [`AccelTrim`], to the accelerometer only, as stock does.
 //!
 //! ## Errors
 //!
@@ -94,6 +100,12 @@ pub const ACCEL_M_S2_PER_LSB: f32 = 48.0 / 65536.0 * GRAVITY_M_S2;
 /// How many times [`Bmi088::init`] polls each data-ready flag (1 ms apart) before giving up. The slowest
 /// configured rate is the gyro's 1 kHz, so a working chip sets its flag within ~1 ms of being configured.
 pub const DATA_READY_POLLS: u32 = 20;
+
+/// How many times the chip id is read after a soft reset before init gives up (the first read comes after
+/// the datasheet reset delay; the others [`RESET_RETRY_MS`] apart).
+pub const RESET_ID_ATTEMPTS: u32 = 3;
+/// Wait between two identity reads after a soft reset, ms.
+pub const RESET_RETRY_MS: u32 = 5;
 
 /// Register map (datasheet §5.2 accelerometer, §5.4 gyroscope; BMI08x API `bmi08_defs.h`).
 mod reg {
@@ -183,6 +195,67 @@ impl RawImu {
     }
 }
 
+/// The config block's board trim `calibRoll/calibPitch` (degrees), applied to the accelerometer as stock
+/// `sensorsAccAlignToGravity` (crazyflie-firmware `sensors_bmi088_bmp3xx.c`): rotate about x by the roll
+/// trim, then about y by the pitch trim; the gyro is left alone (stock too). Non-finite trims, or trims
+/// beyond ±[`AccelTrim::MAX_DEG`] (a corrupt block), give the identity.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct AccelTrim {
+    cos_roll: f32,
+    sin_roll: f32,
+    cos_pitch: f32,
+    sin_pitch: f32,
+}
+
+impl AccelTrim {
+    /// The largest trim accepted, degrees (cfclient's trim is a few degrees).
+    pub const MAX_DEG: f32 = 20.0;
+    /// No trim.
+    pub const IDENTITY: Self = Self {
+        cos_roll: 1.0,
+        sin_roll: 0.0,
+        cos_pitch: 1.0,
+        sin_pitch: 0.0,
+    };
+
+    /// From the config block's `calib_roll_deg` and `calib_pitch_deg`.
+    pub fn from_degrees(roll_deg: f32, pitch_deg: f32) -> Self {
+        let ok = |d: f32| d.is_finite() && d.abs() <= Self::MAX_DEG;
+        if !(ok(roll_deg) && ok(pitch_deg)) {
+            return Self::IDENTITY;
+        }
+        let (r, p) = (roll_deg.to_radians(), pitch_deg.to_radians());
+        Self {
+            cos_roll: libm::cosf(r),
+            sin_roll: libm::sinf(r),
+            cos_pitch: libm::cosf(p),
+            sin_pitch: libm::sinf(p),
+        }
+    }
+
+    /// The trimmed accelerometer vector (stock's two rotations, in its order).
+    pub fn apply(&self, a: [f32; 3]) -> [f32; 3] {
+        let rx = [
+            a[0],
+            a[1] * self.cos_roll - a[2] * self.sin_roll,
+            a[1] * self.sin_roll + a[2] * self.cos_roll,
+        ];
+        [
+            rx[0] * self.cos_pitch - rx[2] * self.sin_pitch,
+            rx[1],
+            rx[0] * self.sin_pitch + rx[2] * self.cos_pitch,
+        ]
+    }
+
+    /// `sample` with its accelerometer trimmed.
+    pub fn apply_to(&self, sample: ImuSample) -> ImuSample {
+        ImuSample {
+            accel_m_s2: self.apply(sample.accel_m_s2),
+            ..sample
+        }
+    }
+}
+
 /// The BMI088 on one I2C bus (both halves).
 #[derive(Debug)]
 pub struct Bmi088<I> {
@@ -231,8 +304,10 @@ impl<I: I2c> Bmi088<I> {
 
     async fn init_gyro<D: DelayNs>(&mut self, delay: &mut D) -> Result<(), DriverError<I::Error>> {
         self.check_chip_id(GYRO_ADDR, reg::GYRO_CHIP_ID, GYRO_CHIP_ID).await?;
-        self.write(GYRO_ADDR, reg::GYRO_SOFTRESET, val::SOFTRESET).await?;
-        delay.delay_ms(GYRO_SOFTRESET_DELAY_MS).await;
+        self.soft_reset(GYRO_ADDR, reg::GYRO_SOFTRESET, GYRO_SOFTRESET_DELAY_MS, delay)
+            .await;
+        self.check_chip_id_after_reset(GYRO_ADDR, reg::GYRO_CHIP_ID, GYRO_CHIP_ID, delay)
+            .await?;
         self.write(GYRO_ADDR, reg::GYRO_LPM1, val::GYRO_NORMAL).await?;
         delay.delay_ms(GYRO_POWER_MODE_DELAY_MS).await;
         self.write(GYRO_ADDR, reg::GYRO_RANGE, val::GYRO_RANGE_2000DPS).await?;
@@ -247,8 +322,10 @@ impl<I: I2c> Bmi088<I> {
 
     async fn init_accel<D: DelayNs>(&mut self, delay: &mut D) -> Result<(), DriverError<I::Error>> {
         self.check_chip_id(ACCEL_ADDR, reg::ACC_CHIP_ID, ACCEL_CHIP_ID).await?;
-        self.write(ACCEL_ADDR, reg::ACC_SOFTRESET, val::SOFTRESET).await?;
-        delay.delay_ms(ACC_SOFTRESET_DELAY_MS).await;
+        self.soft_reset(ACCEL_ADDR, reg::ACC_SOFTRESET, ACC_SOFTRESET_DELAY_MS, delay)
+            .await;
+        self.check_chip_id_after_reset(ACCEL_ADDR, reg::ACC_CHIP_ID, ACCEL_CHIP_ID, delay)
+            .await?;
         self.write(ACCEL_ADDR, reg::ACC_PWR_CTRL, val::ACC_ENABLE).await?;
         delay.delay_ms(ACC_POWER_ON_DELAY_MS).await;
         self.write(ACCEL_ADDR, reg::ACC_PWR_CONF, val::ACC_ACTIVE).await?;
@@ -300,6 +377,36 @@ impl<I: I2c> Bmi088<I> {
             i16::from_le_bytes([b[2], b[3]]),
             i16::from_le_bytes([b[4], b[5]]),
         ])
+    }
+
+    /// Writes the soft-reset command and waits `delay_ms`. Fire-and-forget: the chip resets while it
+    /// receives the command and may not acknowledge it (or the STOP after it), so a bus error here says
+    /// nothing about the chip; the identity read that follows ([`Self::check_chip_id_after_reset`]) does.
+    async fn soft_reset<D: DelayNs>(&mut self, addr: u8, reset_reg: u8, delay_ms: u32, delay: &mut D) {
+        let _ = self.i2c.write(addr, &[reset_reg, val::SOFTRESET]).await;
+        delay.delay_ms(delay_ms).await;
+    }
+
+    /// The identity read after a soft reset: up to [`RESET_ID_ATTEMPTS`] tries, [`RESET_RETRY_MS`] apart,
+    /// for a chip that is still booting; the last failure is returned.
+    async fn check_chip_id_after_reset<D: DelayNs>(
+        &mut self,
+        addr: u8,
+        id_reg: u8,
+        expected: u8,
+        delay: &mut D,
+    ) -> Result<(), DriverError<I::Error>> {
+        let mut result = Ok(());
+        for attempt in 0..RESET_ID_ATTEMPTS {
+            if attempt > 0 {
+                delay.delay_ms(RESET_RETRY_MS).await;
+            }
+            result = self.check_chip_id(addr, id_reg, expected).await;
+            if result.is_ok() {
+                break;
+            }
+        }
+        result
     }
 
     async fn check_chip_id(&mut self, addr: u8, id_reg: u8, expected: u8) -> Result<(), DriverError<I::Error>> {

@@ -12,6 +12,7 @@
 //! console and make the supervisor refuse take-off.
 
 pub mod bmi088;
+pub mod i2c_guard;
 pub mod multiranger;
 pub mod pca95x4;
 pub mod pmw3901;

@@ -450,6 +450,30 @@ impl Vl53l1x {
         Ok(sensor)
     }
 
+    /// [`Vl53l1x::bring_up`] for a chip without a shutdown line (the Flow deck's z-ranger): after an
+    /// STM32-only reset (watchdog, debugger) the ranger kept its power and so the address it was moved
+    /// to, and no longer answers at [`DEFAULT_ADDRESS`]. One probe of FIRMWARE__SYSTEM_STATUS at
+    /// `new_address` first: if the chip answers there it is initialised there (no move); otherwise the
+    /// normal bring-up from the default address.
+    pub async fn bring_up_or_find<I: I2c, D: DelayNs>(
+        i2c: &mut I,
+        delay: &mut D,
+        new_address: u8,
+        config: &RangingConfig,
+    ) -> Result<Self, DriverError<I::Error>> {
+        if !is_valid_address(new_address) || !config.is_valid() {
+            return Err(DriverError::InvalidConfig);
+        }
+        if new_address != DEFAULT_ADDRESS {
+            let mut moved = Self::new(new_address);
+            if moved.read_u8(i2c, reg::FIRMWARE_SYSTEM_STATUS).await.is_ok() {
+                moved.init(i2c, delay, config).await?;
+                return Ok(moved);
+            }
+        }
+        Self::bring_up(i2c, delay, new_address, config).await
+    }
+
     /// Polls FIRMWARE__SYSTEM_STATUS until bit 0 (boot complete) is set, every [`POLL_INTERVAL_MS`], at most
     /// [`BOOT_POLL_LIMIT`] times. A bus error counts as "still booting" (the chip NACKs during boot); if the
     /// last poll was a bus error the result is that error (chip absent), otherwise [`DriverError::Timeout`].

@@ -73,6 +73,7 @@
 //! Memory: [`Supervisor`] is 280 bytes (half of it the configuration). Cost: O(1), a few dozen
 //! comparisons and flops, no transcendental functions.
 
+use super::flags::Flags;
 use crate::types::{GRAVITY_M_S2, Micros, Setpoint, StateEstimate};
 
 /// Tunable thresholds. [`Default`] is stock (§10) where stock has a value.
@@ -188,9 +189,12 @@ pub enum Reason {
     MotorsStopped,
 }
 
+/// The owner of [`SupervisorFlags`]'s bits (a marker, never built).
+#[derive(Debug)]
+pub enum SupervisorBits {}
+
 /// Bit flags describing one tick, for logs.
-#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
-pub struct SupervisorFlags(pub u16);
+pub type SupervisorFlags = Flags<SupervisorBits>;
 
 impl SupervisorFlags {
     /// The tilt timer is running (acc.z below the tilt threshold).
@@ -217,17 +221,6 @@ impl SupervisorFlags {
     pub const BATTERY_INVALID: u16 = 1 << 10;
     /// The estimate is not valid.
     pub const ESTIMATE_INVALID: u16 = 1 << 11;
-
-    /// Whether `flag` (one of the constants) is set.
-    pub fn contains(self, flag: u16) -> bool {
-        self.0 & flag != 0
-    }
-
-    fn set(&mut self, flag: u16, on: bool) {
-        if on {
-            self.0 |= flag;
-        }
-    }
 }
 
 /// One tick's inputs.
@@ -381,7 +374,7 @@ impl Supervisor {
         };
         self.last_now = Some(now);
         let first = *self.first_now.get_or_insert(now);
-        let mut flags = SupervisorFlags(0);
+        let mut flags = SupervisorFlags::default();
 
         // Accelerometer: tumble timers.
         let g = GRAVITY_M_S2;
@@ -592,15 +585,50 @@ impl Supervisor {
         }
     }
 
-    /// The setpoint to feed the controller, given the mission's: Stop when the motors are not allowed;
-    /// while levelling out, zero velocity at the held height and heading (stock WarningLevelOut: level,
+    /// The IMU gave no sample for longer than the stabilizer's level window (a hung bus, a dead chip):
+    /// [`Supervisor::update`] cannot run without one, so its accelerometer timer would never fire. Flying
+    /// → Crashed (latched, [`Reason::AccelFault`]); Armed → Idle; the other states are kept. The motors
+    /// are not allowed in the returned verdict whatever the state.
+    pub fn imu_lost(&mut self) -> SupervisorOutput {
+        use SupervisorState as S;
+        match self.state {
+            S::Flying => (self.state, self.reason) = (S::Crashed, Reason::AccelFault),
+            S::Armed => (self.state, self.reason) = (S::Idle, Reason::AccelFault),
+            _ => {}
+        }
+        self.level_out = false;
+        self.hold = None;
+        let mut flags = SupervisorFlags::from_bits(0);
+        flags.set(SupervisorFlags::ACCEL_FAULT, true);
+        flags.set(SupervisorFlags::BATTERY_LOW, self.battery_low);
+        SupervisorOutput {
+            state: self.state,
+            motors_allowed: false,
+            flying: false,
+            level_out: false,
+            battery_low: self.battery_low,
+            battery_v_filtered: self.vbat.unwrap_or(0.0),
+            reason: if self.reason == Reason::None {
+                Reason::AccelFault
+            } else {
+                self.reason
+            },
+            flags,
+        }
+    }
+
+    /// The setpoint to feed the controller, given the mission's: Stop when the motors are not allowed or
+    /// the setpoint is Stop; while levelling out, zero velocity at the held height and heading (stock WarningLevelOut: level,
     /// hold z); otherwise the mission's with [`clamp_min_height`] applied. Uses the state of the last
     /// [`Supervisor::update`].
     pub fn guard_setpoint(&self, setpoint: Setpoint) -> Setpoint {
         if !matches!(self.state, SupervisorState::Armed | SupervisorState::Flying) {
             return Setpoint::Stop;
         }
-        if self.level_out {
+        // A Stop stays a Stop, stale or not: stock's level-out keeps the setpoint's z mode, and a stop
+        // setpoint has none (thrust 0), so a drone told to stop in the air falls instead of climbing back to
+        // the height it held before the stop.
+        if self.level_out && setpoint != Setpoint::Stop {
             // The held height is not raised to the minimum: a landing that loses its setpoints holds
             // where it is instead of climbing.
             let (z, yaw) = self.hold.unwrap_or((self.cfg.min_height_m, 0.0));

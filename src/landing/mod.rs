@@ -3,8 +3,9 @@
 //! Holds the pad detector (range steps → edges → crossings → centre with a confidence, [`pad`]) and the
 //! lawnmower line generator for the coarse search ([`sweep`]).
 //!
-//! May depend on: [`crate::types`] only (a sweep's lines are clipped to an arena rectangle it is given). It
-//! does not decide when to search or land, nor avoid obstacles on the way: that is [`crate::mission`].
+//! May depend on: [`crate::types`] and [`crate::math`] only (a sweep's lines are clipped to an arena
+//! rectangle it is given). It does not decide when to search or land, nor avoid obstacles on the way: that
+//! is [`crate::mission`].
 //! Memory: a detector holds a fixed ring of edges (const generic), a sweep a few floats.
 
 pub mod pad;

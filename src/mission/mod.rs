@@ -75,11 +75,12 @@ pub use config::{
 
 use crate::landing::pad::PadDetector;
 use crate::landing::sweep::LawnmowerSweep;
+use crate::math::{body_to_arena, wrap_angle};
 use crate::nav::avoidance::{AvoidanceConfig, RangerReadings, ReactiveAvoidance};
 use crate::nav::dstar::DStarLite;
 use crate::nav::grid::{ChangedCells, OccupancyGrid};
 use crate::nav::map::{Cell, GridShape};
-use crate::types::{Micros, MultiRangerSample, RangeReading, Setpoint, StateEstimate, body_to_arena, wrap_angle};
+use crate::types::{Micros, MultiRangerSample, RangeReading, Setpoint, StateEstimate};
 
 /// The `mission.state` codes (interfaces.md §5): 0 idle, 1..99 phases, 100 completed, ≥ 200 ended without
 /// completing (the value says why).

@@ -5,10 +5,11 @@
 //! [mission's documentation](super); this file holds their arithmetic.
 
 use super::{Leg, Mission, Phase};
+use crate::math::wrap_angle;
 use crate::nav::dstar::{PlanError, PlanStatus};
 use crate::nav::map::{CELL_SIZE_M, Cell, GridShape, Traversability};
 use crate::nav::path::{extract_path, simplify};
-use crate::types::{Micros, Setpoint, StateEstimate, wrap_angle};
+use crate::types::{Micros, Setpoint, StateEstimate};
 
 /// Speed at a waypoint where the path turns by 90° or more, m/s.
 const CORNER_MIN_SPEED_M_S: f32 = 0.15;

@@ -178,7 +178,7 @@ impl<const CELLS: usize, const QUEUE: usize> Mission<CELLS, QUEUE> {
                 });
                 sp
             }
-            Search::Refine {
+            current @ Search::Refine {
                 stage,
                 line,
                 end,
@@ -224,14 +224,7 @@ impl<const CELLS: usize, const QUEUE: usize> Mission<CELLS, QUEUE> {
                 // A line has done its job once it gave a crossing: its remaining length only costs time.
                 let line_done = end == 1 && (reached || crossings_now > crossings_before);
                 let next = if !reached && !line_done {
-                    Search::Refine {
-                        stage,
-                        line,
-                        end,
-                        centre,
-                        first_along_x,
-                        crossings_before,
-                    }
+                    current
                 } else if end == 0 {
                     Search::Refine {
                         stage,

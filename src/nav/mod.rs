@@ -6,8 +6,9 @@
 //! ([`path`]), and the reactive layer that turns the path's next waypoint and the live beams into a bounded
 //! velocity ([`avoidance`]).
 //!
-//! May depend on: [`crate::types`] only. Nothing here knows the mission, the flight stack or the radio; the
-//! mission composes these pieces, and the planner replay and the benches use them alone.
+//! May depend on: [`crate::types`] and [`crate::math`] only. Nothing here knows the mission, the flight
+//! stack or the radio; the mission composes these pieces, and the planner replay and the benches use them
+//! alone.
 //! Memory: the grid (1 byte a cell) and the planner (8 bytes a cell plus its heap) dominate; see each
 //! module for its size at the firmware's capacity.
 

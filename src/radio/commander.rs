@@ -66,7 +66,8 @@
 use core::cell::Cell;
 
 use super::crtp::{CrtpPacket, Service};
-use crate::types::{Micros, Setpoint, StateEstimate, wrap_angle};
+use crate::math::wrap_angle;
+use crate::types::{Micros, Setpoint, StateEstimate};
 
 /// RPYT commander port (§4.2).
 pub const PORT_RPYT: u8 = 3;

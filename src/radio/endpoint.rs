@@ -1,50 +1,79 @@
-//! The CRTP services every cfnav endpoint answers — the drone over the syslink and the simulator over UDP —
-//! gathered in one place, so both dispatch exactly the same ports in the same order.
+//! The CRTP services every cfnav endpoint answers — the drone over the syslink, the simulator over UDP and
+//! the router fuzz target — gathered in one place, so all of them dispatch exactly the same ports in the
+//! same order.
 //!
-//! Job: borrow the endpoint's services for one uplink packet and hand it to the [`Router`]. Non-goals: owning
-//! the services (each endpoint keeps its own, with its own parameter store and log table), transport, time.
-//! Memory: six references on the stack for the duration of one call.
+//! Job: own one endpoint's router and services and hand each uplink packet to them at the caller's time.
+//! Non-goals: transport, the clock, what the caller does with commander setpoints, supervisor requests or
+//! `mission.start` (each endpoint reads those from the public services afterwards).
+//! Memory: the router's reply queue (`Q` × 32 bytes), the console queue (`C` × 31 bytes) and the services'
+//! own fixed state; nothing is allocated.
 
 use super::commander::CommanderService;
 use super::console::ConsoleService;
-use super::crtp::{CrtpPacket, Router, Service};
+use super::crtp::{CrtpPacket, PlatformService, Router, Service};
+use super::high_level::HighLevelService;
 use super::log::LogService;
 use super::log_registry::LogSource;
 use super::mem::MemService;
 use super::param::ParamService;
 use super::registry::ParamStore;
-use super::supervisor_port::SupervisorPortService;
+use super::supervisor_port::{SupervisorPortConfig, SupervisorPortService};
+use crate::types::Micros;
 
-/// The services of one endpoint, borrowed for one packet: parameters (port 2), logs (5), memory (4),
-/// commander (3 and 7), supervisor (9) and console (0). Link (15) and platform (13) live in the router.
-pub struct EndpointServices<'a, P: ParamStore, L: LogSource, const C: usize> {
+/// One endpoint's router and services: parameters (port 2), logs (5), memory (4), commander (3 and 7),
+/// high-level commander (8), supervisor (9) and console (0); link (15) and platform (13) live in the router.
+pub struct Endpoint<P: ParamStore, L: LogSource, const C: usize, const Q: usize> {
+    /// The router (link and platform services, reply queue).
+    pub router: Router<Q>,
     /// Parameter service.
-    pub param: &'a mut ParamService<P>,
+    pub param: ParamService<P>,
     /// Log service.
-    pub log: &'a mut LogService<L>,
+    pub log: LogService<L>,
     /// Memory-count service.
-    pub mem: &'a mut MemService,
+    pub mem: MemService,
     /// Setpoint commander (ports 3 and 7).
-    pub commander: &'a mut CommanderService,
+    pub commander: CommanderService,
+    /// High-level commander (port 8).
+    pub high_level: HighLevelService,
     /// Supervisor port.
-    pub supervisor: &'a mut SupervisorPortService,
+    pub supervisor: SupervisorPortService,
     /// Console.
-    pub console: &'a mut ConsoleService<C>,
+    pub console: ConsoleService<C>,
 }
 
-impl<P: ParamStore, L: LogSource, const C: usize> EndpointServices<'_, P, L, C> {
-    /// Dispatches one uplink packet (`bytes`, header first) through `router`; returns the reply, if any.
-    pub fn handle_uplink<const Q: usize>(self, router: &mut Router<Q>, bytes: &[u8]) -> Option<CrtpPacket> {
+impl<P: ParamStore, L: LogSource, const C: usize, const Q: usize> Endpoint<P, L, C, Q> {
+    /// An endpoint reporting `firmware_tag` on the platform port, with this parameter store and supervisor
+    /// port configuration; logs, console and commander start empty.
+    pub fn new(firmware_tag: &'static str, store: P, supervisor: SupervisorPortConfig) -> Self {
+        Self {
+            router: Router::new(PlatformService::new(firmware_tag)),
+            param: ParamService::new(store),
+            log: LogService::new(),
+            mem: MemService,
+            commander: CommanderService::new(),
+            high_level: HighLevelService::new(),
+            supervisor: SupervisorPortService::new(supervisor),
+            console: ConsoleService::new(),
+        }
+    }
+
+    /// Dispatches one uplink packet (`bytes`, header first) received at `now_us` (the commander and the
+    /// supervisor port time-stamp what it carries); returns the reply, if any.
+    pub fn handle_uplink(&mut self, bytes: &[u8], now_us: Micros) -> Option<CrtpPacket> {
+        self.commander.set_now(now_us);
+        self.supervisor.set_now(now_us);
+        self.high_level.set_now(now_us);
         let [mut rpyt, mut generic] = self.commander.ports();
-        let mut services: [&mut dyn Service; 7] = [
-            self.param,
-            self.log,
-            self.mem,
+        let mut services: [&mut dyn Service; 8] = [
+            &mut self.param,
+            &mut self.log,
+            &mut self.mem,
             &mut rpyt,
             &mut generic,
-            self.supervisor,
-            self.console,
+            &mut self.high_level,
+            &mut self.supervisor,
+            &mut self.console,
         ];
-        router.handle_uplink(bytes, &mut services)
+        self.router.handle_uplink(bytes, &mut services)
     }
 }

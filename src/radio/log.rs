@@ -38,6 +38,7 @@ use heapless::Vec;
 
 use super::crtp::{CrtpPacket, MAX_DATA, Service};
 use super::log_registry::{LogEntry, LogSource, LogType, log_toc_crc};
+use super::registry::toc_item;
 
 /// Log port (§4.2).
 pub const PORT_LOG: u8 = 5;
@@ -266,13 +267,7 @@ impl<S: LogSource> LogService<S> {
                     return packet(CH_TOC, &[TOC_GET_ITEM_V2]);
                 };
                 let mut out: Vec<u8, MAX_DATA> = Vec::new();
-                out.push(TOC_GET_ITEM_V2).ok()?;
-                out.extend_from_slice(&id.to_le_bytes()).ok()?;
-                out.push(e.ty.code()).ok()?;
-                out.extend_from_slice(e.group.as_bytes()).ok()?;
-                out.push(0).ok()?;
-                out.extend_from_slice(e.name.as_bytes()).ok()?;
-                out.push(0).ok()?;
+                toc_item(&mut out, TOC_GET_ITEM_V2, id, e.ty.code(), e.group, e.name)?;
                 packet(CH_TOC, &out)
             }
             _ => None,

@@ -8,10 +8,12 @@
 //! [`param::ParamService`] (port 2) over a [`registry::ParamStore`], the log protocol [`log::LogService`]
 //! (port 5) over a [`log_registry::LogSource`], the memory count [`mem::MemService`] (port 4), the commander
 //! ports 3 and 7 through [`commander::CommanderService::ports`] (decoded setpoint commands with the RPYT
-//! thrust lock; [`commander::SetpointFollower`] maps them to [`crate::types::Setpoint`]), the supervisor port 9
+//! thrust lock; [`commander::SetpointFollower`] maps them to [`crate::types::Setpoint`]), the high-level
+//! commander port 8 [`high_level::HighLevelService`] (take-off, land, go-to, stop, group masks), the supervisor port 9
 //! [`supervisor_port::SupervisorPortService`] (state bits, arming, recovery, emergency stop and its watchdog,
 //! as requests for the caller) and the console port 0 [`console::ConsoleService`] (text lines cut into
-//! ≤ 30-byte packets, handed out one per downlink opportunity).
+//! ≤ 30-byte packets, handed out one per downlink opportunity). [`syslink_tx`] is the transmit side towards the
+//! nRF51: frames in flow-controlled chunks, the boot settings confirmed by their echoes, the nRF version.
 //!
 //! Sources: `/work/shared/reference/crazyflie-hardware.md` §3 (syslink), §4 (CRTP) and §10 (setpoint
 //! watchdog, emergency stop),
@@ -25,6 +27,7 @@ pub mod commander;
 pub mod console;
 pub mod crtp;
 pub mod endpoint;
+pub mod high_level;
 pub mod log;
 pub mod log_registry;
 pub mod mem;
@@ -32,3 +35,4 @@ pub mod param;
 pub mod registry;
 pub mod supervisor_port;
 pub mod syslink;
+pub mod syslink_tx;

@@ -4,7 +4,7 @@
 //! extended type v2) with the stock firmware's byte layouts, and build the unsolicited VALUE_UPDATED packets
 //! the firmware queues when it changes a parameter itself.
 //!
-//! Non-goals: no V1 (8-bit id) commands, no persistent storage, no default-value commands (misc 5/6/8).
+//! Non-goals: no V1 (8-bit id) commands, no persistent storage (misc 3/4/5).
 //!
 //! Sources (`crazyflie-hardware.md` §4.5, `crtp-over-udp.md` §2 steps 7, 8, 10 and the probe trace):
 //! * ch0 `[3]` → `[3, count u16, crc u32]` (7 bytes); `[2, id u16]` → `[2, id u16, type, group\0, name\0]`,
@@ -18,11 +18,15 @@
 //! * A write whose value is not exactly the parameter's size, and any truncated request (TOC item or read
 //!   without a full id, write without one, set-by-name without two NULs and a type byte) gets **no reply** and
 //!   changes nothing. Stock does not check these sizes (it reads past the payload); cflib never sends them.
-//! * A write refused by the store (interfaces.md §5) is echoed with the value **in effect**; the refusal is
+//! * A write refused by its declaration (range) or by the store (interfaces.md §5) is echoed with the value **in effect**; the refusal is
 //!   kept for a console line ([`ParamService::take_refusal`]). Every write echo carries the value read back.
 //! * Set-by-name errors: ENOENT (2) unknown name, EINVAL (22) type mismatch, wrong value size or a refused
 //!   value, EACCES (13) read-only; a successful set-by-name queues no VALUE_UPDATED (as stock).
 //! * Misc 7 for an unknown id → `[7, id u16, 2]`; ext_type is 1 (persistent) for [`FLAG_EXTENDED`] entries.
+//! * Default value (stock `paramGetDefaultValue[V2]`, `param_logic.c`): v2 `[8, id u16]` → `[8, id u16, 0,
+//!   value]`, v1 `[6, id u16]` → `[6, id u16, value]`; unknown, read-only or no default
+//!   ([`ParamStore::default_value`]) → `[cmd, id u16, ENOENT]`. cfclient asks for it whenever a parameter is
+//!   selected, and cflib's parameter queue waits for the answer: without one, every later write stalls.
 //! * Unknown TOC/misc commands: no reply.
 //!
 //! Memory: the store, a queue of 8 pending VALUE_UPDATED ids and 4 pending refusals.
@@ -32,7 +36,7 @@ use core::fmt::Write as _;
 use heapless::{Deque, String, Vec};
 
 use super::crtp::{CrtpPacket, MAX_DATA, Service};
-use super::registry::{FLAG_EXTENDED, ParamEntry, ParamStore, ParamType, Refusal, Value, toc_crc};
+use super::registry::{FLAG_EXTENDED, ParamEntry, ParamStore, ParamType, Refusal, Value, toc_crc, toc_item};
 
 /// Parameter port (§4.2).
 pub const PORT_PARAM: u8 = 2;
@@ -52,8 +56,12 @@ pub const TOC_GET_INFO_V2: u8 = 0x03;
 pub const MISC_SET_BY_NAME: u8 = 0;
 /// Misc command: value updated (downlink only).
 pub const MISC_VALUE_UPDATED: u8 = 1;
+/// Misc command: default value (v1: no status byte).
+pub const MISC_GET_DEFAULT_VALUE: u8 = 6;
 /// Misc command: extended type (v2).
 pub const MISC_GET_EXTENDED_TYPE_V2: u8 = 7;
+/// Misc command: default value (v2: with a status byte).
+pub const MISC_GET_DEFAULT_VALUE_V2: u8 = 8;
 /// `ENOENT`: no such parameter.
 pub const ENOENT: u8 = 2;
 /// `EACCES`: read-only.
@@ -168,13 +176,27 @@ impl<S: ParamStore> ParamService<S> {
         self.dropped_refusals
     }
 
-    /// The console line for a refusal: `param group.name refused: reason\n` (truncated to 64 bytes).
+    /// The console line for a refusal: `param group.name refused: reason\n`; a value outside the declared
+    /// range names the range, `param group.name refused: not in [0, 1]` (truncated to 64 bytes; every line
+    /// of [`super::registry::PARAM_TABLE`] fits).
     pub fn console_line(note: &RefusalNote) -> String<64> {
         let mut out = String::new();
-        let _ = match Self::entry(note.id) {
-            Some(e) => writeln!(out, "param {}.{} refused: {}", e.group, e.name, note.refusal.reason()),
-            None => writeln!(out, "param {} refused: {}", note.id, note.refusal.reason()),
+        let _ = match (Self::entry(note.id), note.refusal) {
+            (Some(e), Refusal::OutOfRange) => {
+                writeln!(
+                    out,
+                    "param {}.{} refused: not in {} {}",
+                    e.group, e.name, e.range, e.unit
+                )
+            }
+            (Some(e), r) => writeln!(out, "param {}.{} refused: {}", e.group, e.name, r.reason()),
+            (None, r) => writeln!(out, "param {} refused: {}", note.id, r.reason()),
         };
+        if note.refusal == Refusal::OutOfRange && out.ends_with(" \n") {
+            // No unit: drop the space before the newline.
+            out.truncate(out.len() - 2);
+            let _ = out.push('\n');
+        }
         out
     }
 
@@ -197,13 +219,7 @@ impl<S: ParamStore> ParamService<S> {
                     return packet(CH_TOC, &[TOC_GET_ITEM_V2]);
                 };
                 let mut out: Vec<u8, MAX_DATA> = Vec::new();
-                out.push(TOC_GET_ITEM_V2).ok()?;
-                out.extend_from_slice(&id.to_le_bytes()).ok()?;
-                out.push(e.type_byte()).ok()?;
-                out.extend_from_slice(e.group.as_bytes()).ok()?;
-                out.push(0).ok()?;
-                out.extend_from_slice(e.name.as_bytes()).ok()?;
-                out.push(0).ok()?;
+                toc_item(&mut out, TOC_GET_ITEM_V2, id, e.type_byte(), e.group, e.name)?;
                 packet(CH_TOC, &out)
             }
             _ => None,
@@ -232,10 +248,12 @@ impl<S: ParamStore> ParamService<S> {
         self.value_reply(CH_READ, id, true)
     }
 
-    /// Decodes a value of exactly the entry's size and type and applies it through the store.
+    /// Decodes a value of exactly the entry's size and type and applies it: the declaration's checks
+    /// ([`ParamEntry::check`]) first, then the store's.
     fn apply(&mut self, id: u16, ty: ParamType, bytes: &[u8]) -> Option<Result<(), Refusal>> {
         let value = Value::from_le(ty, bytes)?;
-        let result = self.store.write(id, value);
+        let entry = Self::entry(id)?;
+        let result = entry.check(value).and_then(|()| self.store.write(id, value));
         if let Err(refusal) = result {
             self.refuse(id, refusal);
         }
@@ -293,6 +311,26 @@ impl<S: ParamStore> ParamService<S> {
     fn misc(&mut self, data: &[u8]) -> Option<CrtpPacket> {
         match *data.first()? {
             MISC_SET_BY_NAME => self.set_by_name(data),
+            cmd @ (MISC_GET_DEFAULT_VALUE | MISC_GET_DEFAULT_VALUE_V2) => {
+                let id = u16::from_le_bytes([*data.get(1)?, *data.get(2)?]);
+                let b = id.to_le_bytes();
+                let mut out: Vec<u8, MAX_DATA> = Vec::new();
+                out.extend_from_slice(&[cmd, b[0], b[1]]).ok()?;
+                let default = Self::entry(id)
+                    .filter(|e| !e.read_only())
+                    .and_then(|_| self.store.default_value(id));
+                match default {
+                    Some(value) => {
+                        if cmd == MISC_GET_DEFAULT_VALUE_V2 {
+                            out.push(0).ok()?;
+                        }
+                        let (bytes, n) = value.to_le();
+                        out.extend_from_slice(&bytes[..n]).ok()?;
+                    }
+                    None => out.push(ENOENT).ok()?,
+                }
+                packet(CH_MISC, &out)
+            }
             MISC_GET_EXTENDED_TYPE_V2 => {
                 let id = u16::from_le_bytes([*data.get(1)?, *data.get(2)?]);
                 let b = id.to_le_bytes();

@@ -1,22 +1,34 @@
-//! A declarative, fixed-size parameter registry: a `const` table of entries and a store that reads and writes
-//! values by id, plus the `mission.*` parameters of interfaces.md §5 over [`MissionParamState`].
+//! The parameter declarations: one `const` line per parameter (group, name, type, flags, range, unit, doc)
+//! in [`PARAM_TABLE`], a store that reads and writes values by id ([`MissionParamState`]), and the shared TOC
+//! machinery (values, CRC, name checks) the log table uses too.
 //!
-//! Job: describe every parameter once (group, name, wire type, flags), check at compile time that each TOC item
-//! fits one CRTP packet, give the TOC its CRC, and validate radio writes (refusals keep the old value and give a
-//! short reason for the console).
+//! Job: describe every parameter once. The TOC (type byte, names, CRC), the generic write checks (unknown id,
+//! read-only, type, range: [`ParamEntry::check`]), the console line of a refusal and the README's parameter
+//! table ([`write_param_table`]) all derive from the declaration; the store adds only what a declaration
+//! cannot say (a goal inside the arena, the start rules). Ids are the table's indices, and the `ID_*`
+//! constants are looked up in the table at compile time ([`param_id`]), so they cannot drift from it.
 //!
 //! Non-goals: no wire protocol (that is [`super::param`]), no persistence, no 64-bit or FP16 types.
 //!
 //! Sources: `crazyflie-hardware.md` §4.5 (type byte: bits 1..0 size, bit 2 float, bit 3 unsigned, 0x10
 //! EXTENDED, 0x40 READ-ONLY; `strlen(group) + strlen(name) + 2 ≤ 26`; CRC-32 reflected 0xEDB88320,
 //! init/xorout 0xFFFFFFFF); `crtp-over-udp.md` §2 (the CRC is only a cache key shared with the log TOC: it must
-//! change with the TOC and differ from the log TOC's); `interfaces.md` §5 (the parameters and the refusal rule).
+//! change with the TOC and differ from the log TOC's); `interfaces.md` §5 (the `mission.*` parameters and the
+//! refusal rule). Stock names, types and semantics of the other groups from `bitcraze/crazyflie-firmware`
+//! (`PARAM_ADD` lines): `deck.bc*` uint8 read-only, 1 when the deck was detected (`flowdeck_v1v2.c`,
+//! `multiranger.c`, `zranger*.c`, `lighthouse.c`, `locodeck.c`, `ledring12.c`, `color_led_deck.c`);
+//! `kalman.resetEstimation` uint8 (`estimator_kalman.c`); `stabilizer.controller` uint8, 0 auto-select, 1 PID,
+//! 2 Mellinger, 3 INDI, 4 Brescianini, 5 Lee (`stabilizer.c`, `controller.h`); `commander.enHighLevel` uint8
+//! (`commander.c`). The deck names are every `deck.*` name the stock cfclient 2026.8.1 reads (Flight, LED-ring,
+//! Color LED, Lighthouse and Loco tabs): a name it misses stalls its parameter callback.
 //!
 //! Design choices: the TOC CRC is CRC-32 over [`PARAM_CRC_SEED`] followed by, for every entry in id order, the
 //! type byte, the group, a NUL, the name and a NUL (not stock's chaining; any value that changes with the TOC
-//! works, §4.5). The seed keeps it distinct from the log TOC's CRC for the same names. `mission.start` accepts 0
-//! and 1 only; goal and start positions use the same 0.1 m wall margin as [`MissionParams::validate`]; speed
-//! must be in (0, 1] m/s and height in [0.2, 2] m, as there.
+//! works, §4.5). The seed keeps it distinct from the log TOC's CRC for the same names. The `mission.*` ids 0–6
+//! are those of interfaces.md §5 and stay first; new parameters are appended. `stabilizer.controller` accepts
+//! 0 and 1 only (cfnav flies one cascaded PID controller: both mean it); `kalman.resetEstimation = 1` asks
+//! the endpoint to re-anchor the estimator's horizontal position at `mission.startX/startY` (refused while
+//! flying), and the endpoint writes it back to 0 when done, as stock clears it.
 //!
 //! Memory: the table is `'static`; [`MissionParamState`] is a few dozen bytes.
 
@@ -88,6 +100,19 @@ impl ParamType {
             Self::U32 | Self::I32 | Self::F32 => 4,
         }
     }
+
+    /// The name interfaces.md §5 and the README use (`uint8`, `float`, ...).
+    pub const fn name(self) -> &'static str {
+        match self {
+            Self::U8 => "uint8",
+            Self::U16 => "uint16",
+            Self::U32 => "uint32",
+            Self::I8 => "int8",
+            Self::I16 => "int16",
+            Self::I32 => "int32",
+            Self::F32 => "float",
+        }
+    }
 }
 
 /// A parameter value.
@@ -123,6 +148,19 @@ impl Value {
         }
     }
 
+    /// The value as an `f64` (exact for every type here).
+    pub fn as_f64(self) -> f64 {
+        match self {
+            Self::U8(v) => f64::from(v),
+            Self::U16(v) => f64::from(v),
+            Self::U32(v) => f64::from(v),
+            Self::I8(v) => f64::from(v),
+            Self::I16(v) => f64::from(v),
+            Self::I32(v) => f64::from(v),
+            Self::F32(v) => f64::from(v),
+        }
+    }
+
     /// Little-endian bytes: the first [`ParamType::size`] bytes of the array are used.
     pub fn to_le(self) -> ([u8; 4], usize) {
         let mut out = [0u8; 4];
@@ -153,8 +191,42 @@ impl Value {
     }
 }
 
-/// One table entry. Build it with [`ParamEntry::new`] in a `const` so the checks run at compile time.
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+/// The values a parameter accepts, as declared (checked on every radio write; shown in the README table).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum Range {
+    /// Any value of the type (a store may still refuse it for a reason the declaration cannot state).
+    Any,
+    /// `min ≤ v ≤ max` (NaN is outside).
+    Closed(f32, f32),
+    /// `min < v ≤ max` (NaN is outside).
+    LeftOpen(f32, f32),
+}
+
+impl Range {
+    /// Whether `value` lies in the range (integers compared exactly as `f64`).
+    pub fn contains(self, value: Value) -> bool {
+        let v = value.as_f64();
+        match self {
+            Self::Any => true,
+            Self::Closed(lo, hi) => v >= f64::from(lo) && v <= f64::from(hi),
+            Self::LeftOpen(lo, hi) => v > f64::from(lo) && v <= f64::from(hi),
+        }
+    }
+}
+
+impl core::fmt::Display for Range {
+    fn fmt(&self, f: &mut core::fmt::Formatter<'_>) -> core::fmt::Result {
+        match self {
+            Self::Any => f.write_str("any"),
+            Self::Closed(lo, hi) => write!(f, "[{lo}, {hi}]"),
+            Self::LeftOpen(lo, hi) => write!(f, "({lo}, {hi}]"),
+        }
+    }
+}
+
+/// One parameter's declaration. Build it with [`ParamEntry::new`] (bare TOC entry) or
+/// [`ParamEntry::declare`] in a `const` so the checks run at compile time.
+#[derive(Debug, Clone, Copy, PartialEq)]
 pub struct ParamEntry {
     /// Group name (ASCII, no NUL).
     pub group: &'static str,
@@ -164,6 +236,14 @@ pub struct ParamEntry {
     pub ty: ParamType,
     /// [`FLAG_READ_ONLY`] and/or [`FLAG_EXTENDED`].
     pub flags: u8,
+    /// The values a write may carry.
+    pub range: Range,
+    /// What a write outside [`Self::range`] is refused as.
+    pub out_of_range: Refusal,
+    /// Unit of the value (`""` for none).
+    pub unit: &'static str,
+    /// One sentence for the README table.
+    pub doc: &'static str,
 }
 
 /// Whether a TOC group or name is usable: non-empty ASCII without NUL (shared with the log table).
@@ -182,20 +262,105 @@ pub const fn valid_name(s: &str) -> bool {
     true
 }
 
+/// Panics (a compile error in a `const`) unless `group.name` fits a TOC item of `header` bytes in one CRTP
+/// packet and both are valid names (shared by the param and log tables).
+pub const fn assert_toc_name(group: &str, name: &str, header: usize) {
+    assert!(
+        group.len() + name.len() + 2 + header <= MAX_DATA,
+        "group + name too long for a TOC item"
+    );
+    assert!(
+        valid_name(group) && valid_name(name),
+        "group and name must be non-empty ASCII without NUL"
+    );
+}
+
+/// Appends the TOC item `[cmd, id u16, type, group\0, name\0]` (param and log TOCs share this layout).
+pub fn toc_item(
+    out: &mut heapless::Vec<u8, MAX_DATA>,
+    cmd: u8,
+    id: u16,
+    type_byte: u8,
+    group: &str,
+    name: &str,
+) -> Option<()> {
+    out.push(cmd).ok()?;
+    out.extend_from_slice(&id.to_le_bytes()).ok()?;
+    out.push(type_byte).ok()?;
+    out.extend_from_slice(group.as_bytes()).ok()?;
+    out.push(0).ok()?;
+    out.extend_from_slice(name.as_bytes()).ok()?;
+    out.push(0).ok()
+}
+
+/// Id of `group.name` in `table`, at compile time; panics (a compile error in a `const`) if it is missing.
+pub const fn param_id(table: &[ParamEntry], group: &str, name: &str) -> u16 {
+    let mut i = 0;
+    while i < table.len() {
+        if str_eq(table[i].group, group) && str_eq(table[i].name, name) {
+            return i as u16;
+        }
+        i += 1;
+    }
+    panic!("no such parameter")
+}
+
+/// `a == b` in a `const`.
+pub const fn str_eq(a: &str, b: &str) -> bool {
+    let (a, b) = (a.as_bytes(), b.as_bytes());
+    if a.len() != b.len() {
+        return false;
+    }
+    let mut i = 0;
+    while i < a.len() {
+        if a[i] != b[i] {
+            return false;
+        }
+        i += 1;
+    }
+    true
+}
+
 impl ParamEntry {
-    /// An entry; panics (a compile error in a `const`) if the TOC item `[2, id u16, type, group\0, name\0]`
-    /// would not fit 30 bytes, a name is empty, holds a NUL or non-ASCII byte, or `flags` has other bits.
+    /// A bare entry (any value, no unit or doc); panics (a compile error in a `const`) if the TOC item
+    /// `[2, id u16, type, group\0, name\0]` would not fit 30 bytes, a name is empty, holds a NUL or non-ASCII
+    /// byte, or `flags` has other bits.
     pub const fn new(group: &'static str, name: &'static str, ty: ParamType, flags: u8) -> Self {
-        assert!(
-            group.len() + name.len() + 2 + TOC_ITEM_HEADER <= MAX_DATA,
-            "param group + name too long for a TOC item"
-        );
-        assert!(
-            valid_name(group) && valid_name(name),
-            "param group and name must be non-empty ASCII without NUL"
-        );
+        assert_toc_name(group, name, TOC_ITEM_HEADER);
         assert!(flags & !(FLAG_READ_ONLY | FLAG_EXTENDED) == 0, "unknown param flag");
-        Self { group, name, ty, flags }
+        Self {
+            group,
+            name,
+            ty,
+            flags,
+            range: Range::Any,
+            out_of_range: Refusal::OutOfRange,
+            unit: "",
+            doc: "",
+        }
+    }
+
+    /// The one-line declaration: [`Self::new`]'s checks, plus the accepted range, the unit and the doc.
+    pub const fn declare(
+        group: &'static str,
+        name: &'static str,
+        ty: ParamType,
+        flags: u8,
+        range: Range,
+        unit: &'static str,
+        doc: &'static str,
+    ) -> Self {
+        let mut e = Self::new(group, name, ty, flags);
+        e.range = range;
+        e.unit = unit;
+        e.doc = doc;
+        e
+    }
+
+    /// The same declaration, with a write outside the range refused as `refusal` (for a clearer console line).
+    pub const fn refused_as(mut self, refusal: Refusal) -> Self {
+        self.out_of_range = refusal;
+        self
     }
 
     /// The wire type byte: type code | flags.
@@ -206,6 +371,20 @@ impl ParamEntry {
     /// True if radio writes are not allowed.
     pub const fn read_only(&self) -> bool {
         self.flags & FLAG_READ_ONLY != 0
+    }
+
+    /// The checks every write goes through, from the declaration alone: writable, the declared type, in range.
+    pub fn check(&self, value: Value) -> Result<(), Refusal> {
+        if self.read_only() {
+            return Err(Refusal::ReadOnly);
+        }
+        if value.ty() != self.ty {
+            return Err(Refusal::WrongType);
+        }
+        if !self.range.contains(value) {
+            return Err(self.out_of_range);
+        }
+        Ok(())
     }
 }
 
@@ -283,6 +462,12 @@ pub enum Refusal {
     AlreadyRunning,
     /// A start with an arena the map cannot hold.
     BadArena,
+    /// Outside the range its declaration gives (the console line names the range).
+    OutOfRange,
+    /// `stabilizer.controller` other than 0 (auto) or 1 (PID): cfnav has one controller.
+    UnsupportedController,
+    /// `kalman.resetEstimation = 1` while flying or while a mission runs.
+    ResetWhileFlying,
 }
 
 impl Refusal {
@@ -301,6 +486,9 @@ impl Refusal {
             Self::DeckMissing => "a deck is missing",
             Self::AlreadyRunning => "mission already running",
             Self::BadArena => "arena too large for the map",
+            Self::OutOfRange => "out of range",
+            Self::UnsupportedController => "only 0 (auto) or 1 (PID)",
+            Self::ResetWhileFlying => "reset while flying",
         }
     }
 }
@@ -313,35 +501,264 @@ pub trait ParamStore {
     fn read(&self, id: u16) -> Option<Value>;
     /// A radio write: validates and applies `value`, or refuses and leaves the state unchanged.
     fn write(&mut self, id: u16, value: Value) -> Result<(), Refusal>;
+    /// The value parameter `id` had at power-on (what cfclient shows as the default); `None` if unknown.
+    fn default_value(&self, id: u16) -> Option<Value> {
+        let _ = id;
+        None
+    }
 }
 
-/// Id of `mission.start` (uint8).
-pub const ID_START: u16 = 0;
-/// Id of `mission.goalX` (float).
-pub const ID_GOAL_X: u16 = 1;
-/// Id of `mission.goalY` (float).
-pub const ID_GOAL_Y: u16 = 2;
-/// Id of `mission.startX` (float).
-pub const ID_START_X: u16 = 3;
-/// Id of `mission.startY` (float).
-pub const ID_START_Y: u16 = 4;
-/// Id of `mission.height` (float).
-pub const ID_HEIGHT: u16 = 5;
-/// Id of `mission.speed` (float).
-pub const ID_SPEED: u16 = 6;
+/// Read-only flag, shortened for the declarations below.
+const RO: u8 = FLAG_READ_ONLY;
+/// A 0/1 switch.
+const SWITCH: Range = Range::Closed(0.0, 1.0);
 
-/// The `mission.*` parameters (interfaces.md §5), in id order.
-pub const MISSION_TABLE: &[ParamEntry] = &[
-    ParamEntry::new("mission", "start", ParamType::U8, 0),
-    ParamEntry::new("mission", "goalX", ParamType::F32, 0),
-    ParamEntry::new("mission", "goalY", ParamType::F32, 0),
-    ParamEntry::new("mission", "startX", ParamType::F32, 0),
-    ParamEntry::new("mission", "startY", ParamType::F32, 0),
-    ParamEntry::new("mission", "height", ParamType::F32, 0),
-    ParamEntry::new("mission", "speed", ParamType::F32, 0),
+/// Every parameter cfnav serves, in id order: one declaration each (see the module docs). The `mission.*`
+/// ids 0–6 are interfaces.md §5's.
+pub const PARAM_TABLE: &[ParamEntry] = &[
+    ParamEntry::declare(
+        "mission",
+        "start",
+        ParamType::U8,
+        0,
+        SWITCH,
+        "",
+        "write 1 to start the mission from idle; 0 during a mission aborts it (land where it is)",
+    )
+    .refused_as(Refusal::BadStartValue),
+    ParamEntry::declare(
+        "mission",
+        "goalX",
+        ParamType::F32,
+        0,
+        Range::Any,
+        "m",
+        "nominal goal x, arena frame; must lie inside the arena, 0.1 m from the walls",
+    ),
+    ParamEntry::declare(
+        "mission",
+        "goalY",
+        ParamType::F32,
+        0,
+        Range::Any,
+        "m",
+        "nominal goal y, arena frame; must lie inside the arena, 0.1 m from the walls",
+    ),
+    ParamEntry::declare(
+        "mission",
+        "startX",
+        ParamType::F32,
+        0,
+        Range::Any,
+        "m",
+        "where the drone stands at power-on, x, arena frame; inside the arena",
+    ),
+    ParamEntry::declare(
+        "mission",
+        "startY",
+        ParamType::F32,
+        0,
+        Range::Any,
+        "m",
+        "where the drone stands at power-on, y, arena frame; inside the arena",
+    ),
+    ParamEntry::declare(
+        "mission",
+        "height",
+        ParamType::F32,
+        0,
+        Range::Closed(MIN_HEIGHT_M, MAX_HEIGHT_M),
+        "m",
+        "cruise height",
+    )
+    .refused_as(Refusal::BadHeight),
+    ParamEntry::declare(
+        "mission",
+        "speed",
+        ParamType::F32,
+        0,
+        Range::LeftOpen(0.0, MAX_SPEED_M_S),
+        "m/s",
+        "cruise speed",
+    )
+    .refused_as(Refusal::BadSpeed),
+    ParamEntry::declare(
+        "deck",
+        "bcFlow",
+        ParamType::U8,
+        RO,
+        SWITCH,
+        "",
+        "Flow deck v1 detected: always 0",
+    ),
+    ParamEntry::declare(
+        "deck",
+        "bcFlow2",
+        ParamType::U8,
+        RO,
+        SWITCH,
+        "",
+        "Flow deck v2 detected (its PMW3901 answered at boot)",
+    ),
+    ParamEntry::declare(
+        "deck",
+        "bcZRanger",
+        ParamType::U8,
+        RO,
+        SWITCH,
+        "",
+        "Z-ranger deck v1: always 0",
+    ),
+    ParamEntry::declare(
+        "deck",
+        "bcZRanger2",
+        ParamType::U8,
+        RO,
+        SWITCH,
+        "",
+        "Z-ranger deck v2 (a separate deck; the Flow v2's own ranger counts as bcFlow2): always 0",
+    ),
+    ParamEntry::declare(
+        "deck",
+        "bcMultiranger",
+        ParamType::U8,
+        RO,
+        SWITCH,
+        "",
+        "Multi-ranger deck detected (all five beams answered at boot)",
+    ),
+    ParamEntry::declare(
+        "deck",
+        "bcLighthouse4",
+        ParamType::U8,
+        RO,
+        SWITCH,
+        "",
+        "Lighthouse deck: always 0",
+    ),
+    ParamEntry::declare(
+        "deck",
+        "bcLoco",
+        ParamType::U8,
+        RO,
+        SWITCH,
+        "",
+        "Loco positioning deck: always 0",
+    ),
+    ParamEntry::declare(
+        "deck",
+        "bcDWM1000",
+        ParamType::U8,
+        RO,
+        SWITCH,
+        "",
+        "Loco deck, old name: always 0",
+    ),
+    ParamEntry::declare(
+        "deck",
+        "bcLedRing",
+        ParamType::U8,
+        RO,
+        SWITCH,
+        "",
+        "LED-ring deck: always 0",
+    ),
+    ParamEntry::declare(
+        "deck",
+        "bcColorLedBot",
+        ParamType::U8,
+        RO,
+        SWITCH,
+        "",
+        "Color LED deck, bottom: always 0",
+    ),
+    ParamEntry::declare(
+        "deck",
+        "bcColorLedTop",
+        ParamType::U8,
+        RO,
+        SWITCH,
+        "",
+        "Color LED deck, top: always 0",
+    ),
+    ParamEntry::declare(
+        "kalman",
+        "resetEstimation",
+        ParamType::U8,
+        0,
+        SWITCH,
+        "",
+        "write 1 on the ground: the estimate's x, y go back to mission.startX/startY (heading kept); reads 0 again when done",
+    ),
+    ParamEntry::declare(
+        "stabilizer",
+        "controller",
+        ParamType::U8,
+        0,
+        SWITCH,
+        "",
+        "0 auto-select or 1 PID: both are cfnav's cascaded PID (2..5, stock's other controllers, are refused)",
+    )
+    .refused_as(Refusal::UnsupportedController),
+    ParamEntry::declare(
+        "commander",
+        "enHighLevel",
+        ParamType::U8,
+        0,
+        SWITCH,
+        "",
+        "stock's high-level-commander switch, kept for clients that write it",
+    ),
 ];
 
-/// The mission parameters' values in effect plus what validation needs.
+/// Id of `mission.start` (uint8).
+pub const ID_START: u16 = param_id(PARAM_TABLE, "mission", "start");
+/// Id of `mission.goalX` (float).
+pub const ID_GOAL_X: u16 = param_id(PARAM_TABLE, "mission", "goalX");
+/// Id of `mission.goalY` (float).
+pub const ID_GOAL_Y: u16 = param_id(PARAM_TABLE, "mission", "goalY");
+/// Id of `mission.startX` (float).
+pub const ID_START_X: u16 = param_id(PARAM_TABLE, "mission", "startX");
+/// Id of `mission.startY` (float).
+pub const ID_START_Y: u16 = param_id(PARAM_TABLE, "mission", "startY");
+/// Id of `mission.height` (float).
+pub const ID_HEIGHT: u16 = param_id(PARAM_TABLE, "mission", "height");
+/// Id of `mission.speed` (float).
+pub const ID_SPEED: u16 = param_id(PARAM_TABLE, "mission", "speed");
+/// Id of `deck.bcFlow2` (uint8, read-only).
+pub const ID_DECK_FLOW2: u16 = param_id(PARAM_TABLE, "deck", "bcFlow2");
+/// Id of `deck.bcMultiranger` (uint8, read-only).
+pub const ID_DECK_MULTIRANGER: u16 = param_id(PARAM_TABLE, "deck", "bcMultiranger");
+/// Id of `kalman.resetEstimation` (uint8).
+pub const ID_RESET_ESTIMATION: u16 = param_id(PARAM_TABLE, "kalman", "resetEstimation");
+/// Id of `stabilizer.controller` (uint8).
+pub const ID_CONTROLLER: u16 = param_id(PARAM_TABLE, "stabilizer", "controller");
+/// Id of `commander.enHighLevel` (uint8).
+pub const ID_EN_HIGH_LEVEL: u16 = param_id(PARAM_TABLE, "commander", "enHighLevel");
+
+/// Writes the README's parameter table for `table`: one Markdown row per declaration.
+pub fn write_param_table(out: &mut impl core::fmt::Write, table: &[ParamEntry]) -> core::fmt::Result {
+    writeln!(out, "| name | type | values | unit | access | meaning |")?;
+    writeln!(out, "|---|---|---|---|---|---|")?;
+    for e in table {
+        let unit = if e.unit.is_empty() { "" } else { e.unit };
+        let access = if e.read_only() { "read-only" } else { "read/write" };
+        writeln!(
+            out,
+            "| `{}.{}` | {} | {} | {} | {} | {} |",
+            e.group,
+            e.name,
+            e.ty.name(),
+            e.range,
+            unit,
+            access,
+            e.doc
+        )?;
+    }
+    Ok(())
+}
+
+/// The parameters' values in effect plus what validation needs.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct MissionParamState {
     /// `mission.start`: 1 while a mission runs (set by the radio), back to 0 when it ends (set by the firmware,
@@ -353,8 +770,20 @@ pub struct MissionParamState {
     pub flying: bool,
     /// Every deck the mission needs is present: a start is refused otherwise.
     pub decks_ok: bool,
+    /// `deck.bcFlow2`: the Flow deck v2 was detected.
+    pub flow2_deck: bool,
+    /// `deck.bcMultiranger`: the Multi-ranger deck was detected.
+    pub multiranger_deck: bool,
+    /// `kalman.resetEstimation`: 1 from the write until the endpoint has reset the estimate.
+    pub reset_estimation: u8,
+    /// `stabilizer.controller` (0 or 1).
+    pub controller: u8,
+    /// `commander.enHighLevel` (0 or 1).
+    pub en_high_level: u8,
     /// Map capacity, cells, for [`MissionParams::validate`] at start.
     pub capacity_cells: usize,
+    /// The mission parameters at power-on (the defaults cfclient shows).
+    pub default_params: MissionParams,
 }
 
 impl MissionParamState {
@@ -365,8 +794,27 @@ impl MissionParamState {
             params,
             flying: false,
             decks_ok: true,
+            flow2_deck: true,
+            multiranger_deck: true,
+            reset_estimation: 0,
+            controller: 0,
+            en_high_level: 0,
             capacity_cells,
+            default_params: params,
         }
+    }
+
+    /// Records which decks answered at boot (`decks_ok` is both).
+    pub fn set_decks(&mut self, flow2: bool, multiranger: bool) {
+        self.flow2_deck = flow2;
+        self.multiranger_deck = multiranger;
+        self.decks_ok = flow2 && multiranger;
+    }
+
+    /// A pending `kalman.resetEstimation` request: the caller resets the estimate, then sets the
+    /// parameter back to 0 and announces it (VALUE_UPDATED). Returns the point to reset x, y to.
+    pub fn pending_reset(&self) -> Option<(f32, f32)> {
+        (self.reset_estimation != 0).then_some(self.params.start_m)
     }
 
     fn inside(&self, p: (f32, f32)) -> bool {
@@ -375,36 +823,32 @@ impl MissionParamState {
     }
 
     fn write_start(&mut self, v: u8) -> Result<(), Refusal> {
-        match v {
-            0 => {
-                self.start = 0;
-                Ok(())
-            }
-            1 => {
-                if self.flying {
-                    return Err(Refusal::StartWhileFlying);
-                }
-                if !self.decks_ok {
-                    return Err(Refusal::DeckMissing);
-                }
-                if self.start != 0 {
-                    return Err(Refusal::AlreadyRunning);
-                }
-                self.params.validate(self.capacity_cells).map_err(|e| match e {
-                    StartRefusal::AlreadyRunning => Refusal::AlreadyRunning,
-                    StartRefusal::BadArena => Refusal::BadArena,
-                    StartRefusal::OutsideArena if !self.inside(self.params.goal_m) => Refusal::GoalOutsideArena,
-                    StartRefusal::OutsideArena => Refusal::StartOutsideArena,
-                    StartRefusal::BadHeight => Refusal::BadHeight,
-                    StartRefusal::BadSpeed => Refusal::BadSpeed,
-                })?;
-                self.start = 1;
-                Ok(())
-            }
-            _ => Err(Refusal::BadStartValue),
+        if v == 0 {
+            self.start = 0;
+            return Ok(());
         }
+        if self.flying {
+            return Err(Refusal::StartWhileFlying);
+        }
+        if !self.decks_ok {
+            return Err(Refusal::DeckMissing);
+        }
+        if self.start != 0 {
+            return Err(Refusal::AlreadyRunning);
+        }
+        self.params.validate(self.capacity_cells).map_err(|e| match e {
+            StartRefusal::AlreadyRunning => Refusal::AlreadyRunning,
+            StartRefusal::BadArena => Refusal::BadArena,
+            StartRefusal::OutsideArena if !self.inside(self.params.goal_m) => Refusal::GoalOutsideArena,
+            StartRefusal::OutsideArena => Refusal::StartOutsideArena,
+            StartRefusal::BadHeight => Refusal::BadHeight,
+            StartRefusal::BadSpeed => Refusal::BadSpeed,
+        })?;
+        self.start = 1;
+        Ok(())
     }
 
+    /// A float write that passed the declaration's checks.
     fn write_f32(&mut self, id: u16, v: f32) -> Result<(), Refusal> {
         let p = &self.params;
         match id {
@@ -430,19 +874,23 @@ impl MissionParamState {
                 }
                 self.params.start_m = start;
             }
-            ID_HEIGHT => {
-                if !(MIN_HEIGHT_M..=MAX_HEIGHT_M).contains(&v) {
-                    return Err(Refusal::BadHeight);
-                }
-                self.params.height_m = v;
+            ID_HEIGHT => self.params.height_m = v,
+            ID_SPEED => self.params.speed_m_s = v,
+            _ => return Err(Refusal::UnknownId),
+        }
+        Ok(())
+    }
+
+    /// A uint8 write that passed the declaration's checks (0 or 1 for every writable uint8 here).
+    fn write_u8(&mut self, id: u16, v: u8) -> Result<(), Refusal> {
+        match id {
+            ID_START => return self.write_start(v),
+            ID_RESET_ESTIMATION if v != 0 && (self.flying || self.start != 0) => {
+                return Err(Refusal::ResetWhileFlying);
             }
-            ID_SPEED => {
-                if !(v > 0.0 && v <= MAX_SPEED_M_S) {
-                    return Err(Refusal::BadSpeed);
-                }
-                self.params.speed_m_s = v;
-            }
-            ID_START => return Err(Refusal::WrongType),
+            ID_RESET_ESTIMATION => self.reset_estimation = v,
+            ID_CONTROLLER => self.controller = v,
+            ID_EN_HIGH_LEVEL => self.en_high_level = v,
             _ => return Err(Refusal::UnknownId),
         }
         Ok(())
@@ -450,10 +898,11 @@ impl MissionParamState {
 }
 
 impl ParamStore for MissionParamState {
-    const TABLE: &'static [ParamEntry] = MISSION_TABLE;
+    const TABLE: &'static [ParamEntry] = PARAM_TABLE;
 
     fn read(&self, id: u16) -> Option<Value> {
         let p = &self.params;
+        let flag = |b: bool| Value::U8(u8::from(b));
         Some(match id {
             ID_START => Value::U8(self.start),
             ID_GOAL_X => Value::F32(p.goal_m.0),
@@ -462,17 +911,32 @@ impl ParamStore for MissionParamState {
             ID_START_Y => Value::F32(p.start_m.1),
             ID_HEIGHT => Value::F32(p.height_m),
             ID_SPEED => Value::F32(p.speed_m_s),
+            ID_DECK_FLOW2 => flag(self.flow2_deck),
+            ID_DECK_MULTIRANGER => flag(self.multiranger_deck),
+            ID_RESET_ESTIMATION => Value::U8(self.reset_estimation),
+            ID_CONTROLLER => Value::U8(self.controller),
+            ID_EN_HIGH_LEVEL => Value::U8(self.en_high_level),
+            // The other deck.* entries: decks cfnav never drives.
+            _ if PARAM_TABLE.get(usize::from(id))?.group == "deck" => flag(false),
             _ => return None,
         })
     }
 
+    fn default_value(&self, id: u16) -> Option<Value> {
+        let mut power_on = Self::new(self.default_params, self.capacity_cells);
+        power_on.set_decks(self.flow2_deck, self.multiranger_deck);
+        power_on.read(id)
+    }
+
     fn write(&mut self, id: u16, value: Value) -> Result<(), Refusal> {
-        match (id, value) {
-            (ID_START, Value::U8(v)) => self.write_start(v),
-            (ID_START, _) => Err(Refusal::WrongType),
-            (_, Value::F32(v)) => self.write_f32(id, v),
-            (ID_GOAL_X..=ID_SPEED, _) => Err(Refusal::WrongType),
-            _ => Err(Refusal::UnknownId),
+        PARAM_TABLE
+            .get(usize::from(id))
+            .ok_or(Refusal::UnknownId)?
+            .check(value)?;
+        match value {
+            Value::U8(v) => self.write_u8(id, v),
+            Value::F32(v) => self.write_f32(id, v),
+            _ => Err(Refusal::WrongType),
         }
     }
 }

@@ -39,8 +39,9 @@ def watchdog(seconds):
     t.start()
 
 
-def set_and_wait(cf, name, value, timeout=5.0):
-    """Writes `name` and waits for the firmware's echo; returns the value the echo carried (a string)."""
+def _await_update(cf, name, send, what, timeout):
+    """Registers for `name`'s next update, calls `send()`, and returns the value that update carried (a
+    string); raises `what` if none comes within `timeout` seconds."""
     group, var = name.split('.')
     got = {}
     done = threading.Event()
@@ -51,32 +52,24 @@ def set_and_wait(cf, name, value, timeout=5.0):
 
     cf.param.add_update_callback(group=group, name=var, cb=cb)
     try:
-        cf.param.set_value(name, value)
+        send()
         if not done.wait(timeout):
-            raise RuntimeError(f'no echo for {name} := {value} within {timeout} s')
+            raise RuntimeError(f'{what} within {timeout} s')
     finally:
         cf.param.remove_update_callback(group=group, name=var, cb=cb)
     return got['v']
+
+
+def set_and_wait(cf, name, value, timeout=5.0):
+    """Writes `name` and waits for the firmware's echo; returns the value the echo carried (a string)."""
+    return _await_update(cf, name, lambda: cf.param.set_value(name, value),
+                         f'no echo for {name} := {value}', timeout)
 
 
 def reread(cf, name, timeout=5.0):
     """Asks the firmware for the current value of `name` and returns it (a string)."""
-    group, var = name.split('.')
-    got = {}
-    done = threading.Event()
-
-    def cb(n, v):
-        got['v'] = v
-        done.set()
-
-    cf.param.add_update_callback(group=group, name=var, cb=cb)
-    try:
-        cf.param.request_param_update(name)
-        if not done.wait(timeout):
-            raise RuntimeError(f'no reply reading {name} within {timeout} s')
-    finally:
-        cf.param.remove_update_callback(group=group, name=var, cb=cb)
-    return got['v']
+    return _await_update(cf, name, lambda: cf.param.request_param_update(name),
+                         f'no reply reading {name}', timeout)
 
 
 def main():

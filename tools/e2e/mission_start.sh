@@ -49,23 +49,7 @@ start_server() {
   serve_log="$OUT/serve-$serve_n.log"
   "$CFNAV_BIN" sim --serve --port "$PORT" --speed "$SPEED" >"$serve_log" 2>&1 &
   serve_pid=$!
-  python3 - "$PORT" <<'PY'
-import socket, sys, time
-port = int(sys.argv[1])
-deadline = time.monotonic() + 30
-while time.monotonic() < deadline:
-    s = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
-    s.settimeout(0.2)
-    try:
-        s.sendto(b"\xff", ("127.0.0.1", port))
-        s.recv(64)
-        sys.exit(0)
-    except OSError:
-        time.sleep(0.1)
-    finally:
-        s.close()
-sys.exit(f"the simulator does not answer on udp://127.0.0.1:{port}")
-PY
+  python3 "$(dirname "${BASH_SOURCE[0]}")/wait_for_sim.py" "$PORT" 30
 }
 
 # Runs `cfnav mission start` with the given options, output (stdout and stderr) to $1; sets $code.

@@ -49,8 +49,16 @@ pub struct FirmwareArgs {
     pub max_ram_kib: u32,
 }
 
-/// Runs `cfnav firmware`: exit 0 when the image was built and written, 1 otherwise (with a one-line reason).
+/// The command that installs the firmware's compilation target (printed verbatim when it is missing).
+pub const ADD_TARGET_COMMAND: &str = "rustup target add thumbv7em-none-eabihf";
+
+/// Runs `cfnav firmware`: exit 0 when the image was built and written, 2 at once when the thumb target is
+/// missing and cannot be added (with the command that adds it), 1 otherwise (with a one-line reason).
 pub fn run(args: &FirmwareArgs) -> ExitCode {
+    if let Err(message) = ensure_target(&workspace_root()) {
+        eprintln!("error: {message}");
+        return ExitCode::from(2);
+    }
     match build_and_write(args) {
         Ok(()) => ExitCode::SUCCESS,
         Err(e) => {
@@ -82,6 +90,97 @@ fn build_and_write(args: &FirmwareArgs) -> Result<()> {
         image.len()
     );
     Ok(())
+}
+
+/// Whether the standard library of [`TARGET_TRIPLE`] is in the toolchain whose sysroot is `sysroot`: its
+/// `lib/rustlib/<triple>/lib` holds a `libcore-*.rlib`. Without it cargo fails deep in the build with
+/// "can't find crate for `core`".
+pub fn target_installed(sysroot: &Path) -> bool {
+    let lib = sysroot.join("lib").join("rustlib").join(TARGET_TRIPLE).join("lib");
+    fs::read_dir(lib).is_ok_and(|entries| {
+        entries.flatten().any(|e| {
+            let name = e.file_name();
+            let name = name.to_string_lossy();
+            name.starts_with("libcore-") && name.ends_with(".rlib")
+        })
+    })
+}
+
+/// What to do about the thumb target before building.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum TargetPlan {
+    /// The target is installed: build.
+    Build,
+    /// Missing, rustup is there: run [`ADD_TARGET_COMMAND`] (saying so), then build.
+    AddWithRustup,
+    /// Missing and no rustup (or the sysroot is unknown): stop with [`ADD_TARGET_COMMAND`], exit 2.
+    Stop,
+}
+
+/// The decision of [`ensure_target`], from what was found (pure, for the tests).
+pub fn target_plan(sysroot: Option<&Path>, rustup_available: bool) -> TargetPlan {
+    match sysroot {
+        Some(root) if target_installed(root) => TargetPlan::Build,
+        _ if rustup_available => TargetPlan::AddWithRustup,
+        _ => TargetPlan::Stop,
+    }
+}
+
+/// The message printed when the target is missing and could not be added.
+pub fn missing_target_message(detail: &str) -> String {
+    format!("the Rust target {TARGET_TRIPLE} is not installed ({detail}); install it with:\n    {ADD_TARGET_COMMAND}")
+}
+
+/// The sysroot of the toolchain cargo will use in `root` (rustup resolves `rust-toolchain.toml` there).
+fn sysroot(root: &Path) -> Option<PathBuf> {
+    let rustc = env::var_os("RUSTC").unwrap_or_else(|| "rustc".into());
+    let out = Command::new(rustc)
+        .current_dir(root)
+        .args(["--print", "sysroot"])
+        .stdin(Stdio::null())
+        .stderr(Stdio::null())
+        .output()
+        .ok()?;
+    if !out.status.success() {
+        return None;
+    }
+    let text = String::from_utf8(out.stdout).ok()?;
+    let path = PathBuf::from(text.trim());
+    path.is_dir().then_some(path)
+}
+
+fn rustup_available(root: &Path) -> bool {
+    Command::new("rustup")
+        .current_dir(root)
+        .arg("--version")
+        .stdin(Stdio::null())
+        .stdout(Stdio::null())
+        .stderr(Stdio::null())
+        .status()
+        .is_ok_and(|s| s.success())
+}
+
+/// Makes sure the thumb target is installed before the build: adds it with rustup (saying so on stderr),
+/// or returns the message that names [`ADD_TARGET_COMMAND`].
+fn ensure_target(root: &Path) -> Result<(), String> {
+    let sysroot = sysroot(root);
+    match target_plan(sysroot.as_deref(), rustup_available(root)) {
+        TargetPlan::Build => Ok(()),
+        TargetPlan::Stop => Err(missing_target_message("and rustup is not available to add it")),
+        TargetPlan::AddWithRustup => {
+            eprintln!("the Rust target {TARGET_TRIPLE} is missing; adding it: {ADD_TARGET_COMMAND}");
+            let status = Command::new("rustup")
+                .current_dir(root)
+                .args(["target", "add", TARGET_TRIPLE])
+                .stdin(Stdio::null())
+                .status();
+            match status {
+                Ok(s) if s.success() => Ok(()),
+                Ok(s) => Err(missing_target_message(&format!("rustup failed: {s}"))),
+                Err(e) => Err(missing_target_message(&format!("cannot run rustup: {e}"))),
+            }
+        }
+    }
 }
 
 /// The workspace root: the parent of this package's folder (`tools/`).
@@ -452,6 +551,56 @@ mod tests {
         v.extend_from_slice(&reset.to_le_bytes());
         v.resize(8 + extra, 0xAB);
         v
+    }
+
+    /// A fake sysroot under the system temp dir; `core` puts a `libcore-*.rlib` in the thumb target's lib.
+    fn fake_sysroot(name: &str, core: Option<&str>) -> PathBuf {
+        let root = env::temp_dir().join(format!("cfnav-sysroot-{}-{name}", std::process::id()));
+        let _ = fs::remove_dir_all(&root);
+        let host = root.join("lib/rustlib/x86_64-unknown-linux-gnu/lib");
+        fs::create_dir_all(&host).unwrap();
+        fs::write(host.join("libcore-0123.rlib"), b"").unwrap();
+        if let Some(file) = core {
+            let lib = root.join("lib/rustlib").join(TARGET_TRIPLE).join("lib");
+            fs::create_dir_all(&lib).unwrap();
+            fs::write(lib.join(file), b"").unwrap();
+        }
+        root
+    }
+
+    #[test]
+    fn target_detection_needs_the_thumb_core_library() {
+        let with = fake_sysroot("with", Some("libcore-9f2a.rlib"));
+        let without = fake_sysroot("without", None);
+        // The target folder alone (e.g. a half-removed install) is not enough.
+        let empty = fake_sysroot("empty", Some("libcompiler_builtins-1.rlib"));
+        assert!(target_installed(&with));
+        assert!(!target_installed(&without));
+        assert!(!target_installed(&empty));
+        assert!(!target_installed(Path::new("/nonexistent/sysroot")));
+        assert_eq!(target_plan(Some(&with), false), TargetPlan::Build);
+        assert_eq!(target_plan(Some(&with), true), TargetPlan::Build);
+        assert_eq!(target_plan(Some(&without), true), TargetPlan::AddWithRustup);
+        assert_eq!(target_plan(Some(&without), false), TargetPlan::Stop);
+        assert_eq!(target_plan(None, false), TargetPlan::Stop);
+        assert_eq!(target_plan(None, true), TargetPlan::AddWithRustup);
+        for root in [with, without, empty] {
+            let _ = fs::remove_dir_all(root);
+        }
+    }
+
+    #[test]
+    fn missing_target_message_names_the_exact_command() {
+        let m = missing_target_message("x");
+        assert!(m.ends_with("\n    rustup target add thumbv7em-none-eabihf"), "{m}");
+        assert_eq!(ADD_TARGET_COMMAND, format!("rustup target add {TARGET_TRIPLE}"));
+    }
+
+    #[test]
+    fn this_toolchain_has_the_target_the_ci_needs() {
+        // rust-toolchain.toml lists the target, so the sysroot that builds these tests has it.
+        let sysroot = sysroot(&workspace_root()).expect("rustc --print sysroot");
+        assert!(target_installed(&sysroot), "{}", sysroot.display());
     }
 
     #[test]

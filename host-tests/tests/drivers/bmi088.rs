@@ -4,6 +4,7 @@
 //! datasheet's scale formulas, and every failure path (NACK, wrong id, ACC_ERR_REG, config read-back,
 //! data-ready timeout).
 
+use super::NACK;
 use cfnav::drivers::DriverError;
 use cfnav::drivers::bmi088::{Bmi088, DATA_READY_POLLS};
 use embassy_futures::block_on;
@@ -15,10 +16,6 @@ use embedded_hal_mock::eh1::i2c::{Mock as I2cMock, Transaction as T};
 const ACC: u8 = 0x18; // SDO1 to GND on the CF2.1
 const GYR: u8 = 0x69; // SDO2 to VDDIO on the CF2.1
 const G: f32 = 9.81; // the g of cfnav::types::GRAVITY_M_S2 and the simulator
-
-fn nack() -> ErrorKind {
-    ErrorKind::NoAcknowledge(NoAcknowledgeSource::Address)
-}
 
 fn reg_read(addr: u8, reg: u8, value: u8) -> T {
     T::write_read(addr, vec![reg], vec![value])
@@ -35,6 +32,7 @@ fn gyro_init() -> (Vec<T>, Vec<D>) {
         vec![
             reg_read(GYR, 0x00, 0x0F),  // GYRO_CHIP_ID
             reg_write(GYR, 0x14, 0xB6), // GYRO_SOFTRESET
+            reg_read(GYR, 0x00, 0x0F),  // back after the reset
             reg_write(GYR, 0x11, 0x00), // GYRO_LPM1: normal
             reg_write(GYR, 0x0F, 0x00), // GYRO_RANGE: ±2000 °/s
             reg_write(GYR, 0x10, 0x02), // GYRO_BANDWIDTH: ODR 1000 Hz, 116 Hz
@@ -52,6 +50,7 @@ fn accel_config() -> (Vec<T>, Vec<D>) {
         vec![
             reg_read(ACC, 0x00, 0x1E),  // ACC_CHIP_ID
             reg_write(ACC, 0x7E, 0xB6), // ACC_SOFTRESET
+            reg_read(ACC, 0x00, 0x1E),  // back after the reset
             reg_write(ACC, 0x7D, 0x04), // ACC_PWR_CTRL: on
             reg_write(ACC, 0x7C, 0x00), // ACC_PWR_CONF: active
             reg_write(ACC, 0x40, 0x8C), // ACC_CONF: bwp OSR4 (0x8 << 4) | odr 1600 Hz (0xC)
@@ -181,9 +180,9 @@ fn read_raw_keeps_the_counts() {
 
 #[test]
 fn nack_at_the_gyro_probe_is_a_bus_error_and_nothing_else_is_sent() {
-    let bus = [reg_read(GYR, 0x00, 0x00).with_error(nack())];
+    let bus = [reg_read(GYR, 0x00, 0x00).with_error(NACK)];
     let (result, imu, delay) = run_init(&bus, &[]);
-    assert_eq!(result, Err(DriverError::Bus(nack())));
+    assert_eq!(result, Err(DriverError::Bus(NACK)));
     assert!(!imu.is_initialised());
     finish(imu, delay);
 }
@@ -191,19 +190,68 @@ fn nack_at_the_gyro_probe_is_a_bus_error_and_nothing_else_is_sent() {
 #[test]
 fn nack_at_the_accelerometer_probe_is_a_bus_error() {
     let (mut bus, delays) = gyro_init();
-    bus.push(reg_read(ACC, 0x00, 0x00).with_error(nack()));
+    bus.push(reg_read(ACC, 0x00, 0x00).with_error(NACK));
     let (result, imu, delay) = run_init(&bus, &delays);
-    assert_eq!(result, Err(DriverError::Bus(nack())));
+    assert_eq!(result, Err(DriverError::Bus(NACK)));
     finish(imu, delay);
 }
 
 #[test]
 fn nack_during_configuration_is_a_bus_error() {
     let (mut bus, _) = gyro_init();
-    bus.truncate(2);
-    bus[1] = reg_write(GYR, 0x14, 0xB6).with_error(ErrorKind::ArbitrationLoss);
-    let (result, imu, delay) = run_init(&bus, &[]);
+    // GYRO_LPM1 (normal mode) lost.
+    bus.truncate(4);
+    bus[3] = reg_write(GYR, 0x11, 0x00).with_error(ErrorKind::ArbitrationLoss);
+    let (result, imu, delay) = run_init(&bus, &[D::delay_ms(30)]);
     assert_eq!(result, Err(DriverError::Bus(ErrorKind::ArbitrationLoss)));
+    finish(imu, delay);
+}
+
+/// The soft-reset write of both halves NACKed (the chip resets while it receives the command): init goes
+/// on, the chip id read after the reset decides.
+#[test]
+fn soft_reset_that_is_not_acknowledged_does_not_abort_init() {
+    let (mut bus, mut delays) = full_init();
+    for t in bus.iter_mut() {
+        if *t == reg_write(GYR, 0x14, 0xB6) || *t == reg_write(ACC, 0x7E, 0xB6) {
+            *t = t
+                .clone()
+                .with_error(ErrorKind::NoAcknowledge(NoAcknowledgeSource::Data));
+        }
+    }
+    // The gyro is still booting at the first id read after its reset: one NACK, then it answers 5 ms later.
+    let at = bus
+        .iter()
+        .position(|t| *t == reg_write(GYR, 0x14, 0xB6).with_error(ErrorKind::NoAcknowledge(NoAcknowledgeSource::Data)));
+    let at = at.expect("gyro reset in the script") + 1;
+    bus.insert(at, reg_read(GYR, 0x00, 0x00).with_error(NACK));
+    delays.insert(1, D::delay_ms(5));
+    let (result, imu, delay) = run_init(&bus, &delays);
+    assert_eq!(result, Ok(()));
+    assert!(imu.is_initialised());
+    finish(imu, delay);
+}
+
+/// A chip that never comes back after the reset: three id reads (5 ms apart), then the last error.
+#[test]
+fn chip_that_does_not_return_after_its_soft_reset_fails_init() {
+    let bus = [
+        reg_read(GYR, 0x00, 0x0F),
+        reg_write(GYR, 0x14, 0xB6).with_error(NACK),
+        reg_read(GYR, 0x00, 0x00).with_error(NACK),
+        reg_read(GYR, 0x00, 0x00).with_error(NACK),
+        reg_read(GYR, 0x00, 0xFF),
+    ];
+    let delays = [D::delay_ms(30), D::delay_ms(5), D::delay_ms(5)];
+    let (result, imu, delay) = run_init(&bus, &delays);
+    assert_eq!(
+        result,
+        Err(DriverError::WrongChipId {
+            expected: 0x0F,
+            found: 0xFF
+        })
+    );
+    assert!(!imu.is_initialised());
     finish(imu, delay);
 }
 
@@ -341,11 +389,11 @@ fn gyro_that_never_has_data_times_out() {
 #[test]
 fn init_after_a_failure_starts_over() {
     let (good_bus, good_delays) = full_init();
-    let mut bus = vec![reg_read(GYR, 0x00, 0x00).with_error(nack())];
+    let mut bus = vec![reg_read(GYR, 0x00, 0x00).with_error(NACK)];
     bus.extend(good_bus);
     let mut imu = Bmi088::new(I2cMock::new(&bus));
     let mut delay = CheckedDelay::new(&good_delays);
-    assert_eq!(block_on(imu.init(&mut delay)), Err(DriverError::Bus(nack())));
+    assert_eq!(block_on(imu.init(&mut delay)), Err(DriverError::Bus(NACK)));
     assert_eq!(block_on(imu.init(&mut delay)), Ok(()));
     assert!(imu.is_initialised());
     finish(imu, delay);
@@ -355,10 +403,10 @@ fn init_after_a_failure_starts_over() {
 fn nack_during_a_read_is_a_bus_error() {
     let bus = [
         T::write_read(GYR, vec![0x02], vec![0; 6]),
-        T::write_read(ACC, vec![0x12], vec![0; 6]).with_error(nack()),
+        T::write_read(ACC, vec![0x12], vec![0; 6]).with_error(NACK),
     ];
     let mut imu = Bmi088::new(I2cMock::new(&bus));
-    assert_eq!(block_on(imu.read()), Err(DriverError::Bus(nack())));
+    assert_eq!(block_on(imu.read()), Err(DriverError::Bus(NACK)));
     imu.release().done();
 }
 
@@ -490,4 +538,47 @@ fn init_waits_after_each_reset_and_power_change_before_the_next_access() {
 fn driver_state_beyond_the_bus_handle_is_two_bytes() {
     // Module doc: the last ACC_ERR_REG value and the initialised flag.
     assert_eq!(size_of::<Bmi088<()>>(), 2);
+}
+
+/// Stock `sensorsAccAlignToGravity`, written out in f64 from its C source (rotate about x by the roll trim,
+/// then about y by the pitch trim).
+fn stock_align(a: [f64; 3], roll_deg: f64, pitch_deg: f64) -> [f64; 3] {
+    let (cr, sr) = (roll_deg.to_radians().cos(), roll_deg.to_radians().sin());
+    let (cp, sp) = (pitch_deg.to_radians().cos(), pitch_deg.to_radians().sin());
+    let rx = [a[0], a[1] * cr - a[2] * sr, a[1] * sr + a[2] * cr];
+    [rx[0] * cp - rx[2] * sp, rx[1], rx[0] * sp + rx[2] * cp]
+}
+
+#[test]
+fn config_block_trim_rotates_the_accelerometer_as_stock() {
+    use cfnav::drivers::bmi088::AccelTrim;
+    let a = [0.3f32, -0.2, 9.7];
+    for (roll, pitch) in [(0.0f32, 0.0f32), (2.0, 0.0), (0.0, -3.0), (1.5, 2.5), (-20.0, 20.0)] {
+        let got = AccelTrim::from_degrees(roll, pitch).apply(a);
+        let want = stock_align(a.map(f64::from), f64::from(roll), f64::from(pitch));
+        for i in 0..3 {
+            assert!(
+                (f64::from(got[i]) - want[i]).abs() < 1e-5,
+                "{roll}/{pitch}: {got:?} vs {want:?}"
+            );
+        }
+    }
+    // A 2° roll trim on a board whose accelerometer reads 2° of roll when the frame is level: level again.
+    let tilted = [0.0, 9.81 * 2f32.to_radians().sin(), 9.81 * 2f32.to_radians().cos()];
+    let level = AccelTrim::from_degrees(2.0, 0.0).apply(tilted);
+    assert!(level[1].abs() < 1e-4 && (level[2] - 9.81).abs() < 1e-4, "{level:?}");
+    // The gyro is not trimmed (stock).
+    let s = cfnav::types::ImuSample {
+        gyro_rad_s: [0.1, 0.2, 0.3],
+        accel_m_s2: a,
+    };
+    assert_eq!(
+        AccelTrim::from_degrees(3.0, 1.0).apply_to(s).gyro_rad_s,
+        [0.1, 0.2, 0.3]
+    );
+    // A corrupt block does nothing.
+    for (roll, pitch) in [(f32::NAN, 0.0), (0.0, f32::INFINITY), (45.0, 0.0)] {
+        assert_eq!(AccelTrim::from_degrees(roll, pitch), AccelTrim::IDENTITY);
+        assert_eq!(AccelTrim::from_degrees(roll, pitch).apply(a), a);
+    }
 }

@@ -6,30 +6,20 @@
 //! addresses 0x6B.. after the Flow deck's z-ranger at 0x6A. VL53L1x register traffic as in
 //! `driver_vl53l1x.rs` (ST ULD register map), written out again here with literal register numbers.
 
+use super::{CountingDelay, NACK};
 use cfnav::drivers::DriverError;
-use cfnav::drivers::multiranger::{Direction, FIRST_ADDRESS, FLOW_DECK_Z_ADDRESS, MultiRanger, SensorFault};
+use cfnav::drivers::multiranger::{
+    BringUpReport, Direction, FIRST_ADDRESS, FLOW_DECK_Z_ADDRESS, MultiRanger, SensorFault,
+};
 use cfnav::drivers::pca95x4::DEFAULT_ADDRESS as EXPANDER_ADDRESS;
 use cfnav::drivers::vl53l1x::{DEFAULT_CONFIGURATION, RangingConfig, Vl53l1x};
 use embassy_futures::block_on;
-use embedded_hal::i2c::{ErrorKind, NoAcknowledgeSource};
+use embedded_hal::i2c::ErrorKind;
 use embedded_hal_mock::eh1::delay::NoopDelay;
 use embedded_hal_mock::eh1::i2c::{Mock as I2cMock, Transaction as T};
 
-const NACK: ErrorKind = ErrorKind::NoAcknowledge(NoAcknowledgeSource::Address);
 const EXPANDER: u8 = 0x20;
 const BOOT_ADDRESS: u8 = 0x29;
-
-/// A delay that only adds up how long the driver asked to wait.
-#[derive(Default)]
-struct CountingDelay {
-    total_ns: u64,
-}
-
-impl embedded_hal_async::delay::DelayNs for CountingDelay {
-    async fn delay_ns(&mut self, ns: u32) {
-        self.total_ns += u64::from(ns);
-    }
-}
 
 // ---- expander transfers ----
 
@@ -44,6 +34,17 @@ fn expander_config(value: u8) -> T {
 /// All five XSHUT low: output 0xA8 first, then P0/P1/P2/P4/P6 as outputs (config 0xA8).
 fn hold_all_in_reset() -> Vec<T> {
     vec![expander_output(0xA8), expander_config(0xA8)]
+}
+
+/// Brings a deck up with the stock addresses against exactly the `expected` traffic (all of it consumed)
+/// and returns its report; the deck itself is dropped.
+fn bring_up_against(expected: &[T]) -> BringUpReport<ErrorKind> {
+    let mut i2c = I2cMock::new(expected);
+    let mut deck = MultiRanger::new(EXPANDER);
+    let report =
+        block_on(deck.bring_up(&mut i2c, &mut NoopDelay, FIRST_ADDRESS, &RangingConfig::MULTI_RANGER)).expect("deck");
+    i2c.done();
+    report
 }
 
 // ---- VL53L1x transfers (16-bit big-endian register index) ----
@@ -230,16 +231,12 @@ fn an_absent_sensor_is_a_bus_fault_after_its_boot_budget() {
     expected.extend(sensor_to_ranging(0x6E));
     expected.push(expander_output(0xEF)); // right
     expected.extend(sensor_to_ranging(0x6F));
-    let mut i2c = I2cMock::new(&expected);
-    let mut deck = MultiRanger::new(EXPANDER);
-    let report =
-        block_on(deck.bring_up(&mut i2c, &mut NoopDelay, FIRST_ADDRESS, &RangingConfig::MULTI_RANGER)).expect("deck");
+    let report = bring_up_against(&expected);
     assert_eq!(
         report.fault(Direction::Front),
         Some(&SensorFault::Sensor(DriverError::Bus(NACK)))
     );
     assert_eq!(report.working_count(), 4);
-    i2c.done();
 }
 
 #[test]
@@ -256,16 +253,12 @@ fn a_sensor_that_never_boots_times_out() {
     expected.extend(sensor_to_ranging(0x6E));
     expected.push(expander_output(0xFE));
     expected.extend(sensor_to_ranging(0x6F));
-    let mut i2c = I2cMock::new(&expected);
-    let mut deck = MultiRanger::new(EXPANDER);
-    let report =
-        block_on(deck.bring_up(&mut i2c, &mut NoopDelay, FIRST_ADDRESS, &RangingConfig::MULTI_RANGER)).expect("deck");
+    let report = bring_up_against(&expected);
     assert_eq!(
         report.fault(Direction::Up),
         Some(&SensorFault::Sensor(DriverError::Timeout))
     );
     assert_eq!(report.working_count(), 4);
-    i2c.done();
 }
 
 #[test]
@@ -281,16 +274,12 @@ fn a_failed_release_is_an_expander_fault_and_the_next_sensor_still_comes_up() {
     expected.extend(sensor_to_ranging(0x6E));
     expected.push(expander_output(0xEF));
     expected.extend(sensor_to_ranging(0x6F));
-    let mut i2c = I2cMock::new(&expected);
-    let mut deck = MultiRanger::new(EXPANDER);
-    let report =
-        block_on(deck.bring_up(&mut i2c, &mut NoopDelay, FIRST_ADDRESS, &RangingConfig::MULTI_RANGER)).expect("deck");
+    let report = bring_up_against(&expected);
     assert_eq!(
         report.fault(Direction::Front),
         Some(&SensorFault::Expander(DriverError::Bus(NACK)))
     );
     assert_eq!(report.working_count(), 4);
-    i2c.done();
 }
 
 #[test]
@@ -303,10 +292,7 @@ fn a_sensor_that_cannot_be_put_back_in_reset_stops_the_remaining_releases() {
     expected.push(write_bytes(BOOT_ADDRESS, 0x0001, &[0x6C]).with_error(NACK)); // address write fails
     expected.push(expander_output(0xB8).with_error(NACK)); // and its XSHUT cannot be lowered
     // Nothing more: back may still sit at 0x29, so up/left/right are not released.
-    let mut i2c = I2cMock::new(&expected);
-    let mut deck = MultiRanger::new(EXPANDER);
-    let report =
-        block_on(deck.bring_up(&mut i2c, &mut NoopDelay, FIRST_ADDRESS, &RangingConfig::MULTI_RANGER)).expect("deck");
+    let report = bring_up_against(&expected);
     assert_eq!(report.fault(Direction::Front), None);
     assert_eq!(
         report.fault(Direction::Back),
@@ -320,7 +306,6 @@ fn a_sensor_that_cannot_be_put_back_in_reset_stops_the_remaining_releases() {
         );
     }
     assert_eq!(report.working_count(), 1);
-    i2c.done();
 }
 
 #[test]

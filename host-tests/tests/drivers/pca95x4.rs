@@ -4,13 +4,12 @@
 //! 3 configuration with 1 = input; power-on output 0xFF) and the Multi-ranger wiring of
 //! crazyflie-hardware.md §5.5 (expander at 0x20, XSHUT on P0, P1, P2, P4, P6).
 
+use super::NACK;
 use cfnav::drivers::DriverError;
 use cfnav::drivers::pca95x4::Pca95x4;
 use embassy_futures::block_on;
-use embedded_hal::i2c::{ErrorKind, NoAcknowledgeSource};
 use embedded_hal_mock::eh1::i2c::{Mock as I2cMock, Transaction as T};
 
-const NACK: ErrorKind = ErrorKind::NoAcknowledge(NoAcknowledgeSource::Address);
 const EXPANDER: u8 = 0x20;
 const OUTPUT_REGISTER: u8 = 0x01;
 const CONFIG_REGISTER: u8 = 0x03;

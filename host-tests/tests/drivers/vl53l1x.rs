@@ -6,26 +6,13 @@
 //! `CheckForDataReady`, `GetRangeStatus`, `GetDistance`, `ClearInterrupt`, `SetI2CAddress`. Register numbers
 //! are literals here on purpose (not the driver's constants), so a wrong constant in the driver fails.
 
+use super::{CountingDelay, NACK};
 use cfnav::drivers::DriverError;
 use cfnav::drivers::vl53l1x::{DEFAULT_CONFIGURATION, DistanceMode, RangeStatus, RangingConfig, TimingBudget, Vl53l1x};
 use embassy_futures::block_on;
-use embedded_hal::i2c::{ErrorKind, NoAcknowledgeSource};
+use embedded_hal::i2c::ErrorKind;
 use embedded_hal_mock::eh1::delay::NoopDelay;
 use embedded_hal_mock::eh1::i2c::{Mock as I2cMock, Transaction as T};
-
-const NACK: ErrorKind = ErrorKind::NoAcknowledge(NoAcknowledgeSource::Address);
-
-/// A delay that only adds up how long the driver asked to wait.
-#[derive(Default)]
-struct CountingDelay {
-    total_ns: u64,
-}
-
-impl embedded_hal_async::delay::DelayNs for CountingDelay {
-    async fn delay_ns(&mut self, ns: u32) {
-        self.total_ns += u64::from(ns);
-    }
-}
 
 // ---- expected transactions: 16-bit big-endian register index, big-endian data ----
 
@@ -410,6 +397,57 @@ fn bring_up_moves_the_chip_then_initialises_it_at_its_new_address() {
     assert_eq!(sensor.address(), 0x6A);
     // Two 1 ms boot-poll waits, one 1 ms data-ready wait.
     assert_eq!(delay.total_ns, 3_000_000);
+    i2c.done();
+}
+
+/// After an STM32-only reset the Flow deck's ranger (no XSHUT line) is still at 0x6A and NACKs at 0x29.
+#[test]
+fn a_ranger_that_kept_its_moved_address_is_found_there() {
+    // The chip as the bus sees it: answers only at 0x6A.
+    let mut expected = vec![read8(0x6A, 0x00E5, 0x01)]; // the probe: answers, booted
+    expected.extend(flow_deck_init_sequence(0x6A));
+    let mut i2c = I2cMock::new(&expected);
+    let sensor = block_on(Vl53l1x::bring_up_or_find(
+        &mut i2c,
+        &mut NoopDelay,
+        0x6A,
+        &RangingConfig::FLOW_DECK_Z,
+    ))
+    .expect("found at the moved address");
+    assert_eq!(sensor.address(), 0x6A);
+    i2c.done();
+
+    // The hazard: the plain bring-up only looks at 0x29 and gives up after its boot budget.
+    let polls: Vec<T> = (0..50).map(|_| read8(0x29, 0x00E5, 0x00).with_error(NACK)).collect();
+    let mut i2c = I2cMock::new(&polls);
+    let plain = block_on(Vl53l1x::bring_up(
+        &mut i2c,
+        &mut NoopDelay,
+        0x6A,
+        &RangingConfig::FLOW_DECK_Z,
+    ));
+    assert_eq!(plain.map(|s| s.address()), Err(DriverError::Bus(NACK)));
+    i2c.done();
+}
+
+/// After a power-on the moved address is silent: one NACKed probe, then the normal bring-up from 0x29.
+#[test]
+fn a_fresh_ranger_is_moved_as_usual_after_one_probe() {
+    let mut expected = vec![
+        read8(0x6A, 0x00E5, 0x00).with_error(NACK), // nobody at 0x6A
+        read8(0x29, 0x00E5, 0x01),                  // booted at the default address
+        T::write(0x29, vec![0x00, 0x01, 0x6A]),     // move to 0x6A
+    ];
+    expected.extend(flow_deck_init_sequence(0x6A));
+    let mut i2c = I2cMock::new(&expected);
+    let sensor = block_on(Vl53l1x::bring_up_or_find(
+        &mut i2c,
+        &mut NoopDelay,
+        0x6A,
+        &RangingConfig::FLOW_DECK_Z,
+    ))
+    .expect("bring-up");
+    assert_eq!(sensor.address(), 0x6A);
     i2c.done();
 }
 

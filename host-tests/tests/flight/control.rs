@@ -11,6 +11,7 @@ use cfnav::flight::control::mixer::{
 };
 use cfnav::flight::control::{ControlFlags, ControlOutput, Controller, ControllerConfig};
 use cfnav::flight::supervisor::{Reason, Supervisor, SupervisorConfig, SupervisorInput, SupervisorState};
+use cfnav::math::{cross3, mul_m3t_v3, quat_mul, quat_to_rot};
 use cfnav::types::{GRAVITY_M_S2, MotorDuty, Setpoint, StateEstimate};
 use rand::rngs::SmallRng;
 use rand::{Rng, SeedableRng};
@@ -47,42 +48,12 @@ struct Quad {
     vbat: f64,
 }
 
-fn quat_mul(a: [f64; 4], b: [f64; 4]) -> [f64; 4] {
-    [
-        a[0] * b[0] - a[1] * b[1] - a[2] * b[2] - a[3] * b[3],
-        a[0] * b[1] + a[1] * b[0] + a[2] * b[3] - a[3] * b[2],
-        a[0] * b[2] - a[1] * b[3] + a[2] * b[0] + a[3] * b[1],
-        a[0] * b[3] + a[1] * b[2] - a[2] * b[1] + a[3] * b[0],
-    ]
-}
-
 fn quat_from_euler(roll: f64, pitch: f64, yaw: f64) -> [f64; 4] {
     // R = Rz(yaw)·Ry(pitch)·Rx(roll)
     let qz = [(yaw / 2.0).cos(), 0.0, 0.0, (yaw / 2.0).sin()];
     let qy = [(pitch / 2.0).cos(), 0.0, (pitch / 2.0).sin(), 0.0];
     let qx = [(roll / 2.0).cos(), (roll / 2.0).sin(), 0.0, 0.0];
     quat_mul(quat_mul(qz, qy), qx)
-}
-
-fn rot(q: [f64; 4]) -> [[f64; 3]; 3] {
-    let [w, x, y, z] = q;
-    [
-        [
-            1.0 - 2.0 * (y * y + z * z),
-            2.0 * (x * y - w * z),
-            2.0 * (x * z + w * y),
-        ],
-        [
-            2.0 * (x * y + w * z),
-            1.0 - 2.0 * (x * x + z * z),
-            2.0 * (y * z - w * x),
-        ],
-        [
-            2.0 * (x * z - w * y),
-            2.0 * (y * z + w * x),
-            1.0 - 2.0 * (x * x + y * y),
-        ],
-    ]
 }
 
 impl Quad {
@@ -105,7 +76,7 @@ impl Quad {
     }
 
     fn euler(&self) -> [f64; 3] {
-        let r = rot(self.q);
+        let r = quat_to_rot(self.q);
         [
             r[2][1].atan2(r[2][2]),
             (-r[2][0]).clamp(-1.0, 1.0).asin(),
@@ -127,13 +98,8 @@ impl Quad {
 
     /// Specific force in the body frame, m/s² (what the accelerometer reads).
     fn specific_force(&self, acc_arena: [f64; 3]) -> [f64; 3] {
-        let r = rot(self.q);
-        let a = [acc_arena[0], acc_arena[1], acc_arena[2] + G];
-        [
-            r[0][0] * a[0] + r[1][0] * a[1] + r[2][0] * a[2],
-            r[0][1] * a[0] + r[1][1] * a[1] + r[2][1] * a[2],
-            r[0][2] * a[0] + r[1][2] * a[1] + r[2][2] * a[2],
-        ]
+        let r = quat_to_rot(self.q);
+        mul_m3t_v3(&r, [acc_arena[0], acc_arena[1], acc_arena[2] + G])
     }
 
     /// Body torque from the current motor thrusts.
@@ -160,7 +126,7 @@ impl Quad {
             self.f[i] += (f_ss - self.f[i]) * a_lag;
         }
         let total: f64 = self.f.iter().sum();
-        let r = rot(self.q);
+        let r = quat_to_rot(self.q);
         let mut acc = [0.0; 3];
         for k in 0..3 {
             acc[k] = r[k][2] * total / MASS - LINEAR_DRAG * self.v[k] / MASS;
@@ -169,11 +135,7 @@ impl Quad {
         let tau = self.torque();
         let w = self.w;
         let iw = [INERTIA[0] * w[0], INERTIA[1] * w[1], INERTIA[2] * w[2]];
-        let gyro = [
-            w[1] * iw[2] - w[2] * iw[1],
-            w[2] * iw[0] - w[0] * iw[2],
-            w[0] * iw[1] - w[1] * iw[0],
-        ];
+        let gyro = cross3(w, iw);
         for k in 0..3 {
             self.w[k] += (tau[k] - gyro[k] - ROT_DRAG * w[k]) / INERTIA[k] * DT;
             self.v[k] += acc[k] * DT;
@@ -326,7 +288,7 @@ fn step_response(samples: &[(f64, f64)], start: f64, target: f64, band: f64) -> 
 }
 
 fn max_tilt_deg(q: &Quad) -> f64 {
-    let r = rot(q.q);
+    let r = quat_to_rot(q.q);
     r[2][2].clamp(-1.0, 1.0).acos().to_degrees()
 }
 
@@ -391,37 +353,35 @@ fn response_to(roll: i16, pitch: i16, yaw: i16) -> ([f64; 3], [f64; 3]) {
 
 #[test]
 fn mixer_signs_move_the_body_the_commanded_way() {
-    let (t, e) = response_to(3000, 0, 0);
-    println!(
-        "roll +3000: torque {t:?} N·m, attitude {:?} deg",
-        e.map(f64::to_degrees)
-    );
-    assert!(
-        t[0] > 0.0 && e[0] > 0.01,
-        "positive roll command lowers the right side (roll > 0)"
-    );
-    assert!(e[1].abs() < 0.1 * e[0] && e[2].abs() < 0.1 * e[0]);
+    for (axis, name, meaning, min_angle_rad) in [
+        (
+            0,
+            "roll",
+            "positive roll command lowers the right side (roll > 0)",
+            0.01,
+        ),
+        (1, "pitch", "positive pitch command lowers the nose (pitch > 0)", 0.01),
+        (
+            2,
+            "yaw",
+            "positive yaw command turns counter-clockwise (yaw > 0)",
+            0.001,
+        ),
+    ] {
+        let mut cmd = [0i16; 3];
+        cmd[axis] = 3000;
+        let (t, e) = response_to(cmd[0], cmd[1], cmd[2]);
+        println!(
+            "{name} +3000: torque {t:?} N·m, attitude {:?} deg",
+            e.map(f64::to_degrees)
+        );
+        assert!(t[axis] > 0.0 && e[axis] > min_angle_rad, "{meaning}");
+        for other in (0..3).filter(|&k| k != axis) {
+            assert!(e[other].abs() < 0.1 * e[axis], "{name} moves {other} too: {e:?}");
+        }
+    }
     let (t, e) = response_to(-3000, 0, 0);
     assert!(t[0] < 0.0 && e[0] < -0.01);
-
-    let (t, e) = response_to(0, 3000, 0);
-    println!(
-        "pitch +3000: torque {t:?} N·m, attitude {:?} deg",
-        e.map(f64::to_degrees)
-    );
-    assert!(
-        t[1] > 0.0 && e[1] > 0.01,
-        "positive pitch command lowers the nose (pitch > 0)"
-    );
-    assert!(e[0].abs() < 0.1 * e[1] && e[2].abs() < 0.1 * e[1]);
-
-    let (t, e) = response_to(0, 0, 3000);
-    println!("yaw +3000: torque {t:?} N·m, attitude {:?} deg", e.map(f64::to_degrees));
-    assert!(
-        t[2] > 0.0 && e[2] > 0.001,
-        "positive yaw command turns counter-clockwise (yaw > 0)"
-    );
-    assert!(e[0].abs() < 0.1 * e[2] && e[1].abs() < 0.1 * e[2]);
 }
 
 #[test]
@@ -485,13 +445,7 @@ fn battery_compensation_raises_duty_as_the_voltage_drops() {
         assert!((made - thrust).abs() < 0.003, "thrust {made} vs {thrust}");
     }
     // The controller's filter reaches the same duty.
-    let mut c = Controller::new(ControllerConfig::default()).expect("valid");
-    let sp = pos(0.0, 0.0, 1.0, 0.0);
-    let est = StateEstimate {
-        position_m: [0.0, 0.0, 1.0],
-        valid: true,
-        ..StateEstimate::default()
-    };
+    let (mut c, sp, est) = holding_one_metre();
     let duty_at = |vbat: f32, c: &mut Controller| {
         let mut out = ControlOutput::default();
         for k in 0..2000 {
@@ -511,11 +465,9 @@ fn battery_compensation_raises_duty_as_the_voltage_drops() {
     let d33 = duty_at(3.3, &mut c);
     assert!(d33 > d42, "{d33} > {d42}");
 
-    // Below THRUST_MIN the motor is off; below 2 V compensation is off (ratio = command).
+    // Below THRUST_MIN the motor is off.
     let tiny = (THRUST_MIN_N * 0.9 / THRUST_MAX_N * CMD_MAX) as u16;
     assert_eq!(compensated_ratio(tiny, 3.7), 0.0);
-    assert!((compensated_ratio(30000, 1.5) - 30000.0 / CMD_MAX).abs() < 1e-6);
-    assert!((compensated_ratio(30000, f32::NAN) - 30000.0 / CMD_MAX).abs() < 1e-6);
     assert_eq!(
         compensated_ratio(65535, 2.5),
         1.0,
@@ -523,15 +475,96 @@ fn battery_compensation_raises_duty_as_the_voltage_drops() {
     );
 }
 
+/// Stock `motorsCompensateBatteryVoltage` returns 0 below 2.0 V: a broken battery reading stops the
+/// motors instead of running them uncompensated.
 #[test]
-fn battery_filter_is_stock_and_ignores_garbage() {
-    let mut c = Controller::new(ControllerConfig::default()).expect("valid");
+fn battery_reading_below_two_volts_turns_the_motors_off_as_stock() {
+    for vbat in [1.99f32, 1.5, 0.0, f32::NAN] {
+        let (ratio, duty) = compensate([30000, 40000, 50000, 65535], vbat);
+        assert_eq!(duty.0, [0; 4], "{vbat} V");
+        assert_eq!(ratio, [0; 4], "{vbat} V");
+    }
+    // At 2.0 V compensation is on again (a motor that needs more than the battery has is at full duty).
+    let (_, duty) = compensate([30000; 4], 2.0);
+    assert!(duty.0.iter().all(|&d| d > 0), "{duty:?}");
+    // The controller does the same with a filtered reading below 2 V; before any reading it flies
+    // uncompensated (ratio = command).
     let sp = pos(0.0, 0.0, 1.0, 0.0);
     let est = StateEstimate {
         position_m: [0.0, 0.0, 1.0],
         valid: true,
         ..StateEstimate::default()
     };
+    let mut c = Controller::new(ControllerConfig::default()).expect("valid");
+    let out = c.update(&sp, &est, [0.0; 3], 1.2, 0);
+    assert!(out.thrust_cmd.iter().all(|&t| t > 0), "{:?}", out.thrust_cmd);
+    assert_eq!(out.duty.0, [0; 4]);
+    let mut c = Controller::new(ControllerConfig::default()).expect("valid");
+    let out = c.update(&sp, &est, [0.0; 3], f32::NAN, 0);
+    let expect = out.thrust_cmd.map(|t| (f32::from(t) / CMD_MAX * 255.0).round() as u8);
+    assert_eq!(out.duty.0, expect);
+}
+
+/// Stock order: compensate each motor, then cap the four together. On a sagging battery two motors that
+/// both need more than the battery gives keep their difference (the roll/pitch torque), at the cost of
+/// collective thrust; clamping each motor at full duty would flatten them.
+#[test]
+fn saturated_compensation_keeps_the_differential_thrust() {
+    let vbat = 2.9f32;
+    // Roll: the left motors (M3, M4) at full command, the right ones a bit lower; all beyond 2.9 V.
+    let cmd = [60000u16, 60000, 65535, 65535];
+    // The motor voltages from the cubic fit, found by bisection here (independent of the driver's Newton).
+    let volts = cmd.map(|c| {
+        let thrust = f64::from(c) / 65535.0 * 0.12;
+        let f = |v: f64| -0.024765 + 0.065238 * v - 0.026793 * v * v + 0.0067768 * v * v * v;
+        let (mut lo, mut hi) = (0.0f64, 8.0f64);
+        for _ in 0..60 {
+            let mid = 0.5 * (lo + hi);
+            if f(mid) < thrust { lo = mid } else { hi = mid }
+        }
+        lo
+    });
+    assert!(
+        volts.iter().all(|&v| v > f64::from(vbat)),
+        "the battery cannot give any of them: {volts:?}"
+    );
+    let (ratio, duty) = compensate(cmd, vbat);
+    let r = ratio.map(|x| f64::from(x) / 65535.0);
+    // The fullest motors at full duty, the difference as uncapped.
+    assert_eq!(duty.0[2], 255);
+    assert_eq!(duty.0[3], 255);
+    let want = (volts[2] - volts[0]) / f64::from(vbat);
+    assert!(want > 0.02);
+    for (lo, hi) in [(0, 2), (1, 3)] {
+        assert!(
+            (r[hi] - r[lo] - want).abs() < 1e-3,
+            "difference {} vs {want}",
+            r[hi] - r[lo]
+        );
+    }
+    assert!(duty.0[0] < duty.0[2] && duty.0[1] < duty.0[3], "{duty:?}");
+    // Unsaturated: the ratio is V_motor / V_bat per motor, untouched by the cap.
+    let (ratio, _) = compensate(cmd, 4.2);
+    for i in 0..4 {
+        let r = f64::from(ratio[i]) / 65535.0;
+        assert!((r - volts[i] / 4.2).abs() < 1e-3, "motor {i}: {r}");
+    }
+}
+
+/// A default controller already at its setpoint, 1 m above the origin: only the battery changes its output.
+fn holding_one_metre() -> (Controller, Setpoint, StateEstimate) {
+    let est = StateEstimate {
+        position_m: [0.0, 0.0, 1.0],
+        valid: true,
+        ..StateEstimate::default()
+    };
+    let c = Controller::new(ControllerConfig::default()).expect("valid");
+    (c, pos(0.0, 0.0, 1.0, 0.0), est)
+}
+
+#[test]
+fn battery_filter_is_stock_and_ignores_garbage() {
+    let (mut c, sp, est) = holding_one_metre();
     let out = c.update(&sp, &est, [0.0; 3], 4.0, 0);
     assert_eq!(out.battery_v_filtered, 4.0, "first reading initialises the filter");
     let out = c.update(&sp, &est, [0.0; 3], 3.0, 1000);
@@ -613,16 +646,21 @@ fn hover_error(noise: Option<Noise>) -> (f64, f64, f64) {
     (max_z, max_xy, (sum_sq / n).sqrt())
 }
 
-#[test]
-fn hover_holds_half_a_metre() {
-    let (z, xy, rms) = hover_error(None);
+/// Hovers 10 s at 0.5 m with this state feedback (`label` says which) and checks it stays within 3 cm.
+fn assert_hovers(label: &str, noise: Option<Noise>) {
+    let (z, xy, rms) = hover_error(noise);
     println!(
-        "hover 0.5 m, perfect state, 10 s: max |dz| {:.1} mm, max horizontal {:.1} mm, rms {:.1} mm",
+        "hover 0.5 m, {label}, 10 s: max |dz| {:.1} mm, max horizontal {:.1} mm, rms {:.1} mm",
         z * 1e3,
         xy * 1e3,
         rms * 1e3
     );
     assert!(z < 0.03 && xy < 0.03);
+}
+
+#[test]
+fn hover_holds_half_a_metre() {
+    assert_hovers("perfect state", None);
 }
 
 #[test]
@@ -634,15 +672,7 @@ fn hover_holds_with_noisy_state() {
         att: 0.5f32.to_radians(),
         gyro: 0.02,
     };
-    let (z, xy, rms) = hover_error(Some(noise));
-    println!(
-        "hover 0.5 m, noisy state (σ 5 mm, 2 cm/s, 0.5°, 0.02 rad/s), 10 s: max |dz| {:.1} mm, max horizontal \
-         {:.1} mm, rms {:.1} mm",
-        z * 1e3,
-        xy * 1e3,
-        rms * 1e3
-    );
-    assert!(z < 0.03 && xy < 0.03);
+    assert_hovers("noisy state (σ 5 mm, 2 cm/s, 0.5°, 0.02 rad/s)", Some(noise));
 }
 
 #[test]
@@ -1134,7 +1164,7 @@ fn a_knock_in_flight_is_recovered_and_not_a_false_crash() {
         let out = g.step(pos(1.0, 1.0, 1.0, 0.0));
         assert_eq!(out.state, SupervisorState::Flying, "false crash at {k} ms");
         min_z = min_z.min(g.f.quad.p[2]);
-        if upright_at.is_none() && rot(g.f.quad.q)[2][2] > (10f64).to_radians().cos() {
+        if upright_at.is_none() && quat_to_rot(g.f.quad.q)[2][2] > (10f64).to_radians().cos() {
             upright_at = Some(k);
         }
     }

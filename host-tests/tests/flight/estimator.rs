@@ -14,6 +14,7 @@
 //! Every test prints its measured errors (`cargo test -p host-tests --test flight estimator:: -- --nocapture`).
 
 use cfnav::flight::estimator::{Estimator, EstimatorConfig};
+use cfnav::math::{mul_m3t_v3, sub3};
 use cfnav::types::{FlowSample, ImuSample, RangeReading, StateEstimate};
 use rand::rngs::SmallRng;
 use rand::{Rng, SeedableRng};
@@ -615,7 +616,7 @@ fn wrap(a: f64) -> f64 {
     (a + std::f64::consts::PI).rem_euclid(two_pi) - std::f64::consts::PI
 }
 
-/// `R = Rz(ψ)·Ry(θ)·Rx(φ)`.
+/// `R = Rz(ψ)·Ry(θ)·Rx(φ)` in `f64` (the truth model's precision; `cfnav::math::rotation` is `f32`).
 fn rot(att: V3) -> [[f64; 3]; 3] {
     let (sr, cr) = att[0].sin_cos();
     let (sp, cp) = att[1].sin_cos();
@@ -628,16 +629,7 @@ fn rot(att: V3) -> [[f64; 3]; 3] {
 }
 
 fn rot_t_mul(att: V3, v: V3) -> V3 {
-    let r = rot(att);
-    let mut out = [0.0; 3];
-    for (j, o) in out.iter_mut().enumerate() {
-        *o = r[0][j] * v[0] + r[1][j] * v[1] + r[2][j] * v[2];
-    }
-    out
-}
-
-fn sub(a: V3, b: V3) -> V3 {
-    [a[0] - b[0], a[1] - b[1], a[2] - b[2]]
+    mul_m3t_v3(&rot(att), v)
 }
 
 fn f64s(v: [f32; 3]) -> V3 {
@@ -881,7 +873,7 @@ fn transit_case(vibration: Option<(f64, f64)>) -> TransitErrors {
     let z_max = max_abs(air().map(|r| pos_err(r)[2]));
     let att_max = air().map(|r| attitude_error_deg(&r.est, &r.truth)).fold(0.0, f64::max);
     let att_rms = rms(air().map(|r| attitude_error_deg(&r.est, &r.truth)));
-    let rate_rms = rms(air().map(|r| norm(sub(f64s(r.est.rates_rad_s), r.truth.omega))));
+    let rate_rms = rms(air().map(|r| norm(sub3(f64s(r.est.rates_rad_s), r.truth.omega))));
     let tilt_truth_max = moving().map(|r| r.truth.att[1].to_degrees().abs()).fold(0.0, f64::max);
     let landed = rec.last().expect("records");
     let errors = TransitErrors {

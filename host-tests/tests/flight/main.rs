@@ -3,5 +3,6 @@
 
 mod control;
 mod estimator;
+mod high_level;
 mod supervisor;
 mod wall_hold;

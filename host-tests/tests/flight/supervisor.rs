@@ -225,6 +225,20 @@ fn stale_setpoint_levels_out_at_500_ms() {
     assert_eq!(b.sup.guard_setpoint(hold(0.9)), hold(0.9));
 }
 
+/// A Stop that goes stale stays a Stop: stock's level-out keeps the setpoint's z mode and a stop setpoint
+/// has none, so a drone stopped in the air falls; it must not climb back to the height it held before.
+#[test]
+fn a_stale_stop_stays_a_stop() {
+    let mut b = Bench::flying();
+    b.input.setpoint_age_us = Some(10_000);
+    b.tick();
+    b.input.setpoint = Setpoint::Stop;
+    b.input.setpoint_age_us = Some(600_000);
+    let out = b.tick();
+    assert!(out.level_out && out.motors_allowed);
+    assert_eq!(b.sup.guard_setpoint(Setpoint::Stop), Setpoint::Stop);
+}
+
 #[test]
 fn stale_descend_holds_the_current_height() {
     let mut b = Bench::flying();

@@ -2,6 +2,7 @@
 //! platform services (§4.1–4.4, §4.9, `crtp-over-udp.md` §1–§2), checked against the byte-exact traces in the
 //! reference documents, independent oracles written here, and seeded random streams.
 
+use super::{hex, wire};
 use cfnav::radio::crtp::{
     CrtpError, CrtpPacket, DEVICE_TYPE_NAME, LINK_SOURCE_REPLY, PlatformService, Router, Service, is_null_header,
 };
@@ -20,18 +21,6 @@ const PAD: u8 = 0x11;
 
 fn router() -> Router<4> {
     Router::new(PlatformService::new(FW_VERSION))
-}
-
-fn wire(p: &CrtpPacket) -> Vec<u8> {
-    let mut out = [0u8; 32];
-    let n = p.to_bytes(&mut out);
-    out[..n].to_vec()
-}
-
-fn hex(s: &str) -> Vec<u8> {
-    s.split_whitespace()
-        .map(|b| u8::from_str_radix(b, 16).unwrap())
-        .collect()
 }
 
 // ---------------------------------------------------------------------------------------------------------

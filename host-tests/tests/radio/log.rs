@@ -3,36 +3,20 @@
 //! trace, the flight table's TOC, block limits and error codes, the stock type conversion, period 0, the data
 //! schedule with its 24-bit timestamp, the TOC CRC, and a seeded random-bytes loop.
 
+use super::{hex, send, wire};
 use cfnav::mission::MissionParams;
-use cfnav::radio::crtp::{CrtpPacket, PlatformService, Router, Service};
+use cfnav::radio::crtp::{PlatformService, Router, Service};
 use cfnav::radio::log::{
     E2BIG, EEXIST, EINVAL, ENOENT, ENOMEM, LogService, MAX_BLOCK_DATA, MAX_BLOCKS, MAX_OPS, PORT_LOG,
 };
 use cfnav::radio::log_registry::{
-    FLIGHT_LOG_TABLE, FlightLogState, ID_MISSION_STATE, ID_RANGE_FRONT, ID_RANGE_ZRANGE, ID_VBAT, ID_X, ID_Y, ID_Z,
-    LOG_CRC_SEED, LogEntry, LogSource, LogType, LogValue, log_toc_crc, single_to_half,
+    FlightLogState, ID_MISSION_STATE, ID_RANGE_FRONT, ID_RANGE_ZRANGE, ID_VBAT, ID_X, ID_Y, ID_Z, LOG_CRC_SEED,
+    LOG_TABLE, LogEntry, LogSource, LogType, LogValue, log_toc_crc, single_to_half,
 };
 use cfnav::radio::param::ParamService;
-use cfnav::radio::registry::{MISSION_TABLE, MissionParamState, PARAM_CRC_SEED, toc_crc};
+use cfnav::radio::registry::{MissionParamState, PARAM_CRC_SEED, PARAM_TABLE, toc_crc};
 use rand::rngs::SmallRng;
 use rand::{Rng, SeedableRng};
-
-fn hex(s: &str) -> Vec<u8> {
-    s.split_whitespace()
-        .map(|b| u8::from_str_radix(b, 16).unwrap())
-        .collect()
-}
-
-fn wire(p: &CrtpPacket) -> Vec<u8> {
-    let mut out = [0u8; 32];
-    let n = p.to_bytes(&mut out);
-    out[..n].to_vec()
-}
-
-fn send<S: Service>(s: &mut S, bytes: &[u8]) -> Option<Vec<u8>> {
-    let p = CrtpPacket::from_bytes(bytes).unwrap();
-    s.handle(&p).map(|r| wire(&r))
-}
 
 /// Sends `data` on 5/1 and returns the reply's payload.
 fn ctl<S: LogSource>(s: &mut LogService<S>, data: &[u8]) -> Vec<u8> {
@@ -196,13 +180,21 @@ fn flight_table_has_the_required_variables() {
         ("range", "zrange", LogType::U16, ID_RANGE_ZRANGE),
         ("pm", "vbat", LogType::F32, ID_VBAT),
     ];
-    assert_eq!(FLIGHT_LOG_TABLE.len(), want.len());
-    assert_eq!(Flight::COUNT, 11);
+    // interfaces.md §5's variables keep ids 0..=10; the table goes on after them.
+    assert_eq!(
+        &LOG_TABLE[..want.len()]
+            .iter()
+            .map(|e| (e.group, e.name, e.ty))
+            .collect::<Vec<_>>(),
+        &want.iter().map(|&(g, n, t, _)| (g, n, t)).collect::<Vec<_>>()
+    );
+    assert_eq!(usize::from(Flight::COUNT), LOG_TABLE.len());
     let state = FlightLogState {
         mission_state: 42,
         position_m: [1.0, 2.0, 0.5],
         ranges_mm: [100, 200, 300, 400, 500, 600],
         vbat_v: 3.9,
+        ..FlightLogState::default()
     };
     for &(g, n, ty, id) in want {
         assert_eq!(Flight::find(g, n), Some(id), "{g}.{n}");
@@ -213,13 +205,16 @@ fn flight_table_has_the_required_variables() {
     assert_eq!(state.value(ID_RANGE_FRONT + 2), Some(LogValue::U16(300)));
     assert_eq!(state.value(ID_RANGE_ZRANGE), Some(LogValue::U16(600)));
     assert_eq!(state.value(ID_VBAT), Some(LogValue::F32(3.9)));
+    // The simulator has no CPU to measure: the cfnav.* load variables have no value (sent as zeros).
     assert_eq!(state.value(11), None);
+    assert_eq!(state.value(LOG_TABLE.len() as u16), None);
 }
 
 #[test]
 fn flight_toc_items_byte_exact() {
     let mut s = Flight::new();
-    let mut info = hex("5C 03 0B 00");
+    let mut info = vec![0x5C, 0x03];
+    info.extend_from_slice(&(LOG_TABLE.len() as u16).to_le_bytes());
     info.extend_from_slice(&Flight::CRC.to_le_bytes());
     info.extend_from_slice(&[16, 128]);
     assert_eq!(send(&mut s, &hex("5C 03")), Some(info));
@@ -244,7 +239,8 @@ fn flight_toc_items_byte_exact() {
     assert_eq!(send(&mut s, &hex("5C 02 04 00")), Some(item(4, 2, "range", "front")));
     assert_eq!(send(&mut s, &hex("5C 02 09 00")), Some(item(9, 2, "range", "zrange")));
     assert_eq!(send(&mut s, &hex("5C 02 0A 00")), Some(item(10, 7, "pm", "vbat")));
-    assert_eq!(send(&mut s, &hex("5C 02 0B 00")), Some(hex("5C 02")));
+    let past = (LOG_TABLE.len() as u16).to_le_bytes();
+    assert_eq!(send(&mut s, &[0x5C, 0x02, past[0], past[1]]), Some(hex("5C 02")));
 }
 
 #[test]
@@ -266,6 +262,7 @@ fn flight_block_end_to_end_through_router() {
         position_m: [1.25, -0.5, 0.75],
         ranges_mm: [1000, 0, 0, 0, 0, 320],
         vbat_v: 4.0,
+        ..FlightLogState::default()
     };
     let p = log.tick(0x00AB_CDEF, &state).unwrap();
     let mut expect = hex("5E 03 EF CD AB");
@@ -367,7 +364,8 @@ fn total_ops_limit_enomem() {
 fn enoent_einval_and_truncated_requests() {
     let mut s = Flight::new();
     // Unknown variable: ENOENT, nothing created; raw-memory id 0xFFFF is not implemented.
-    assert_eq!(ctl(&mut s, &hex("06 01 77 0B 00")), vec![6, 1, ENOENT]);
+    let past = (LOG_TABLE.len() as u16).to_le_bytes();
+    assert_eq!(ctl(&mut s, &[6, 1, 0x77, past[0], past[1]]), vec![6, 1, ENOENT]);
     assert_eq!(ctl(&mut s, &hex("06 01 77 FF FF")), vec![6, 1, ENOENT]);
     assert_eq!(s.block_count(), 0);
     // Unknown block for append, start, start v2, stop, delete.
@@ -381,7 +379,7 @@ fn enoent_einval_and_truncated_requests() {
     assert_eq!(ctl(&mut s, &hex("06 01 79 01 00")), vec![6, 1, EINVAL]);
     assert_eq!(ctl(&mut s, &hex("06 01 07 01 00")), vec![6, 1, 0]);
     // An append failing on its second op adds nothing.
-    assert_eq!(ctl(&mut s, &hex("07 01 11 00 00 11 20 00")), vec![7, 1, ENOENT]);
+    assert_eq!(ctl(&mut s, &hex("07 01 11 00 00 11 00 7F")), vec![7, 1, ENOENT]);
     assert_eq!(s.ops_used(), 1);
     // Trailing bytes short of a whole op are ignored.
     assert_eq!(ctl(&mut s, &hex("07 01 11 00 00 11 00")), vec![7, 1, 0]);
@@ -503,6 +501,7 @@ fn conversion_in_a_data_packet() {
         position_m: [-2.75, 0.0, 0.0],
         ranges_mm: [300, 0, 0, 0, 0, 0],
         vbat_v: 0.0,
+        ..FlightLogState::default()
     };
     let p = s.tick(5, &state).unwrap();
     let mut expect = hex("04 05 00 00 FE FF FE");
@@ -523,25 +522,25 @@ fn log_crc_differs_from_param_crc_and_tracks_the_toc() {
     let log = Flight::CRC;
     let param = ParamService::<MissionParamState>::CRC;
     assert_ne!(log, param);
-    assert_eq!(log, log_toc_crc(FLIGHT_LOG_TABLE));
-    assert_eq!(param, toc_crc(MISSION_TABLE));
+    assert_eq!(log, log_toc_crc(LOG_TABLE));
+    assert_eq!(param, toc_crc(PARAM_TABLE));
     // Same names on both sides still give different CRCs (the seeds differ).
-    let same: Vec<LogEntry> = MISSION_TABLE
+    let same: Vec<LogEntry> = PARAM_TABLE
         .iter()
         .map(|e| LogEntry::new(e.group, e.name, LogType::F32))
         .collect();
-    assert_ne!(log_toc_crc(&same), toc_crc(MISSION_TABLE));
+    assert_ne!(log_toc_crc(&same), toc_crc(PARAM_TABLE));
     // The CRC changes with a name, a type or the order.
-    let mut t = FLIGHT_LOG_TABLE.to_vec();
+    let mut t = LOG_TABLE.to_vec();
     t[10] = LogEntry::new("pm", "vbaT", LogType::F32);
     assert_ne!(log_toc_crc(&t), log);
-    let mut t = FLIGHT_LOG_TABLE.to_vec();
+    let mut t = LOG_TABLE.to_vec();
     t[0] = LogEntry::new("mission", "state", LogType::U16);
     assert_ne!(log_toc_crc(&t), log);
-    let mut t = FLIGHT_LOG_TABLE.to_vec();
+    let mut t = LOG_TABLE.to_vec();
     t.swap(1, 2);
     assert_ne!(log_toc_crc(&t), log);
-    assert_ne!(log_toc_crc(&FLIGHT_LOG_TABLE[..10]), log);
+    assert_ne!(log_toc_crc(&LOG_TABLE[..10]), log);
     assert_ne!(LogService::<Sim>::CRC, log);
     let _ = MissionParams::SEED;
 }
@@ -561,6 +560,7 @@ fn random_bytes_never_panic_and_keep_invariants() {
         position_m: [f32::NAN, f32::INFINITY, -1e30],
         ranges_mm: [u16::MAX; 6],
         vbat_v: 3.7,
+        ..FlightLogState::default()
     };
     for i in 0..200_000u32 {
         let len = rng.random_range(0..=33usize);

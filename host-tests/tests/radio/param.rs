@@ -3,12 +3,13 @@
 //! the trace, the connect sequence through the router, the refusal rule, set-by-name, VALUE_UPDATED, the TOC
 //! CRC, and a seeded random-bytes loop.
 
+use super::{hex, send, wire};
 use cfnav::mission::MissionParams;
 use cfnav::radio::crtp::{CrtpPacket, PlatformService, Router, Service};
 use cfnav::radio::param::{EACCES, EINVAL, ENOENT, ParamService, RefusalNote};
 use cfnav::radio::registry::{
     FLAG_EXTENDED, FLAG_READ_ONLY, ID_GOAL_X, ID_GOAL_Y, ID_HEIGHT, ID_SPEED, ID_START, ID_START_X, ID_START_Y,
-    MISSION_TABLE, MissionParamState, PARAM_CRC_SEED, ParamEntry, ParamStore, ParamType, Refusal, Value, crc32,
+    MissionParamState, PARAM_CRC_SEED, PARAM_TABLE, ParamEntry, ParamStore, ParamType, Refusal, Value, crc32,
     crc32_update, toc_crc,
 };
 use rand::rngs::SmallRng;
@@ -20,24 +21,6 @@ type Mission = ParamService<MissionParamState>;
 
 fn service() -> Mission {
     ParamService::new(MissionParamState::new(MissionParams::SEED, CAPACITY))
-}
-
-fn hex(s: &str) -> Vec<u8> {
-    s.split_whitespace()
-        .map(|b| u8::from_str_radix(b, 16).unwrap())
-        .collect()
-}
-
-fn wire(p: &CrtpPacket) -> Vec<u8> {
-    let mut out = [0u8; 32];
-    let n = p.to_bytes(&mut out);
-    out[..n].to_vec()
-}
-
-/// Sends raw uplink bytes straight to a service (header parsed as the router does).
-fn send<S: Service>(s: &mut S, bytes: &[u8]) -> Option<Vec<u8>> {
-    let p = CrtpPacket::from_bytes(bytes).unwrap();
-    s.handle(&p).map(|r| wire(&r))
 }
 
 fn f32_le(v: f32) -> [u8; 4] {
@@ -155,14 +138,15 @@ fn toc_info_layout_matches_the_trace() {
     let mut expected = hex("2C 03 03 00");
     expected.extend_from_slice(&crc);
     assert_eq!(send(&mut s, &[0x2C, 0x03]), Some(expected));
-    // The mission table: 7 entries, 7-byte payload; bits 2-3 of the request header ignored.
+    // The whole table, 7-byte payload; bits 2-3 of the request header ignored.
     let mut m = service();
     let crc = Mission::CRC.to_le_bytes();
-    let mut expected = hex("2C 03 07 00");
+    let mut expected = vec![0x2C, 0x03];
+    expected.extend_from_slice(&(PARAM_TABLE.len() as u16).to_le_bytes());
     expected.extend_from_slice(&crc);
     assert_eq!(send(&mut m, &[0x2C, 0x03]), Some(expected.clone()));
     assert_eq!(send(&mut m, &[0x20, 0x03]), Some(expected));
-    assert_eq!(Mission::CRC, toc_crc(MISSION_TABLE));
+    assert_eq!(Mission::CRC, toc_crc(PARAM_TABLE));
 }
 
 #[test]
@@ -183,7 +167,8 @@ fn toc_items_match_the_trace() {
         assert_eq!(reply, expected);
     }
     // Out of range: `[02]` only (param_logic.c L289-324); high id byte honoured.
-    assert_eq!(send(&mut m, &hex("2C 02 07 00")), Some(hex("2C 02")));
+    let past = (PARAM_TABLE.len() as u16).to_le_bytes();
+    assert_eq!(send(&mut m, &[0x2C, 0x02, past[0], past[1]]), Some(hex("2C 02")));
     assert_eq!(send(&mut m, &hex("2C 02 00 01")), Some(hex("2C 02")));
     // Truncated id, empty request, V1 commands: no reply.
     assert_eq!(send(&mut m, &hex("2C 02 00")), None);
@@ -289,7 +274,7 @@ fn connect_sequence_param_steps_through_the_router() {
     assert_eq!(info.len(), 8);
     assert_eq!(info[..2], [0x2C, 0x03]);
     let count = u16::from_le_bytes([info[2], info[3]]);
-    assert_eq!(count, 7);
+    assert_eq!(usize::from(count), PARAM_TABLE.len());
     assert_eq!(u32::from_le_bytes(info[4..8].try_into().unwrap()), Mission::CRC);
 
     // Step 8: every item, one at a time; parse them as cflib does (toc.py / param.py).
@@ -299,11 +284,7 @@ fn connect_sequence_param_steps_through_the_router() {
         let item = up(&[0x2C, 0x02, b[0], b[1]], &mut m).unwrap();
         assert_eq!(item[..4], [0x2C, 0x02, b[0], b[1]]);
         let ty = item[4];
-        assert_eq!(
-            ty & 0x50,
-            0,
-            "no read-only, no extended: cflib asks nothing more (step 8b)"
-        );
+        assert_eq!(ty & 0x10, 0, "no extended type: cflib asks nothing more (step 8b)");
         let strings: Vec<&[u8]> = item[5..].split(|&c| c == 0).collect();
         assert_eq!(strings.len(), 3, "group\\0name\\0");
         assert!(strings[2].is_empty());
@@ -315,8 +296,9 @@ fn connect_sequence_param_steps_through_the_router() {
         toc.push((id, ty, name));
     }
     let names: Vec<&str> = toc.iter().map(|t| t.2.as_str()).collect();
+    // interfaces.md §5's parameters keep ids 0..=6.
     assert_eq!(
-        names,
+        names[..7],
         [
             "mission.start",
             "mission.goalX",
@@ -346,7 +328,9 @@ fn connect_sequence_param_steps_through_the_router() {
         assert_eq!(reply.len(), 1 + 3 + size);
         assert_eq!(reply[..4], [0x2D, b[0], b[1], 0]);
         let v = Value::from_le(ParamType::from_code(*ty).unwrap(), &reply[4..]).unwrap();
-        assert_eq!(v, expected[usize::from(*id)]);
+        if let Some(want) = expected.get(usize::from(*id)) {
+            assert_eq!(v, *want);
+        }
     }
     // After fully_connected: set mission.start = 1, echo.
     assert_eq!(up(&hex("2E 00 00 01"), &mut m), Some(hex("2E 00 00 01")));
@@ -563,6 +547,9 @@ fn extended_type_v2() {
     // Unknown misc commands, VALUE_UPDATED sent uplink: no reply.
     assert_eq!(send(&mut s, &hex("2F 01 00 00 05")), None);
     assert_eq!(send(&mut s, &hex("2F 05 00 00")), None);
+    // Default value: the test store declares none (ENOENT, v1 and v2 layouts).
+    assert_eq!(send(&mut s, &hex("2F 08 00 00")), Some(hex("2F 08 00 00 02")));
+    assert_eq!(send(&mut s, &hex("2F 06 00 00")), Some(hex("2F 06 00 00 02")));
     assert_eq!(send(&mut s, &hex("2F")), None);
 }
 
@@ -577,7 +564,7 @@ fn firmware_changes_queue_value_updated() {
     assert!(m.notify(ID_START), "already queued: not twice");
     m.store_mut().params.goal_m.0 = 3.0;
     assert!(m.notify(ID_GOAL_X));
-    assert!(!m.notify(7), "unknown id");
+    assert!(!m.notify(PARAM_TABLE.len() as u16), "unknown id");
     // `[1, id u16, value]` on 2/3 (crtp-over-udp.md §2 "Firmware-side param change").
     let p = m.next_notification().unwrap();
     assert_eq!(wire(&p), hex("2F 01 00 00 00"));
@@ -631,40 +618,40 @@ fn layout_crc(seed: &[u8], table: &[ParamEntry]) -> u32 {
 fn crc32_check_value_and_algorithm() {
     assert_eq!(crc32(b"123456789"), 0xCBF4_3926);
     assert_eq!(crc32(b""), 0);
-    assert_eq!(toc_crc(MISSION_TABLE), layout_crc(PARAM_CRC_SEED, MISSION_TABLE));
+    assert_eq!(toc_crc(PARAM_TABLE), layout_crc(PARAM_CRC_SEED, PARAM_TABLE));
     assert_eq!(toc_crc(&[]), crc32(PARAM_CRC_SEED));
 }
 
 #[test]
 fn crc_changes_when_the_table_changes_and_differs_from_a_log_crc() {
-    let base = toc_crc(MISSION_TABLE);
+    let base = toc_crc(PARAM_TABLE);
     let mut variants: Vec<Vec<ParamEntry>> = Vec::new();
     let renamed = {
-        let mut t = MISSION_TABLE.to_vec();
+        let mut t = PARAM_TABLE.to_vec();
         t[1] = ParamEntry::new("mission", "goalx", ParamType::F32, 0);
         t
     };
     variants.push(renamed);
     let regrouped = {
-        let mut t = MISSION_TABLE.to_vec();
+        let mut t = PARAM_TABLE.to_vec();
         t[6] = ParamEntry::new("mission2", "speed", ParamType::F32, 0);
         t
     };
     variants.push(regrouped);
     let retyped = {
-        let mut t = MISSION_TABLE.to_vec();
+        let mut t = PARAM_TABLE.to_vec();
         t[0] = ParamEntry::new("mission", "start", ParamType::U16, 0);
         t
     };
     variants.push(retyped);
     let flagged = {
-        let mut t = MISSION_TABLE.to_vec();
+        let mut t = PARAM_TABLE.to_vec();
         t[0] = ParamEntry::new("mission", "start", ParamType::U8, FLAG_READ_ONLY);
         t
     };
     variants.push(flagged);
     let reordered = {
-        let mut t = MISSION_TABLE.to_vec();
+        let mut t = PARAM_TABLE.to_vec();
         t.swap(1, 2);
         t
     };
@@ -672,10 +659,10 @@ fn crc_changes_when_the_table_changes_and_differs_from_a_log_crc() {
     // Moving a character between group and name (the NUL separators keep these apart).
     variants.push(vec![ParamEntry::new("ab", "c", ParamType::U8, 0)]);
     variants.push(vec![ParamEntry::new("a", "bc", ParamType::U8, 0)]);
-    let mut added = MISSION_TABLE.to_vec();
+    let mut added = PARAM_TABLE.to_vec();
     added.push(ParamEntry::new("mission", "extra", ParamType::U8, 0));
     variants.push(added);
-    variants.push(MISSION_TABLE[..6].to_vec());
+    variants.push(PARAM_TABLE[..6].to_vec());
     variants.push(Vec::new());
     let mut crcs = vec![base];
     for v in &variants {
@@ -690,11 +677,11 @@ fn crc_changes_when_the_table_changes_and_differs_from_a_log_crc() {
         "every table change changes the CRC: {crcs:08X?}"
     );
     // Same table, same CRC (it is a pure function of the table).
-    let copy = MISSION_TABLE.to_vec();
+    let copy = PARAM_TABLE.to_vec();
     assert_eq!(toc_crc(&copy), base);
 
     // The log TOC's CRC for the very same entries must differ (cflib's cache key, crtp-over-udp.md §2).
-    for table in [MISSION_TABLE, TEST_TABLE, TRACE_TABLE] {
+    for table in [PARAM_TABLE, TEST_TABLE, TRACE_TABLE] {
         let p = toc_crc(table);
         assert_ne!(p, stock_style_crc(table));
         assert_ne!(p, layout_crc(b"", table));
@@ -735,9 +722,12 @@ fn mission_store_rejects_wrong_types_and_ids_directly() {
     let before = s;
     assert_eq!(s.write(ID_START, Value::F32(1.0)), Err(Refusal::WrongType));
     assert_eq!(s.write(ID_HEIGHT, Value::U8(1)), Err(Refusal::WrongType));
-    assert_eq!(s.write(7, Value::F32(1.0)), Err(Refusal::UnknownId));
-    assert_eq!(s.write(7, Value::U8(1)), Err(Refusal::UnknownId));
-    assert_eq!(s.read(7), None);
+    let past = PARAM_TABLE.len() as u16;
+    assert_eq!(s.write(past, Value::F32(1.0)), Err(Refusal::UnknownId));
+    assert_eq!(s.write(past, Value::U8(1)), Err(Refusal::UnknownId));
+    assert_eq!(s.read(past), None);
+    // Read-only declarations refuse every write (deck.bcFlow2 is id 8).
+    assert_eq!(s.write(8, Value::U8(1)), Err(Refusal::ReadOnly));
     assert_eq!(s, before);
 }
 

@@ -53,6 +53,11 @@ fn cflib_bitfield(reply: &CrtpPacket) -> u32 {
         .fold(0u32, |acc, &b| (acc << 8) | u32::from(b))
 }
 
+/// The data of the reply to a command-channel packet carrying `data` (which must get one).
+fn command(s: &mut SupervisorPortService, data: &[u8]) -> Vec<u8> {
+    s.handle(&pk(CH_COMMAND, data)).expect("a reply").data.to_vec()
+}
+
 fn bit(field: u32, n: u32) -> bool {
     field >> n & 1 == 1
 }
@@ -91,7 +96,7 @@ fn bitfield_reply_layout_and_mapping() {
 
     // Crashed after a tumble, mission running, deck fault.
     let mut st = status(SupervisorState::Crashed, Reason::Tumbled);
-    st.output.flags = SupervisorFlags(SupervisorFlags::TUMBLED);
+    st.output.flags = SupervisorFlags::from_bits(SupervisorFlags::TUMBLED);
     st.mission_running = true;
     st.decks_ok = false;
     s.set_status(st);
@@ -153,29 +158,17 @@ fn arming_without_auto_arm_follows_can_be_armed() {
     let mut s = SupervisorPortService::new(cfg);
     s.set_status(status(SupervisorState::Idle, Reason::NotUpright));
     assert!(!bit(bitfield_of(&mut s), BIT_CAN_BE_ARMED));
-    assert_eq!(
-        s.handle(&pk(CH_COMMAND, &[CMD_ARM_SYSTEM, 1])).unwrap().data.as_slice(),
-        &[0x81, 0, 0]
-    );
+    assert_eq!(command(&mut s, &[CMD_ARM_SYSTEM, 1]), &[0x81, 0, 0]);
     assert_eq!(s.take_requests().arm, None);
 
     s.set_status(status(SupervisorState::Idle, Reason::NotArmed));
     assert!(bit(bitfield_of(&mut s), BIT_CAN_BE_ARMED));
-    assert_eq!(
-        s.handle(&pk(CH_COMMAND, &[CMD_ARM_SYSTEM, 1])).unwrap().data.as_slice(),
-        &[0x81, 1, 1]
-    );
+    assert_eq!(command(&mut s, &[CMD_ARM_SYSTEM, 1]), &[0x81, 1, 1]);
     assert_eq!(s.take_requests().arm, Some(true));
     assert!(s.arm_level());
     // Arming again: already armed → success (stock `doArm == isArmingActivated`).
-    assert_eq!(
-        s.handle(&pk(CH_COMMAND, &[CMD_ARM_SYSTEM, 7])).unwrap().data.as_slice(),
-        &[0x81, 1, 1]
-    );
-    assert_eq!(
-        s.handle(&pk(CH_COMMAND, &[CMD_ARM_SYSTEM, 0])).unwrap().data.as_slice(),
-        &[0x81, 1, 0]
-    );
+    assert_eq!(command(&mut s, &[CMD_ARM_SYSTEM, 7]), &[0x81, 1, 1]);
+    assert_eq!(command(&mut s, &[CMD_ARM_SYSTEM, 0]), &[0x81, 1, 0]);
     assert_eq!(s.take_requests().arm, Some(false));
 }
 
@@ -187,43 +180,21 @@ fn recovery_answers() {
     });
     s.set_status(status(SupervisorState::Idle, Reason::None));
     // cflib send_crash_recovery_request(): data = (CMD_RECOVER_SYSTEM,).
-    assert_eq!(
-        s.handle(&pk(CH_COMMAND, &[CMD_RECOVER_SYSTEM]))
-            .unwrap()
-            .data
-            .as_slice(),
-        &[0x82, 1, 1]
-    );
+    assert_eq!(command(&mut s, &[CMD_RECOVER_SYSTEM]), &[0x82, 1, 1]);
     assert!(!s.take_requests().recover, "nothing to recover");
     let mut crashed = status(SupervisorState::Crashed, Reason::Tumbled);
-    crashed.output.flags = SupervisorFlags(SupervisorFlags::TUMBLED);
+    crashed.output.flags = SupervisorFlags::from_bits(SupervisorFlags::TUMBLED);
     s.set_status(crashed);
-    assert_eq!(
-        s.handle(&pk(CH_COMMAND, &[CMD_RECOVER_SYSTEM]))
-            .unwrap()
-            .data
-            .as_slice(),
-        &[0x82, 0, 0]
-    );
+    assert_eq!(command(&mut s, &[CMD_RECOVER_SYSTEM]), &[0x82, 0, 0]);
     assert!(!s.take_requests().recover, "still tumbled: refused");
     s.set_status(status(SupervisorState::Crashed, Reason::None));
-    assert_eq!(
-        s.handle(&pk(CH_COMMAND, &[CMD_RECOVER_SYSTEM]))
-            .unwrap()
-            .data
-            .as_slice(),
-        &[0x82, 1, 1]
-    );
+    assert_eq!(command(&mut s, &[CMD_RECOVER_SYSTEM]), &[0x82, 1, 1]);
     assert!(s.take_requests().recover);
 
     let mut no_reset = SupervisorPortService::new(SupervisorPortConfig::default());
     no_reset.set_status(status(SupervisorState::Crashed, Reason::None));
     assert_eq!(
-        no_reset
-            .handle(&pk(CH_COMMAND, &[CMD_RECOVER_SYSTEM]))
-            .unwrap()
-            .data
-            .as_slice(),
+        command(&mut no_reset, &[CMD_RECOVER_SYSTEM]),
         &[0x82, 0, 0],
         "a caller that cannot reset the supervisor must not claim success"
     );
@@ -239,10 +210,7 @@ fn emergency_stop_latches_and_blocks_arming() {
     assert!(!s.take_requests().emergency_stop, "requested once");
     let f = bitfield_of(&mut s);
     assert!(bit(f, BIT_IS_LOCKED) && !bit(f, BIT_CAN_FLY) && !bit(f, BIT_IS_ARMED));
-    assert_eq!(
-        s.handle(&pk(CH_COMMAND, &[CMD_ARM_SYSTEM, 1])).unwrap().data.as_slice(),
-        &[0x81, 0, 0]
-    );
+    assert_eq!(command(&mut s, &[CMD_ARM_SYSTEM, 1]), &[0x81, 0, 0]);
     s.clear_emergency_stop();
     assert!(!bit(bitfield_of(&mut s), BIT_IS_LOCKED));
 }

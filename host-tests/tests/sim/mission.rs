@@ -290,8 +290,8 @@ fn pad_searches_leave_the_height_estimate_alone() {
     let gap = World::load(format!("{}/../worlds/gap.toml", env!("CARGO_MANIFEST_DIR"))).unwrap();
     let cases = [
         (gap, 8),
-        (World::random(1_000_082), 1_000_082),
-        (World::random(2_000_084), 2_000_084),
+        (World::random_classic(1_000_082), 1_000_082),
+        (World::random_classic(2_000_084), 2_000_084),
     ];
     for (world, seed) in cases {
         let mut options = RunOptions::for_world(&world);

@@ -4,7 +4,8 @@
 
 use std::time::Instant;
 
-use cfnav::types::{GRAVITY_M_S2, MotorDuty, arena_to_body};
+use cfnav::math::arena_to_body;
+use cfnav::types::{GRAVITY_M_S2, MotorDuty};
 use cfnav_tools::sim::physics::{Geometry, QuadParams, Quadrotor};
 use cfnav_tools::sim::sensors::{
     BatterySensor, Beam, FlowParams, FlowSensor, Imu, ImuParams, MultiRanger, MultiRangerParams, SensorFault, ZRanger,

@@ -27,10 +27,17 @@
 //! 3. **yaw headroom** (cfnav addition): yaw is added after roll/pitch and clamped to what keeps every
 //!    motor inside 0..=65535, so a big yaw command never eats the collective (stock lets a saturated yaw
 //!    pull two motors to 0 and the drone sinks). Priority: roll/pitch > thrust > yaw.
-//! 4. **battery compensation** (stock `motorsCompensateBatteryVoltage`): command `c` ↔ thrust
+//! 4. **battery compensation, then the stock cap** (stock `stabilizer.c` `controlMotors`: mix →
+//!    `batteryCompensation` per motor → `powerDistributionCap`): command `c` ↔ thrust
 //!    `c/65535 · THRUST_MAX` N; below `THRUST_MIN` the motor is off; otherwise the motor voltage is the
-//!    inverse of the cubic `thrust(V) = Σ VMOTOR2THRUSTᵢ·Vⁱ` and the ratio is `V_motor / V_bat`. Below
-//!    2.0 V (no or a broken battery reading) the compensation is disabled and the ratio is the command.
+//!    inverse of the cubic `thrust(V) = Σ VMOTOR2THRUSTᵢ·Vⁱ` and the ratio is `V_motor / V_bat`, **not
+//!    clamped** per motor; then, if a ratio exceeds 1, the excess is subtracted from all four and each is
+//!    floored at 0, so a sagging battery costs collective thrust, not the difference between the motors
+//!    (clamping each motor at 1 would flatten two saturated motors to the same duty and lose the roll or
+//!    pitch torque between them). Below [`BATTERY_COMP_MIN_V`] (a broken battery reading) every motor is
+//!    **off**, as stock `motorsCompensateBatteryVoltage` (it returns 0 below 2.0 V). Before the first
+//!    battery reading, or with compensation switched off in the controller's configuration, the ratio is
+//!    the command ([`uncompensated`]).
 //! 5. **duty** = `round(255 · ratio)`, clamped to 0..=255. (On the hardware the PWM period is 256 counts,
 //!    so the true on-fraction is `duty/256`; the 0.4 % difference is inside the thrust fit's error.)
 //!
@@ -166,21 +173,24 @@ pub fn voltage_for_thrust(thrust_n: f32) -> f32 {
     v
 }
 
-/// Stock battery compensation of one 16-bit command: the ratio (0..=1) of the battery voltage to apply.
-/// `vbat` is the filtered battery voltage. Below [`BATTERY_COMP_MIN_V`] (or non-finite) the ratio is the
-/// command itself (`cmd/65535`), as stock.
-pub fn compensated_ratio(cmd: u16, vbat: f32) -> f32 {
-    if cmd == 0 {
+/// Stock `motorsCompensateBatteryVoltage` of one 16-bit command: the ratio of the battery voltage the
+/// motor needs, **uncapped** (above 1 when the battery cannot give it). `vbat` is the filtered battery
+/// voltage; below [`BATTERY_COMP_MIN_V`] (or non-finite) the motor is off (0), as stock.
+pub fn compensated_ratio_uncapped(cmd: u16, vbat: f32) -> f32 {
+    if cmd == 0 || !(vbat.is_finite() && vbat >= BATTERY_COMP_MIN_V) {
         return 0.0;
-    }
-    if !(vbat.is_finite() && vbat >= BATTERY_COMP_MIN_V) {
-        return f32::from(cmd) / CMD_MAX;
     }
     let thrust = f32::from(cmd) / CMD_MAX * THRUST_MAX_N;
     if thrust < THRUST_MIN_N {
         return 0.0;
     }
-    (voltage_for_thrust(thrust) / vbat).clamp(0.0, 1.0)
+    voltage_for_thrust(thrust) / vbat
+}
+
+/// One motor alone: [`compensated_ratio_uncapped`] clamped to 0..=1 (what the motor gets when it is the
+/// only one saturating; [`compensate`] caps the four together).
+pub fn compensated_ratio(cmd: u16, vbat: f32) -> f32 {
+    compensated_ratio_uncapped(cmd, vbat).clamp(0.0, 1.0)
 }
 
 /// A ratio (0..=1) as the stock 16-bit motor ratio.
@@ -194,16 +204,28 @@ pub fn ratio_to_duty(ratio: f32) -> u8 {
     if d.is_finite() { d.clamp(0.0, 255.0) as u8 } else { 0 }
 }
 
-/// Battery compensation and duty for the four motors: `(ratios as u16, duties)`.
+/// Battery compensation and the stock cap for the four motors (module doc, step 4): `(ratios as u16,
+/// duties)`. Below [`BATTERY_COMP_MIN_V`] every motor is off.
 pub fn compensate(cmd: [u16; 4], vbat: f32) -> ([u16; 4], MotorDuty) {
-    let mut ratio16 = [0u16; 4];
-    let mut duty = [0u8; 4];
-    for ((&c, r16), d) in cmd.iter().zip(ratio16.iter_mut()).zip(duty.iter_mut()) {
-        let r = compensated_ratio(c, vbat);
-        *r16 = ratio_to_u16(r);
-        *d = ratio_to_duty(r);
+    let mut ratio = cmd.map(|c| compensated_ratio_uncapped(c, vbat));
+    let max = ratio.iter().fold(0.0f32, |a, &b| a.max(b));
+    if max > 1.0 {
+        let excess = max - 1.0;
+        for r in ratio.iter_mut() {
+            *r = (*r - excess).max(0.0);
+        }
     }
-    (ratio16, MotorDuty(duty))
+    finish(ratio)
+}
+
+/// No battery compensation (switched off, or no battery reading yet): the ratio is the command.
+pub fn uncompensated(cmd: [u16; 4]) -> ([u16; 4], MotorDuty) {
+    finish(cmd.map(|c| f32::from(c) / CMD_MAX))
+}
+
+fn finish(ratio: [f32; 4]) -> ([u16; 4], MotorDuty) {
+    let r = ratio.map(|r| r.clamp(0.0, 1.0));
+    (r.map(ratio_to_u16), MotorDuty(r.map(ratio_to_duty)))
 }
 
 fn to_u16(x: f32) -> u16 {

@@ -92,7 +92,9 @@
 pub mod mixer;
 pub mod pid;
 
-use crate::types::{GRAVITY_M_S2, Micros, MotorDuty, Setpoint, StateEstimate, wrap_angle};
+use super::flags::Flags;
+use crate::math::{finite_or, wrap_angle};
+use crate::types::{GRAVITY_M_S2, Micros, MotorDuty, Setpoint, StateEstimate};
 use mixer::Mix;
 use pid::Differentiator;
 pub use pid::{Gate, Pid, PidGains};
@@ -297,9 +299,12 @@ impl ControllerConfig {
     }
 }
 
+/// The owner of [`ControlFlags`]'s bits (a marker, never built).
+#[derive(Debug)]
+pub enum ControlBits {}
+
 /// Bit flags describing one [`Controller::update`], for logs and tests.
-#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
-pub struct ControlFlags(pub u16);
+pub type ControlFlags = Flags<ControlBits>;
 
 impl ControlFlags {
     /// The setpoint was Stop: motors off, everything reset.
@@ -324,17 +329,6 @@ impl ControlFlags {
     pub const SETPOINT_GARBAGE: u16 = 1 << 9;
     /// Battery compensation inactive (disabled, no reading yet, or below 2 V).
     pub const NO_BATTERY_COMP: u16 = 1 << 10;
-
-    /// Whether `flag` (one of the constants) is set.
-    pub fn contains(self, flag: u16) -> bool {
-        self.0 & flag != 0
-    }
-
-    fn set(&mut self, flag: u16, on: bool) {
-        if on {
-            self.0 |= flag;
-        }
-    }
 }
 
 /// The result of one [`Controller::update`].
@@ -432,10 +426,6 @@ const BLIND_AFTER_US: u64 = 1_500_000;
 fn err(target: f32, measured: f32) -> f32 {
     let e = target - measured;
     if e.is_finite() { e } else { 0.0 }
-}
-
-fn finite_or(x: f32, fallback: f32) -> f32 {
-    if x.is_finite() { x } else { fallback }
 }
 
 fn sign(x: f32) -> i8 {
@@ -596,7 +586,7 @@ impl Controller {
         if matches!(setpoint, Setpoint::Stop) {
             self.reset();
             let yaw = finite_or(state.attitude_rad[2], 0.0);
-            let mut flags = ControlFlags(ControlFlags::STOPPED);
+            let mut flags = ControlFlags::from_bits(ControlFlags::STOPPED);
             flags.set(ControlFlags::NO_BATTERY_COMP, !self.battery_comp_active());
             return ControlOutput {
                 attitude_target_rad: [0.0, 0.0, wrap_angle(yaw)],
@@ -632,14 +622,14 @@ impl Controller {
         if mix.yaw_limited != 0 {
             self.yaw_limited_recent = mix.yaw_limited;
         }
-        let vbat_for_comp = if self.battery_comp_active() {
-            self.vbat.unwrap_or(0.0)
-        } else {
-            0.0
+        // Stock: compensate each motor, then cap the four together; a reading below 2 V turns the motors
+        // off. Before the first reading (or with compensation off) the ratio is the command.
+        let (motor_ratio, duty) = match self.vbat {
+            Some(v) if self.cfg.battery_compensation => mixer::compensate(mix.cmd, v),
+            _ => mixer::uncompensated(mix.cmd),
         };
-        let (motor_ratio, duty) = mixer::compensate(mix.cmd, vbat_for_comp);
 
-        let mut flags = ControlFlags(0);
+        let mut flags = ControlFlags::default();
         flags.set(ControlFlags::ON_GROUND, s.on_ground);
         flags.set(ControlFlags::TILT_LIMITED, self.tilt_limited);
         flags.set(ControlFlags::THRUST_HIGH, self.thrust_sat > 0 || mix.capped);

@@ -8,7 +8,7 @@
 //! away and the next one starts. Sums are kept relative to each window's first sample so that the f32
 //! variance does not cancel catastrophically.
 
-use super::math::{V3, add3, finite3, norm3, scale3, sub3};
+use crate::math::{V3, add3, finite3, norm3, scale3, sub3};
 use crate::types::GRAVITY_M_S2;
 
 /// Samples per calibration window (stock `SENSORS_NBR_OF_BIAS_SAMPLES` = 512).

@@ -181,11 +181,12 @@
 //!
 //! Files: `predict` (IMU strapdown, covariance propagation, rest windows), `updates` (flow, height through
 //! the surface tracker, wall anchors; the scalar update), `surface` (pad-step tracking), `calib` (gyro
-//! bias and levelling at rest), `wall_hold` (the wall anchors' geometry), `math` (small fixed matrices and
-//! quaternions); this file holds the state, its configuration, validity and the public readout.
+//! bias and levelling at rest), `wall_hold` (the wall anchors' geometry), `ekf_math` (the 9 × 9 covariance
+//! and the rate low-pass; vectors and quaternions are [`crate::math`]); this file holds the state, its
+//! configuration, validity and the public readout.
 
 mod calib;
-mod math;
+mod ekf_math;
 mod predict;
 mod surface;
 mod updates;
@@ -193,12 +194,13 @@ pub mod wall_hold;
 
 pub use surface::{SurfaceEvent, SurfaceMode};
 
+use crate::math::{
+    M3, QUAT_IDENTITY, Quat, V3, add3, dot3, euler_from_rot, finite3, mul_m3, mul_m3_v3, mul_m3t_v3, norm3,
+    quat_from_euler, quat_from_rotvec, quat_mul, quat_normalize, quat_to_rot, scale3, skew, sub3,
+};
 use crate::types::{GRAVITY_M_S2, StateEstimate};
 use calib::Calibrator;
-use math::{
-    M3, Mat9, N, QUAT_IDENTITY, Quat, V3, Vec9, add3, dot3, euler_from_rot, finite3, mul_m3, mul_m3_v3, mul_m3t_v3,
-    mul9_v, norm3, quat_from_euler, quat_from_rotvec, quat_mul, quat_normalize, quat_to_rot, scale3, skew, sub3,
-};
+use ekf_math::{Mat9, N, Vec9, mul9_v};
 use surface::{Params, SurfaceTracker};
 use wall_hold::WallHold;
 
@@ -547,7 +549,7 @@ pub struct Estimator {
     last_accel: V3,
     have_imu: bool,
     omega: V3,
-    rates_lpf: [math::Lpf2; 3],
+    rates_lpf: [ekf_math::Lpf2; 3],
     rates: V3,
     // The current 10 ms covariance block.
     blk_dt: f32,
@@ -587,7 +589,7 @@ impl Estimator {
     /// A new estimator at the origin, yaw 0, not calibrated (call [`Self::reset`] with the start pose).
     pub fn new(config: EstimatorConfig) -> Self {
         let cfg = config.sanitized();
-        let lpf = math::Lpf2::new(IMU_RATE_HZ, GYRO_LPF_HZ);
+        let lpf = ekf_math::Lpf2::new(IMU_RATE_HZ, GYRO_LPF_HZ);
         let mut e = Self {
             cfg,
             pos: [0.0; 3],

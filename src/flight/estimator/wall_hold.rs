@@ -24,7 +24,8 @@
 //!
 //! Units and frames: metres, radians, arena frame. Memory: four anchors, 80 bytes. Cost: O(1) per reading.
 
-use crate::types::{MultiRangerSample, wrap_angle};
+use crate::math::wrap_angle;
+use crate::types::MultiRangerSample;
 
 /// Readings beyond this are not anchored, m: the ranger's noise grows with the range, and a far reading
 /// is likelier to be a wall the beam only grazes.

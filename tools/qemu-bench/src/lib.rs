@@ -21,6 +21,7 @@
 
 use cfnav::nav::dstar::{ArenaPlanner, PlanError, PlanStatus, move_cost};
 use cfnav::nav::map::{ARENA_CELLS, Cell, GridShape, Traversability};
+use cfnav::types::{FlowSample, MultiRangerSample};
 
 /// The seed scenario (6 × 3 m at 5 cm).
 pub const SEED_MAP: &str = include_str!("../../../maps/seed.map");
@@ -571,6 +572,24 @@ pub fn run(
     }
     Ok(())
 }
+
+/// A flow reading of a drone at rest over good texture (the estimator benchmarks' flow input, 100 Hz).
+pub const STILL_FLOW: FlowSample = FlowSample {
+    dpixel_x: 0,
+    dpixel_y: 0,
+    squal: 140,
+    motion_valid: true,
+    dt_s: 0.01,
+};
+
+/// A Multi-ranger sweep 1 m from a wall on each side, nothing above (the wall-anchor benchmarks' input).
+pub const WALLS_AT_1M: MultiRangerSample = MultiRangerSample {
+    front_m: Some(1.0),
+    back_m: Some(1.0),
+    left_m: Some(1.0),
+    right_m: Some(1.0),
+    up_m: None,
+};
 
 #[cfg(test)]
 mod tests {

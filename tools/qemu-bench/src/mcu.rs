@@ -21,9 +21,12 @@ use cfnav::flight::estimator::{Estimator, EstimatorConfig};
 use cfnav::nav::dstar::ArenaPlanner;
 use cfnav::nav::grid::OccupancyGrid;
 use cfnav::nav::map::ARENA_CELLS;
-use cfnav::types::{FlowSample, GRAVITY_M_S2, ImuSample, MultiRangerSample};
+use cfnav::types::{GRAVITY_M_S2, ImuSample};
 use cortex_m_semihosting::{debug, hprintln};
-use qemu_bench::{BOX_CELLS, MAX_STEPS, Meter, Report, SEED_MAP, SENSE_RADIUS, Step, Summary, World, run, summarize};
+use qemu_bench::{
+    BOX_CELLS, MAX_STEPS, Meter, Report, SEED_MAP, SENSE_RADIUS, STILL_FLOW, Step, Summary, WALLS_AT_1M, World, run,
+    summarize,
+};
 
 /// The CMSDK APB timer 0 of mps2-an386, clocked at 25 MHz.
 mod timer0 {
@@ -278,6 +281,8 @@ fn bench() -> Result<(), ()> {
     hprintln!("grid_bytes={}", grid_bytes);
     hprintln!("ram_total_bytes={}", planner_bytes + grid_bytes);
     estimator_bench(&mut meter)?;
+    crate::control::control_step_bench(&mut meter)?;
+    crate::control::planner_slice_bench(&mut meter)?;
     hprintln!("result=ok");
     Ok(())
 }
@@ -304,20 +309,8 @@ fn estimator_bench(meter: &mut Icount) -> Result<(), ()> {
         return Err(());
     }
     est.set_flying(true);
-    let flow = FlowSample {
-        dpixel_x: 0,
-        dpixel_y: 0,
-        squal: 140,
-        motion_valid: true,
-        dt_s: 0.01,
-    };
-    let walls = MultiRangerSample {
-        front_m: Some(1.0),
-        back_m: Some(1.0),
-        left_m: Some(1.0),
-        right_m: Some(1.0),
-        up_m: None,
-    };
+    let flow = STILL_FLOW;
+    let walls = WALLS_AT_1M;
     let mut flow_counts = [0u32; RUNS];
     let mut wall_counts = [0u32; RUNS];
     for run in 0..RUNS {

@@ -831,9 +831,9 @@ async fn abort(
     }
 }
 
+/// `cfnav <args…>` parsed as a `mission start` command line (the tests' command-line parser).
 #[cfg(test)]
-mod tests {
-    use super::*;
+fn parse_start(args: &[&str]) -> Result<StartArgs, clap::Error> {
     use clap::Parser;
 
     #[derive(Parser)]
@@ -847,17 +847,20 @@ mod tests {
         Mission(MissionArgs),
     }
 
-    fn parse(args: &[&str]) -> Result<StartArgs, clap::Error> {
-        let cli = Cli::try_parse_from(std::iter::once("cfnav").chain(args.iter().copied()))?;
-        let Top::Mission(MissionArgs {
-            command: MissionCommand::Start(start),
-        }) = cli.command;
-        Ok(start)
-    }
+    let cli = Cli::try_parse_from(std::iter::once("cfnav").chain(args.iter().copied()))?;
+    let Top::Mission(MissionArgs {
+        command: MissionCommand::Start(start),
+    }) = cli.command;
+    Ok(start)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
 
     #[test]
     fn options_parse() {
-        let a = parse(&[
+        let a = parse_start(&[
             "mission",
             "start",
             "--uri",
@@ -886,9 +889,9 @@ mod tests {
             ]
         );
         // Negative numbers are values (the drone refuses them, not the parser).
-        let a = parse(&["mission", "start", "--uri", "u", "--goal", "-1,2"]).unwrap();
+        let a = parse_start(&["mission", "start", "--uri", "u", "--goal", "-1,2"]).unwrap();
         assert_eq!(a.goal, Some((-1.0, 2.0)));
-        assert!(requested_writes(&parse(&["mission", "start", "--uri", "u"]).unwrap()).is_empty());
+        assert!(requested_writes(&parse_start(&["mission", "start", "--uri", "u"]).unwrap()).is_empty());
     }
 
     #[test]
@@ -904,14 +907,14 @@ mod tests {
             &["mission", "start", "--uri", "u", "--timeout", "0"],
             &["mission", "start", "--uri", "u", "--toc-cache", "d", "--no-toc-cache"],
         ] {
-            assert!(parse(bad).is_err(), "{bad:?}");
+            assert!(parse_start(bad).is_err(), "{bad:?}");
         }
     }
 
     #[test]
     fn unknown_or_incomplete_uris_are_exit_2() {
         for uri in ["foo://x", "127.0.0.1:19850", "radio://0/80/2M", "udp://127.0.0.1"] {
-            let a = parse(&["mission", "start", "--uri", uri, "--no-toc-cache"]).unwrap();
+            let a = parse_start(&["mission", "start", "--uri", uri, "--no-toc-cache"]).unwrap();
             assert_eq!(run_start(&a), EXIT_ERROR, "{uri}");
         }
     }

@@ -4,9 +4,7 @@
 
 use std::time::Duration;
 
-use clap::Parser;
-
-use super::{EXIT_ERROR, MissionArgs, MissionCommand, StartArgs, run_start};
+use super::{EXIT_ERROR, StartArgs, parse_start, run_start};
 use crate::sim::world::World;
 
 /// A UDP port nobody uses right now (the system picks it; released at once for the server to bind).
@@ -17,25 +15,11 @@ fn free_udp_port() -> u16 {
         .expect("a free UDP port")
 }
 
-#[derive(Parser)]
-struct Cli {
-    #[command(subcommand)]
-    command: Top,
-}
-
-#[derive(clap::Subcommand)]
-enum Top {
-    Mission(MissionArgs),
-}
-
 fn args(port: u16, extra: &[&str]) -> StartArgs {
     let uri = format!("udp://127.0.0.1:{port}");
-    let mut argv = vec!["cfnav", "mission", "start", "--uri", uri.as_str(), "--no-toc-cache"];
+    let mut argv = vec!["mission", "start", "--uri", uri.as_str(), "--no-toc-cache"];
     argv.extend_from_slice(extra);
-    let Top::Mission(MissionArgs {
-        command: MissionCommand::Start(a),
-    }) = Cli::try_parse_from(argv).expect("valid options").command;
-    a
+    parse_start(&argv).expect("valid options")
 }
 
 /// Starts a simulator server and returns its port.

@@ -9,7 +9,8 @@ use clap::Args;
 use serde::Serialize;
 
 use crate::sim::runner::{RunOptions, RunReport, RunResult, run};
-use crate::sim::world::World;
+use crate::sim::stress::Stress;
+use crate::sim::world::{Generator, World};
 
 /// Arguments of `cfnav sim`.
 #[derive(Args, Debug)]
@@ -27,6 +28,14 @@ pub struct SimArgs {
     /// Seed: of the generated worlds with --random, else of the noise (overrides the world's sim.seed).
     #[arg(long)]
     pub seed: Option<u64>,
+    /// Apply the `[sensors]` and `[disturbances]` tables of FILE (a world file, or a file with only those
+    /// tables) to every world flown: each key FILE sets replaces the world's own (interfaces.md §1, §3).
+    #[arg(long, value_name = "FILE")]
+    pub stress: Option<PathBuf>,
+    /// The random-world generator of --random and --random-world: `wide` (issue 14, the default) or
+    /// `classic` (the worlds of the figures before it, seed for seed).
+    #[arg(long, value_enum, default_value_t = Generator::Wide)]
+    pub generator: Generator,
     /// Write the JSON report here (`-` for stdout).
     #[arg(long)]
     pub json: Option<PathBuf>,
@@ -65,6 +74,14 @@ pub struct Summary {
     pub p95_landing_error_m: Option<f32>,
     pub completed_fraction: f64,
     pub sim_seconds_per_wall_second: f64,
+    /// Worlds whose arena has more cells than the default firmware build maps (120 × 60): only the
+    /// `large-arena` build, which the simulator flies, can fly them.
+    pub large_arena_runs: usize,
+    /// Landings whose centre did not come to rest over the pad.
+    pub off_pad_landings: usize,
+    /// Median and largest RMS horizontal estimate error per run (airborne), m.
+    pub median_rms_estimate_error_m: Option<f32>,
+    pub max_estimate_error_m: Option<f32>,
 }
 
 #[derive(Serialize)]
@@ -123,6 +140,14 @@ pub fn summarise(reports: &[RunReport], wall_s: f64) -> Summary {
             completed.len() as f64 / reports.len() as f64
         },
         sim_seconds_per_wall_second: if wall_s > 0.0 { sim_s / wall_s } else { 0.0 },
+        large_arena_runs: reports.iter().filter(|r| r.needs_large_arena).count(),
+        off_pad_landings: reports
+            .iter()
+            .flat_map(|r| r.landings.iter())
+            .filter(|l| !l.on_pad)
+            .count(),
+        median_rms_estimate_error_m: median(reports.iter().map(|r| r.rms_estimate_error_m).collect()),
+        max_estimate_error_m: reports.iter().map(|r| r.max_estimate_error_m).reduce(f32::max),
     }
 }
 
@@ -157,24 +182,34 @@ fn one_line(r: &RunReport) -> String {
 
 /// `cfnav sim`.
 pub fn run_cli(args: &SimArgs) -> ExitCode {
+    let stress = match &args.stress {
+        Some(path) => match Stress::load(path) {
+            Ok(s) => Some(s),
+            Err(e) => return fail(e),
+        },
+        None => None,
+    };
     if args.serve {
-        return run_serve(args);
+        return run_serve(args, stress.as_ref());
     }
     if let Some(n) = args.random {
         if args.world.is_some() {
             return fail("--random generates its own worlds; drop --world");
         }
-        return run_random(n, args.seed.unwrap_or(0), args);
+        return run_random(n, args.seed.unwrap_or(0), args, stress.as_ref());
     }
-    let world = match (&args.world, args.random_world) {
+    let mut world = match (&args.world, args.random_world) {
         (Some(_), Some(_)) => return fail("--world and --random-world exclude each other"),
         (Some(path), None) => match World::load(path) {
             Ok(w) => w,
             Err(e) => return fail(e),
         },
-        (None, Some(seed)) => World::random(seed),
+        (None, Some(seed)) => World::random_with(args.generator, seed),
         (None, None) => World::default_world(),
     };
+    if let Some(s) = &stress {
+        world.stress = world.stress.overlaid(s);
+    }
     let mut options = RunOptions::for_world(&world);
     if let Some(s) = args.random_world {
         options.seed = s;
@@ -204,30 +239,33 @@ pub fn run_cli(args: &SimArgs) -> ExitCode {
     ExitCode::from(if result.report.outcome == "completed" { 0 } else { 1 })
 }
 
-/// `cfnav sim --serve [--port P] [--world FILE | --random-world SEED] [--speed X]`.
-fn run_serve(args: &SimArgs) -> ExitCode {
+/// `cfnav sim --serve [--port P] [--world FILE | --random-world SEED] [--speed X] [--stress FILE]`.
+fn run_serve(args: &SimArgs, stress: Option<&Stress>) -> ExitCode {
     if args.random.is_some() {
         return fail("--serve flies one world; drop --random");
     }
     if args.json.is_some() || args.plot.is_some() || args.flow_fails_at.is_some() || args.abort_at.is_some() {
         return fail("--json, --plot, --flow-fails-at and --abort-at do not apply to --serve");
     }
-    let world = match (&args.world, args.random_world) {
+    let mut world = match (&args.world, args.random_world) {
         (Some(_), Some(_)) => return fail("--world and --random-world exclude each other"),
         (Some(path), None) => match World::load(path) {
             Ok(w) => w,
             Err(e) => return fail(e),
         },
-        (None, Some(seed)) => World::random(seed),
+        (None, Some(seed)) => World::random_with(args.generator, seed),
         (None, None) => World::default_world(),
     };
+    if let Some(s) = stress {
+        world.stress = world.stress.overlaid(s);
+    }
     match crate::sim::serve::serve(&world, args.port, args.speed) {
         Ok(()) => ExitCode::SUCCESS,
         Err(e) => fail(e),
     }
 }
 
-fn run_random(n: usize, seed: u64, args: &SimArgs) -> ExitCode {
+fn run_random(n: usize, seed: u64, args: &SimArgs, stress: Option<&Stress>) -> ExitCode {
     let started = std::time::Instant::now();
     let bar = indicatif::ProgressBar::new(n as u64);
     bar.set_style(
@@ -249,7 +287,10 @@ fn run_random(n: usize, seed: u64, args: &SimArgs) -> ExitCode {
                         break;
                     }
                     let world_seed = seed.wrapping_mul(1_000_003).wrapping_add(i as u64);
-                    let world = World::random(world_seed);
+                    let mut world = World::random_with(args.generator, world_seed);
+                    if let Some(s) = stress {
+                        world.stress = world.stress.overlaid(s);
+                    }
                     let mut options = RunOptions::for_world(&world);
                     options.seed = world_seed;
                     match run(&world, &options) {
@@ -314,6 +355,14 @@ fn print_table(reports: &[RunReport], s: &Summary) {
     );
     println!("{:<32} {:>6}", "median landing error", fmt_m(s.median_landing_error_m));
     println!("{:<32} {:>6}", "p95 landing error", fmt_m(s.p95_landing_error_m));
+    println!(
+        "{:<32} {:>6}",
+        "median RMS estimate error",
+        fmt_m(s.median_rms_estimate_error_m)
+    );
+    println!("{:<32} {:>6}", "worst estimate error", fmt_m(s.max_estimate_error_m));
+    println!("{:<32} {:>6}", "landings off the pad", s.off_pad_landings);
+    println!("{:<32} {:>6}", "worlds for the large-arena build", s.large_arena_runs);
     println!(
         "{:<32} {:>6.0}×",
         "simulation speed (real time)", s.sim_seconds_per_wall_second

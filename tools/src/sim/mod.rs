@@ -5,6 +5,7 @@
 //!   and collision geometry.
 //! - [`physics`]: the rigid-body quadrotor, motors, battery, contacts.
 //! - [`sensors`]: the drone's sensors as the drivers deliver them (types in `cfnav::types`).
+//! - [`stress`]: the `[sensors]` and `[disturbances]` tables (world files and `--stress FILE`).
 //! - [`serve`]: `cfnav sim --serve`, the drone in real time behind CRTP over UDP.
 
 pub mod cli;
@@ -13,4 +14,5 @@ pub mod plot;
 pub mod runner;
 pub mod sensors;
 pub mod serve;
+pub mod stress;
 pub mod world;

@@ -36,7 +36,8 @@
 //!    `V = E − R0·(P/V + I_e)` in closed form.
 //! 3. Forces: thrust `Σ T_i` along body z (times a Cheeseman–Bennett ground-effect factor near the surface),
 //!    rotor drag `−K·s·v_b` with `s` the mean of `√(T_i/T_hover)` (Förster's drag model: proportional to the
-//!    sum of rotor speeds, so it vanishes with the motors off), quadratic body drag `−c·|v_b|·v_b`, gravity.
+//!    sum of rotor speeds, so it vanishes with the motors off), quadratic body drag `−c·|v_b|·v_b`, gravity;
+//!    `v_b` is the body-frame velocity relative to the air (wind and gusts: [`Quadrotor::set_air_velocity`]).
 //! 4. Translation: `p += v·dt + ½·a·dt²; v += a·dt` (exact under constant acceleration, so free fall lands on
 //!    time); rotation: `ω += I⁻¹(τ − ω×Iω)·dt`, `q += ½·q⊗(0,ω)·dt`, renormalised.
 //! 5. Contact with the surface under the drone ([`Geometry::surface_height`]): when the body's bottom
@@ -52,6 +53,7 @@
 //!
 //! Everything is allocation-free; a step costs a few hundred flops plus one `surface_height` query.
 
+use cfnav::math::{cross3, euler_from_rot, finite_or, mul_m3_v3, mul_m3t_v3, quat_from_euler, quat_mul, quat_to_rot};
 use cfnav::types::{GRAVITY_M_S2, MotorDuty};
 
 /// What the physics and the sensors need to know about the world. `sim::world` implements it for worlds; tests
@@ -434,6 +436,8 @@ pub struct Quadrotor {
     touchdown: Option<Touchdown>,
     alpha_dt: f32,
     motor_alpha: f32,
+    /// Velocity of the air, arena frame, m/s: drag acts on the velocity relative to it.
+    air_velocity: [f32; 3],
 }
 
 impl Quadrotor {
@@ -451,7 +455,7 @@ impl Quadrotor {
             position,
             velocity: [0.0; 3],
             q,
-            rot: rotation_matrix(q),
+            rot: quat_to_rot(q),
             rates: [0.0; 3],
             thrusts: [0.0; 4],
             duty: MotorDuty([0; 4]),
@@ -462,6 +466,7 @@ impl Quadrotor {
             touchdown: None,
             alpha_dt: -1.0,
             motor_alpha: 0.0,
+            air_velocity: [0.0; 3],
             params,
         }
     }
@@ -475,7 +480,7 @@ impl Quadrotor {
         self.rates = [0.0; 3];
         let yaw = self.yaw();
         self.q = [(0.5 * yaw).cos(), 0.0, 0.0, (0.5 * yaw).sin()];
-        self.rot = rotation_matrix(self.q);
+        self.rot = quat_to_rot(self.q);
         self.specific_force = [0.0, 0.0, GRAVITY_M_S2];
         self.resting = true;
     }
@@ -559,7 +564,13 @@ impl Quadrotor {
             self.thrusts[3] * ge,
         ];
         let t_total = t[0] + t[1] + t[2] + t[3];
-        let vb = mul_t(&r, self.velocity);
+        // Drag acts on the velocity relative to the air (wind and gusts, `set_air_velocity`).
+        let v_air = [
+            self.velocity[0] - self.air_velocity[0],
+            self.velocity[1] - self.air_velocity[1],
+            self.velocity[2] - self.air_velocity[2],
+        ];
+        let vb = mul_m3t_v3(&r, v_air);
         let s_rot = 0.25
             * ((self.thrusts[0] * self.inv_hover_thrust).sqrt()
                 + (self.thrusts[1] * self.inv_hover_thrust).sqrt()
@@ -570,7 +581,7 @@ impl Quadrotor {
             fb[i] = -(p.rotor_drag_n_s_m[i] * s_rot + p.body_drag_n_s2_m2[i] * vb[i].abs()) * vb[i];
         }
         fb[2] += t_total;
-        let fa = mul(&r, fb);
+        let fa = mul_m3_v3(&r, fb);
         let inv_m = 1.0 / p.mass_kg;
         let mut acc = [fa[0] * inv_m, fa[1] * inv_m, fa[2] * inv_m - GRAVITY_M_S2];
 
@@ -650,7 +661,7 @@ impl Quadrotor {
             (self.velocity[1] - v0[1]) * inv_h,
             (self.velocity[2] - v0[2]) * inv_h + GRAVITY_M_S2,
         ];
-        self.specific_force = mul_t(&r, sf_arena);
+        self.specific_force = mul_m3t_v3(&r, sf_arena);
 
         // 7. Rotation.
         if self.resting {
@@ -679,7 +690,7 @@ impl Quadrotor {
                 p.inertia_kg_m2[1] * w[1],
                 p.inertia_kg_m2[2] * w[2],
             ];
-            let gyro = cross(w, iw);
+            let gyro = cross3(w, iw);
             for i in 0..3 {
                 self.rates[i] += (tau[i] - gyro[i]) * self.inv_inertia[i] * h;
             }
@@ -694,7 +705,7 @@ impl Quadrotor {
             let inv = 1.0 / n2.sqrt();
             self.q = self.q.map(|v| v * inv);
         }
-        self.rot = rotation_matrix(self.q);
+        self.rot = quat_to_rot(self.q);
         self.time_s += h as f64;
 
         // Belt and braces: never let a non-finite value into the state.
@@ -714,9 +725,20 @@ impl Quadrotor {
             if !self.q.iter().all(|v| v.is_finite()) {
                 self.q = [1.0, 0.0, 0.0, 0.0];
             }
-            self.rot = rotation_matrix(self.q);
+            self.rot = quat_to_rot(self.q);
             self.specific_force = [0.0, 0.0, GRAVITY_M_S2];
         }
+    }
+
+    /// Sets the velocity of the air around the drone (steady wind plus gusts), arena frame, m/s; the rotor
+    /// and body drag act on the velocity relative to it. Non-finite components count as still air.
+    pub fn set_air_velocity(&mut self, air_m_s: [f32; 3]) {
+        self.air_velocity = air_m_s.map(|v| finite_or(v, 0.0));
+    }
+
+    /// The velocity of the air, arena frame, m/s.
+    pub fn air_velocity(&self) -> [f32; 3] {
+        self.air_velocity
     }
 
     /// Simulated time since [`Quadrotor::new`], s.
@@ -736,7 +758,7 @@ impl Quadrotor {
 
     /// Velocity in the body frame, m/s.
     pub fn body_velocity(&self) -> [f32; 3] {
-        mul_t(&self.rot, self.velocity)
+        mul_m3t_v3(&self.rot, self.velocity)
     }
 
     /// Attitude quaternion `[w, x, y, z]`, body → arena.
@@ -751,12 +773,7 @@ impl Quadrotor {
 
     /// Roll, pitch, yaw (rad) per `cfnav::types`: `R = Rz(yaw)·Ry(pitch)·Rx(roll)`.
     pub fn attitude_rad(&self) -> [f32; 3] {
-        let r = &self.rot;
-        [
-            r[2][1].atan2(r[2][2]),
-            (-r[2][0]).clamp(-1.0, 1.0).asin(),
-            r[1][0].atan2(r[0][0]),
-        ]
+        euler_from_rot(&self.rot)
     }
 
     fn yaw(&self) -> f32 {
@@ -801,17 +818,8 @@ impl Quadrotor {
     /// Sets the attitude from roll, pitch, yaw (rad, `cfnav::types` conventions).
     pub fn set_attitude_rad(&mut self, rpy: [f32; 3]) {
         let [r, p, y] = rpy.map(|v| finite_or(v, 0.0));
-        let (sr, cr) = (0.5 * r).sin_cos();
-        let (sp, cp) = (0.5 * p).sin_cos();
-        let (sy, cy) = (0.5 * y).sin_cos();
-        // q = qz(y) ⊗ qy(p) ⊗ qx(r)
-        self.q = [
-            cy * cp * cr + sy * sp * sr,
-            cy * cp * sr - sy * sp * cr,
-            cy * sp * cr + sy * cp * sr,
-            sy * cp * cr - cy * sp * sr,
-        ];
-        self.rot = rotation_matrix(self.q);
+        self.q = quat_from_euler(r, p, y);
+        self.rot = quat_to_rot(self.q);
     }
 
     /// Sets the body rates, rad/s.
@@ -850,66 +858,6 @@ impl Quadrotor {
     }
 }
 
-fn finite_or(v: f32, default: f32) -> f32 {
-    if v.is_finite() { v } else { default }
-}
-
-fn rotation_matrix(q: [f32; 4]) -> [[f32; 3]; 3] {
-    let [w, x, y, z] = q;
-    [
-        [
-            1.0 - 2.0 * (y * y + z * z),
-            2.0 * (x * y - w * z),
-            2.0 * (x * z + w * y),
-        ],
-        [
-            2.0 * (x * y + w * z),
-            1.0 - 2.0 * (x * x + z * z),
-            2.0 * (y * z - w * x),
-        ],
-        [
-            2.0 * (x * z - w * y),
-            2.0 * (y * z + w * x),
-            1.0 - 2.0 * (x * x + y * y),
-        ],
-    ]
-}
-
-fn quat_mul(a: [f32; 4], b: [f32; 4]) -> [f32; 4] {
-    [
-        a[0] * b[0] - a[1] * b[1] - a[2] * b[2] - a[3] * b[3],
-        a[0] * b[1] + a[1] * b[0] + a[2] * b[3] - a[3] * b[2],
-        a[0] * b[2] - a[1] * b[3] + a[2] * b[0] + a[3] * b[1],
-        a[0] * b[3] + a[1] * b[2] - a[2] * b[1] + a[3] * b[0],
-    ]
-}
-
-/// `R · v`.
-pub(crate) fn mul(r: &[[f32; 3]; 3], v: [f32; 3]) -> [f32; 3] {
-    [
-        r[0][0] * v[0] + r[0][1] * v[1] + r[0][2] * v[2],
-        r[1][0] * v[0] + r[1][1] * v[1] + r[1][2] * v[2],
-        r[2][0] * v[0] + r[2][1] * v[1] + r[2][2] * v[2],
-    ]
-}
-
-/// `Rᵀ · v`.
-pub(crate) fn mul_t(r: &[[f32; 3]; 3], v: [f32; 3]) -> [f32; 3] {
-    [
-        r[0][0] * v[0] + r[1][0] * v[1] + r[2][0] * v[2],
-        r[0][1] * v[0] + r[1][1] * v[1] + r[2][1] * v[2],
-        r[0][2] * v[0] + r[1][2] * v[1] + r[2][2] * v[2],
-    ]
-}
-
-fn cross(a: [f32; 3], b: [f32; 3]) -> [f32; 3] {
-    [
-        a[1] * b[2] - a[2] * b[1],
-        a[2] * b[0] - a[0] * b[2],
-        a[0] * b[1] - a[1] * b[0],
-    ]
-}
-
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -923,10 +871,10 @@ mod tests {
         for i in 0..3 {
             assert!((got[i] - rpy[i]).abs() < 1e-5, "{got:?}");
         }
-        // Same matrix as cfnav::types::body_to_arena.
+        // Same matrix as cfnav::math::body_to_arena.
         let v = [0.3, -0.7, 0.2];
-        let a = mul(&q.rotation(), v);
-        let b = cfnav::types::body_to_arena(v, rpy);
+        let a = mul_m3_v3(&q.rotation(), v);
+        let b = cfnav::math::body_to_arena(v, rpy);
         for i in 0..3 {
             assert!((a[i] - b[i]).abs() < 1e-5);
         }

@@ -11,15 +11,13 @@ use std::time::Instant;
 use cfnav::mission::{MissionParams, MissionState};
 use cfnav::stack::{FlightConfig, FlightCore};
 use cfnav::types::{MotorDuty, MultiRangerSample, RangeReading};
-use rand::SeedableRng;
 use rand::rngs::SmallRng;
+use rand::{Rng, SeedableRng};
 use serde::Serialize;
 
-use super::physics::{QuadParams, Quadrotor};
-use super::sensors::{
-    BatterySensor, FlowParams, FlowSensor, Imu, ImuParams, MultiRanger, MultiRangerParams, SensorFault, ZRanger,
-    ZRangerParams,
-};
+use super::physics::Quadrotor;
+use super::sensors::{BatterySensor, FlowSensor, Imu, MultiRanger, SensorFault, ZRanger};
+use super::stress::{GUST_PERIOD_S, Gusts};
 use super::world::{BODY_RADIUS_M, World};
 
 /// Grid capacity the simulator flies with: the largest arena the firmware supports (`large-arena`).
@@ -115,6 +113,9 @@ pub struct RunReport {
     pub collision_states: Vec<u8>,
     /// The true position (x, y, z) at each collision's start, m.
     pub collision_points: Vec<[f32; 3]>,
+    /// The arena has more cells than the default firmware build maps (120 × 60): the run flew the
+    /// `large-arena` build's grid, as the simulator always does.
+    pub needs_large_arena: bool,
 }
 
 /// One traced instant.
@@ -157,6 +158,9 @@ pub struct SimDrone {
     zranger: ZRanger,
     multiranger: MultiRanger,
     battery: BatterySensor,
+    /// Steady wind, arena frame, m/s (`[disturbances] wind`).
+    wind_m_s: [f32; 2],
+    gusts: Gusts,
     /// The latest readings (for logs).
     pub last_multiranger: MultiRangerSample,
     /// The latest downward range.
@@ -167,21 +171,30 @@ pub struct SimDrone {
 }
 
 impl SimDrone {
-    /// A drone standing on the world's start, powered on, with `faults` applied.
+    /// A drone standing on the world's start, powered on, with the world's `[sensors]` and `[disturbances]`
+    /// and `faults` applied.
     pub fn new(world: &World, seed: u64, faults: &Faults) -> Result<Self, String> {
         let stream = |k: u64| SmallRng::seed_from_u64(seed.wrapping_mul(0x9E37_79B9_7F4A_7C15) ^ k);
         let mut rng_imu = stream(1);
+        let stress = &world.stress;
         let start = world.mission.start;
-        let mut quad = Quadrotor::new(QuadParams::default(), [start[0], start[1], 0.0], 0.0);
+        let mut quad = Quadrotor::new(stress.quad_params(), [start[0], start[1], 0.0], 0.0);
         quad.place_on_surface(world);
+        if let Some(soc) = stress.battery_state_of_charge(&quad.params().battery) {
+            quad.battery_mut().set_state_of_charge(soc);
+        }
+        let wind_m_s = stress.wind_m_s();
+        quad.set_air_velocity([wind_m_s[0], wind_m_s[1], 0.0]);
         if let Some(soc) = faults.battery_state_of_charge {
             quad.battery_mut().set_state_of_charge(soc);
         }
         if let Some(k) = faults.battery_drain_multiplier {
             quad.battery_mut().set_drain_multiplier(k);
         }
-        let imu = Imu::new(ImuParams::default(), &mut rng_imu);
-        let mut flow = FlowSensor::new(FlowParams::default());
+        let imu = Imu::new(stress.imu_params(), &mut rng_imu);
+        // Streams 6 and 7 are new (gusts, the per-seed flow scale error): the first five draw as before.
+        let mut flow = FlowSensor::new(stress.flow_params(&mut stream(7)));
+        let gusts = Gusts::new(stress.disturbances.gust_m_s.unwrap_or(0.0), stream(6).random());
         if let Some(t) = faults.flow_fails_at_s {
             flow.inject_fault(Some((t, SensorFault::Stopped)));
         }
@@ -200,9 +213,11 @@ impl SimDrone {
             rng_bat: stream(5),
             imu,
             flow,
-            zranger: ZRanger::new(ZRangerParams::default()),
-            multiranger: MultiRanger::new(MultiRangerParams::default()),
+            zranger: ZRanger::new(stress.zranger_params()),
+            multiranger: MultiRanger::new(stress.multiranger_params()),
             battery: BatterySensor::default(),
+            wind_m_s,
+            gusts,
             last_multiranger: MultiRangerSample::default(),
             last_zrange: None,
             last_vbat: 0.0,
@@ -220,6 +235,13 @@ impl SimDrone {
     pub fn step(&mut self, world: &World) -> MotorDuty {
         let tick = self.tick;
         let now_us = tick * 1000;
+        const GUST_TICKS: u64 = (GUST_PERIOD_S * 1000.0) as u64;
+        if tick.is_multiple_of(GUST_TICKS) && self.gusts.is_active() {
+            self.gusts.step();
+            let g = self.gusts.value();
+            self.quad
+                .set_air_velocity([self.wind_m_s[0] + g[0], self.wind_m_s[1] + g[1], 0.0]);
+        }
         if tick.is_multiple_of(10) {
             if let Some(f) = self.flow.sample(&self.quad, world, &mut self.rng_flow) {
                 self.core.on_flow(&f);
@@ -490,6 +512,7 @@ pub fn run(world: &World, options: &RunOptions) -> Result<RunResult, String> {
         max_height_error_m: score.max_height_err,
         collision_states: score.collision_states.clone(),
         collision_points: score.collision_points.clone(),
+        needs_large_arena: world.needs_large_arena(),
     };
     Ok(RunResult {
         report,

@@ -9,14 +9,15 @@
 //! | sensor | rate | model |
 //! |--------|------|-------|
 //! | [`Imu`] (BMI088) | 1 kHz | truth + per-seed bias + bias random walk + white noise, 16-bit ±2000 °/s, ±24 g |
-//! | [`FlowSensor`] (PMW3901) | 100 Hz | stock `mm_flow.c` model on the true state + noise, i16 counts |
-//! | [`ZRanger`] (VL53L1x, Flow deck) | 40 Hz | ray along body −z, stock noise model, `None` beyond 4 m |
-//! | [`MultiRanger`] (5 × VL53L1x) | 10 Hz | rays along body ±x, ±y, +z, 1 % noise, `None` beyond 4 m |
+//! | [`FlowSensor`] (PMW3901) | 100 Hz | stock `mm_flow.c` model on the true state × (1 + scale error) + noise, i16 counts, optional dropouts |
+//! | [`ZRanger`] (VL53L1x, Flow deck) | 40 Hz | ray along body −z, stock noise model, `None` beyond 4 m, optional outliers |
+//! | [`MultiRanger`] (5 × VL53L1x) | 10 Hz | rays along body ±x, ±y, +z, 1 % noise, `None` beyond 4 m, dropouts, optional outliers |
 //! | [`BatterySensor`] (nRF VBAT) | 100 Hz | loaded battery voltage + noise |
 //!
 //! All sensors sit at the body origin (the stock flow-deck position parameters default to 0 too); the
 //! Multi-ranger's ~1.5 cm offset from the centre to its sensors is neglected.
 
+use cfnav::math::finite3;
 use cfnav::types::{FlowSample, ImuSample, MultiRangerSample, RangeReading};
 use rand::Rng;
 use rand::rngs::SmallRng;
@@ -44,10 +45,6 @@ pub const FLOW_COUNTS_PER_PIXEL: f32 = 10.0;
 
 fn gauss(rng: &mut SmallRng) -> f32 {
     rng.sample::<f32, _>(StandardNormal)
-}
-
-fn finite3(v: [f32; 3]) -> bool {
-    v.iter().all(|x| x.is_finite())
 }
 
 // ---------------------------------------------------------------------------------------------------------
@@ -248,6 +245,12 @@ pub struct FlowParams {
     pub squal_per_m: f32,
     /// Period assumed for the first reading, s. Default 0.01.
     pub nominal_period_s: f32,
+    /// Scale error: the sensor reads `(1 + this)` × the model's flow (floor texture, lens, a height the
+    /// model gets wrong). Default 0. (`[sensors] flow_scale_error`.)
+    pub scale_error: f32,
+    /// Probability that a reading is invalid (`motion_valid` false, squal 0), per reading. Default 0.
+    /// (`[sensors] flow_dropout`.)
+    pub dropout_probability: f32,
 }
 
 impl Default for FlowParams {
@@ -260,6 +263,8 @@ impl Default for FlowParams {
             squal_nominal: 150.0,
             squal_per_m: 15.0,
             nominal_period_s: 0.01,
+            scale_error: 0.0,
+            dropout_probability: 0.0,
         }
     }
 }
@@ -270,7 +275,7 @@ impl Default for FlowParams {
 /// the camera above the surface it actually sees (ray cast along body −z, times `R22`, so pads and box tops
 /// count), `v_b` the true body velocity and `ω` the true rates:
 /// `dpixel_x = 10·dt·(35/0.71674)·(v_bx·R22/h − ω_y)`, `dpixel_y = 10·dt·(35/0.71674)·(v_by·R22/h + ω_x)`,
-/// plus Gaussian noise, rounded to counts with the fractional remainder carried to the next reading (as the
+/// times `1 + scale_error`, plus Gaussian noise, rounded to counts with the fractional remainder carried to the next reading (as the
 /// sensor's internal accumulator does) and saturated to i16.
 #[derive(Clone, Debug)]
 pub struct FlowSensor {
@@ -376,9 +381,15 @@ impl FlowSensor {
             self.residual = [0.0; 2];
             return Some(invalid);
         };
+        // A dropped reading: the chip flags no valid motion; its accumulator keeps what it had (no draw, so
+        // no change to the noise stream, when the probability is 0).
+        if p.dropout_probability > 0.0 && rng.random::<f32>() < p.dropout_probability {
+            return Some(invalid);
+        }
+        let scale = 1.0 + if p.scale_error.is_finite() { p.scale_error } else { 0.0 };
         let mut counts = [0i16; 2];
         for i in 0..2 {
-            let mut v = model[i] + self.residual[i];
+            let mut v = model[i] * scale + self.residual[i];
             if p.noise_counts > 0.0 {
                 v += p.noise_counts * gauss(rng);
             }
@@ -415,6 +426,9 @@ pub struct ZRangerParams {
     pub invalid_probability: f32,
     /// Scale of the noise model `std(d) = a·(1 + exp(b·(d − c)))`; 0 = noise-free. Default 1.
     pub noise_scale: f32,
+    /// Probability that a reading is a wrong range, uniform in `0..max_range_m` (a multipath or
+    /// cross-talk return), per reading. Default 0. (`[sensors] zrange_outlier_rate`.)
+    pub outlier_probability: f32,
 }
 
 impl Default for ZRangerParams {
@@ -424,6 +438,7 @@ impl Default for ZRangerParams {
             outlier_limit_m: 5.0,
             invalid_probability: 0.005,
             noise_scale: 1.0,
+            outlier_probability: 0.0,
         }
     }
 }
@@ -476,11 +491,15 @@ impl ZRanger {
             let d = d + p.noise_scale * zranger_noise_std_m(d) * gauss(rng);
             (d.is_finite() && d < p.outlier_limit_m).then_some(d.max(0.0))
         });
-        let out = if rng.random::<f32>() < p.invalid_probability {
+        let mut out = if rng.random::<f32>() < p.invalid_probability {
             None
         } else {
             noisy
         };
+        // Drawn only when enabled, so that the default noise stream stays as it was.
+        if p.outlier_probability > 0.0 && rng.random::<f32>() < p.outlier_probability {
+            out = Some(rng.random::<f32>() * p.max_range_m.max(0.0));
+        }
         if out.is_some() {
             self.last = out;
         }
@@ -522,7 +541,11 @@ pub struct MultiRangerParams {
     /// Noise std floor, m. Default 0.003. The total std is `√(floor² + (rel·d)²)`.
     pub noise_floor_m: f32,
     /// Probability that a reading is invalid, per beam and reading. Default 0.005.
+    /// (`[sensors] ranger_dropout` replaces it.)
     pub invalid_probability: f32,
+    /// Probability that a beam's reading is a wrong range, uniform in `0..max_range_m`, per beam and
+    /// reading. Default 0. (`[sensors] ranger_outlier_rate`.)
+    pub outlier_probability: f32,
 }
 
 impl Default for MultiRangerParams {
@@ -532,6 +555,7 @@ impl Default for MultiRangerParams {
             noise_relative: 0.01,
             noise_floor_m: 0.003,
             invalid_probability: 0.005,
+            outlier_probability: 0.0,
         }
     }
 }
@@ -596,6 +620,10 @@ impl MultiRanger {
             } else {
                 reading
             };
+            // Drawn only when enabled, so that the default noise stream stays as it was.
+            if p.outlier_probability > 0.0 && rng.random::<f32>() < p.outlier_probability {
+                out[i] = Some(rng.random::<f32>() * p.max_range_m.max(0.0));
+            }
             if out[i].is_some() {
                 self.last[i] = out[i];
             }

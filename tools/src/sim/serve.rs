@@ -18,6 +18,10 @@
 //! watchdog sees the real packet age), and only while no mission runs. Packets cfnav cannot fly (RPYT or
 //! manual with thrust, tilted z-distance, full state) or that are refused get a rate-limited console note.
 //!
+//! High-level commander (port 8): each accepted command goes to `FlightCore::high_level_command` with its
+//! arrival time; the flight core flies the trajectory and keeps its setpoint fresh. A command refused (by
+//! the decoder, the group mask, a running mission or the trajectory follower) gets one console line.
+//!
 //! Supervisor (port 9): answered from the flight core's supervisor verdict. Arming cannot be changed (the
 //! core auto-arms), recovery is refused while crashed (the core has no supervisor reset). An emergency stop
 //! (command or watchdog) is latched: with no mission running a Stop setpoint is flown and every later
@@ -30,16 +34,14 @@ use std::io::ErrorKind;
 use std::net::{SocketAddr, UdpSocket};
 use std::time::{Duration, Instant};
 
-use cfnav::radio::commander::{Command, CommanderService, SetpointFollower};
-use cfnav::radio::console::ConsoleService;
-use cfnav::radio::crtp::{CrtpPacket, NULL_HEADER, PlatformService, Router, is_null_header};
-use cfnav::radio::endpoint::EndpointServices;
-use cfnav::radio::log::LogService;
+use cfnav::radio::commander::{Command, SetpointFollower};
+use cfnav::radio::crtp::{CrtpPacket, NULL_HEADER, is_null_header};
+use cfnav::radio::endpoint::Endpoint;
 use cfnav::radio::log_registry::FlightLogState;
-use cfnav::radio::mem::MemService;
 use cfnav::radio::param::ParamService;
-use cfnav::radio::registry::{ID_START, MissionParamState};
-use cfnav::radio::supervisor_port::{SupervisorPortConfig, SupervisorPortService, SupervisorStatus};
+use cfnav::radio::registry::{ID_RESET_ESTIMATION, ID_START, MissionParamState};
+use cfnav::radio::supervisor_port::{SupervisorPortConfig, SupervisorStatus};
+use cfnav::stack::HighLevelError;
 use cfnav::types::{RangeReading, Setpoint};
 
 use super::runner::{Faults, SIM_CELLS, SimDrone, mission_params};
@@ -61,18 +63,16 @@ const COMMANDER_NOTE_INTERVAL_US: u64 = 2_000_000;
 const NO_RANGE_MM: u16 = 32767;
 
 type Params = ParamService<MissionParamState>;
-type Logs = LogService<FlightLogState>;
 
-/// What the log service reads from the simulated drone.
-fn log_state(drone: &SimDrone) -> FlightLogState {
+/// What the log service reads from the simulated drone; `supervisor_info` is the supervisor port's bitfield.
+fn log_state(drone: &SimDrone, supervisor_info: u16) -> FlightLogState {
     let mm = |r: RangeReading| match r {
         Some(m) if m.is_finite() && m >= 0.0 => (m * 1000.0).round().min(f32::from(NO_RANGE_MM)) as u16,
         _ => NO_RANGE_MM,
     };
     let mr = &drone.last_multiranger;
-    FlightLogState {
+    let mut s = FlightLogState {
         mission_state: drone.core.mission_state().code(),
-        position_m: drone.core.estimate().position_m,
         ranges_mm: [
             mm(mr.front_m),
             mm(mr.back_m),
@@ -82,7 +82,12 @@ fn log_state(drone: &SimDrone) -> FlightLogState {
             mm(drone.last_zrange),
         ],
         vbat_v: drone.last_vbat,
-    }
+        supervisor_info,
+        battery_low: drone.core.supervisor().battery_low,
+        ..FlightLogState::default()
+    };
+    s.record_flight(&drone.core.estimate(), drone.core.control(), &drone.core.setpoint());
+    s
 }
 
 /// Simulated µs since power-on.
@@ -122,14 +127,8 @@ struct Radio {
     socket: UdpSocket,
     client: Option<SocketAddr>,
     last_uplink: Instant,
-    router: Router<ROUTER_QUEUE>,
-    param: Params,
-    log: Logs,
-    mem: MemService,
-    commander: CommanderService,
+    ep: Endpoint<MissionParamState, FlightLogState, CONSOLE_QUEUE, ROUTER_QUEUE>,
     follower: SetpointFollower,
-    supervisor: SupervisorPortService,
-    console: ConsoleService<CONSOLE_QUEUE>,
     commander_refused: u32,
     last_commander_note_us: Option<u64>,
     send_errors: u64,
@@ -142,18 +141,16 @@ impl Radio {
             socket,
             client: None,
             last_uplink: Instant::now(),
-            router: Router::new(PlatformService::new(FIRMWARE_TAG)),
-            param: ParamService::new(MissionParamState::new(mission_params(world), SIM_CELLS)),
-            log: LogService::new(),
-            mem: MemService,
-            commander: CommanderService::new(),
-            follower: SetpointFollower::new(),
             // The sim's flight core auto-arms and has no supervisor reset.
-            supervisor: SupervisorPortService::new(SupervisorPortConfig {
-                auto_arm: true,
-                can_recover: false,
-            }),
-            console: ConsoleService::new(),
+            ep: Endpoint::new(
+                FIRMWARE_TAG,
+                MissionParamState::new(mission_params(world), SIM_CELLS),
+                SupervisorPortConfig {
+                    auto_arm: true,
+                    can_recover: false,
+                },
+            ),
+            follower: SetpointFollower::new(),
             commander_refused: 0,
             last_commander_note_us: None,
             send_errors: 0,
@@ -183,13 +180,13 @@ impl Radio {
 
     /// Queues `text` on the console (port 0, channel 0, ≤ 30-byte packets) and sends it.
     fn console(&mut self, text: &str) {
-        self.console.print(text);
+        self.ep.console.print(text);
         self.flush_console();
     }
 
     /// Sends every waiting console packet (UDP has no downlink pacing).
     fn flush_console(&mut self) {
-        while let Some(p) = self.console.next_packet() {
+        while let Some(p) = self.ep.console.next_packet() {
             self.send(&p);
         }
     }
@@ -205,29 +202,29 @@ impl Radio {
         }
         self.last_commander_note_us = Some(now);
         eprintln!("{:8.3} s  {text}", seconds(drone));
-        self.console.write_line(text);
+        self.ep.console.write_line(text);
         self.flush_console();
     }
 
     /// Flies the commander's new setpoint, if one arrived.
     fn apply_commander(&mut self, drone: &mut SimDrone) {
-        if let Some((meta, _)) = self.commander.take_meta() {
+        if let Some((meta, _)) = self.ep.commander.take_meta() {
             eprintln!(
                 "{:8.3} s  commander: {meta:?} (no high-level commander: the last setpoint ages out)",
                 seconds(drone)
             );
         }
-        let refused = self.commander.stats().refused;
+        let refused = self.ep.commander.stats().refused;
         if refused != self.commander_refused {
             self.commander_refused = refused;
-            if let Some(e) = self.commander.last_error() {
+            if let Some(e) = self.ep.commander.last_error() {
                 self.commander_note(drone, &format!("commander packet refused: {e:?}"));
             }
         }
-        let Some((command, received_us)) = self.commander.take_fresh() else {
+        let Some((command, received_us)) = self.ep.commander.take_fresh() else {
             return;
         };
-        if self.supervisor.emergency_stopped() {
+        if self.ep.supervisor.emergency_stopped() {
             drone.core.commander_setpoint(Setpoint::Stop, received_us);
             return;
         }
@@ -250,9 +247,41 @@ impl Radio {
         }
     }
 
+    /// Flies the high-level commander's new command (port 8), or says on the console why not: every
+    /// port 8 packet cfnav does not act on gets one line.
+    fn apply_high_level(&mut self, drone: &mut SimDrone) {
+        if let Some(e) = self.ep.high_level.take_error() {
+            let line = format!("high-level commander: packet not flown: {e:?}\n");
+            eprintln!("{:8.3} s  {}", seconds(drone), line.trim_end());
+            self.console(&line);
+        }
+        let Some((command, received_us)) = self.ep.high_level.take() else {
+            return;
+        };
+        let refusal = if self.ep.supervisor.emergency_stopped() {
+            Some("emergency stop latched (restart the simulator)".to_string())
+        } else {
+            match drone.core.high_level_command(command, received_us) {
+                Ok(()) => None,
+                Err(HighLevelError::MissionRunning) => {
+                    Some("a mission is running (write mission.start = 0 to abort it)".to_string())
+                }
+                Err(HighLevelError::Refused(r)) => Some(format!("{r:?}")),
+            }
+        };
+        match refusal {
+            None => eprintln!("{:8.3} s  high-level commander: {command:?}", seconds(drone)),
+            Some(why) => {
+                let line = format!("high-level command refused: {why}\n");
+                eprintln!("{:8.3} s  {}", seconds(drone), line.trim_end());
+                self.console(&line);
+            }
+        }
+    }
+
     /// Acts on the supervisor port's requests (emergency stop; arming and recovery are never granted here).
     fn apply_supervisor(&mut self, drone: &mut SimDrone) {
-        let requests = self.supervisor.take_requests();
+        let requests = self.ep.supervisor.take_requests();
         if !requests.emergency_stop {
             return;
         }
@@ -264,10 +293,10 @@ impl Radio {
             "emergency stop: motors stopped; restart the simulator to fly again"
         };
         eprintln!("{:8.3} s  {line}", seconds(drone));
-        self.console.write_line(line);
-        if self.param.store().start != 0 {
-            self.param.store_mut().start = 0;
-            self.param.notify(ID_START);
+        self.ep.console.write_line(line);
+        if self.ep.param.store().start != 0 {
+            self.ep.param.store_mut().start = 0;
+            self.ep.param.notify(ID_START);
         }
         self.flush_param_events();
         self.flush_console();
@@ -275,13 +304,13 @@ impl Radio {
 
     /// Sends every pending VALUE_UPDATED and refusal console line.
     fn flush_param_events(&mut self) {
-        while let Some(p) = self.param.next_notification() {
+        while let Some(p) = self.ep.param.next_notification() {
             self.send(&p);
         }
-        while let Some(note) = self.param.take_refusal() {
+        while let Some(note) = self.ep.param.take_refusal() {
             let line = Params::console_line(&note);
             eprintln!("serve: {}", line.trim_end());
-            self.console.print(&line);
+            self.ep.console.print(&line);
         }
         self.flush_console();
     }
@@ -302,48 +331,49 @@ impl Radio {
         }
         self.last_uplink = Instant::now();
         {
-            let store = self.param.store_mut();
+            let store = self.ep.param.store_mut();
             store.flying = drone.core.supervisor().flying;
-            store.decks_ok = true;
+            // The simulated drone carries both decks.
+            store.set_decks(true, true);
         }
-        let before = self.param.store().start;
-        self.commander.set_now(now_us(drone));
-        self.supervisor.set_now(now_us(drone));
-        self.supervisor.set_status(supervisor_status(drone));
-        let reply = {
-            EndpointServices {
-                param: &mut self.param,
-                log: &mut self.log,
-                mem: &mut self.mem,
-                commander: &mut self.commander,
-                supervisor: &mut self.supervisor,
-                console: &mut self.console,
-            }
-            .handle_uplink(&mut self.router, bytes)
-        };
+        let before = self.ep.param.store().start;
+        self.ep.supervisor.set_status(supervisor_status(drone));
+        let reply = self.ep.handle_uplink(bytes, now_us(drone));
         if let Some(reply) = reply {
             self.send(&reply);
         }
         // Everything else the router holds goes down at once (UDP has no uplink pacing).
-        while self.router.pending() > 0 {
-            match self.router.handle_uplink(&[NULL_HEADER], &mut []) {
+        while self.ep.router.pending() > 0 {
+            match self.ep.router.handle_uplink(&[NULL_HEADER], &mut []) {
                 Some(p) => self.send(&p),
                 None => break,
             }
         }
         self.apply_commander(drone);
+        self.apply_high_level(drone);
         self.apply_supervisor(drone);
-        let after = self.param.store().start;
+        if let Some(xy) = self.ep.param.store().pending_reset() {
+            drone.core.reset_estimate(xy);
+            eprintln!(
+                "{:8.3} s  kalman.resetEstimation: estimate re-anchored at ({:.2}, {:.2})",
+                seconds(drone),
+                xy.0,
+                xy.1
+            );
+            self.ep.param.store_mut().reset_estimation = 0;
+            self.ep.param.notify(ID_RESET_ESTIMATION);
+        }
+        let after = self.ep.param.store().start;
         match (before, after) {
-            (0, 1) if self.supervisor.emergency_stopped() => {
+            (0, 1) if self.ep.supervisor.emergency_stopped() => {
                 let line = "mission.start refused: emergency stop latched (restart the simulator)\n";
                 eprintln!("{:8.3} s  {}", seconds(drone), line.trim_end());
-                self.param.store_mut().start = 0;
-                self.param.notify(ID_START);
+                self.ep.param.store_mut().start = 0;
+                self.ep.param.notify(ID_START);
                 self.console(line);
             }
             (0, 1) => {
-                let params = self.param.store().params;
+                let params = self.ep.param.store().params;
                 match drone.core.start_mission(params) {
                     Ok(()) => eprintln!(
                         "{:8.3} s  mission.start = 1: mission started, goal ({:.2}, {:.2})",
@@ -354,8 +384,8 @@ impl Radio {
                     Err(e) => {
                         let line = format!("mission.start refused by the flight core: {e:?}\n");
                         eprintln!("{:8.3} s  {}", seconds(drone), line.trim_end());
-                        self.param.store_mut().start = 0;
-                        self.param.notify(ID_START);
+                        self.ep.param.store_mut().start = 0;
+                        self.ep.param.notify(ID_START);
                         self.console(&line);
                     }
                 }
@@ -416,7 +446,7 @@ pub fn serve(world: &World, port: u16, speed: f64) -> Result<(), String> {
                 "{:8.3} s  client silent for {CLIENT_TIMEOUT:?}: log blocks stopped",
                 seconds(&drone)
             );
-            radio.log.reset();
+            radio.ep.log.reset();
             radio.client = None;
         }
 
@@ -425,12 +455,13 @@ pub fn serve(world: &World, port: u16, speed: f64) -> Result<(), String> {
         let end = target.min(drone.tick() + CHUNK_TICKS);
         while drone.tick() < end {
             drone.step(world);
-            if radio.supervisor.poll(now_us(&drone)) {
+            if radio.ep.supervisor.poll(now_us(&drone)) {
                 radio.apply_supervisor(&mut drone);
             }
-            let log_state = log_state(&drone);
+            radio.ep.supervisor.set_status(supervisor_status(&drone));
+            let log_state = log_state(&drone, radio.ep.supervisor.bitfield());
             let now_ms = drone.tick() as u32;
-            while let Some(p) = radio.log.tick(now_ms, &log_state) {
+            while let Some(p) = radio.ep.log.tick(now_ms, &log_state) {
                 radio.send(&p);
             }
             let state = drone.core.mission_state();
@@ -444,9 +475,9 @@ pub fn serve(world: &World, port: u16, speed: f64) -> Result<(), String> {
                     e[1],
                     e[2]
                 );
-                if state.is_final() && radio.param.store().start != 0 {
-                    radio.param.store_mut().start = 0;
-                    radio.param.notify(ID_START);
+                if state.is_final() && radio.ep.param.store().start != 0 {
+                    radio.ep.param.store_mut().start = 0;
+                    radio.ep.param.notify(ID_START);
                     radio.flush_param_events();
                 }
                 last_state = state;
@@ -510,7 +541,7 @@ mod tests {
         fn step_ms(&mut self, ms: u64) {
             for _ in 0..ms {
                 self.drone.step(&self.world);
-                if self.radio.supervisor.poll(now_us(&self.drone)) {
+                if self.radio.ep.supervisor.poll(now_us(&self.drone)) {
                     self.radio.apply_supervisor(&mut self.drone);
                 }
             }
@@ -577,16 +608,52 @@ mod tests {
         b.step_ms(900);
         b.uplink(9, 1, &[0x04]);
         b.step_ms(1000);
-        assert!(!b.radio.supervisor.emergency_stopped(), "kept alive");
+        assert!(!b.radio.ep.supervisor.emergency_stopped(), "kept alive");
         b.step_ms(2);
         assert!(
-            b.radio.supervisor.emergency_stopped(),
+            b.radio.ep.supervisor.emergency_stopped(),
             "1000 ms after the last keepalive"
         );
         // mission.start = 1 (param write, port 2 ch 2: id u16 LE, u8) is refused afterwards.
         b.uplink(2, 2, &[0, 0, 1]);
-        assert_eq!(b.radio.param.store().start, 0);
+        assert_eq!(b.radio.ep.param.store().start, 0);
         assert_eq!(b.drone.core.mission_state().code(), 0, "no mission started");
+    }
+
+    #[test]
+    fn kalman_reset_estimation_re_anchors_the_estimate_at_the_start_parameters() {
+        let mut b = Bench::new();
+        b.step_ms(1500); // estimator settles on the ground
+        // cflib set_value: port 2 ch 2, `<H` id then the value; the ids come from the declarations.
+        let write = |b: &mut Bench, id: u16, value: &[u8]| {
+            let mut data = id.to_le_bytes().to_vec();
+            data.extend_from_slice(value);
+            b.uplink(2, 2, &data);
+        };
+        use cfnav::radio::registry::{ID_START_X, ID_START_Y};
+        write(&mut b, ID_START_X, &1.5f32.to_le_bytes());
+        write(&mut b, ID_START_Y, &2.0f32.to_le_bytes());
+        let before = b.drone.core.estimate().position_m;
+        assert!(
+            (before[0] - 1.5).abs() > 0.5,
+            "the estimate starts elsewhere: {before:?}"
+        );
+        write(&mut b, ID_RESET_ESTIMATION, &[1]);
+        let after = b.drone.core.estimate().position_m;
+        assert!(
+            (after[0] - 1.5).abs() < 1e-4 && (after[1] - 2.0).abs() < 1e-4,
+            "{after:?}"
+        );
+        // The parameter reads 0 again, announced by a VALUE_UPDATED (2/3 `[1, id u16, 0]`).
+        assert_eq!(b.radio.ep.param.store().reset_estimation, 0);
+        let id = ID_RESET_ESTIMATION.to_le_bytes();
+        loop {
+            let p = b.received(2);
+            if p[0] & 0x03 == 3 && p[1] == 1 {
+                assert_eq!(&p[2..], &[id[0], id[1], 0]);
+                break;
+            }
+        }
     }
 
     #[test]

@@ -22,6 +22,7 @@
 //! | `sim.seed` | 0 | any `u64` |
 //! | `sim.time_limit` | 300 | 0 < seconds ≤ 3600 |
 //! | `sim.expect` | `"completed"` | **schema addition**: `"completed"`, `"no_path"` or `"pad_not_found"` |
+//! | `[sensors]`, `[disturbances]` | the simulator's own | every key optional; keys, units and ranges in [`super::stress`] |
 //!
 //! `sim.expect` says how a run of the world should end: `"completed"` names the report's `outcome`, any other
 //! value its `reason` (interfaces.md §4). Failure worlds shipped in `worlds/` also carry a `fail-` file-name
@@ -34,8 +35,8 @@
 //!
 //! Worlds up to 6.4 × 3.2 m (128 × 64 cells, the largest grid the firmware maps) load. The default firmware
 //! build holds 120 × 60 = 7200 cells; a world with more cells ([`World::needs_large_arena`]) needs the
-//! `large-arena` build of the firmware, and the simulator should say so rather than fly it on a grid too
-//! small.
+//! `large-arena` build of the firmware. The simulator always flies the `large-arena` grid capacity and says
+//! so in each report (`needs_large_arena`) and in a batch's summary (`large_arena_runs`).
 //!
 //! # Shipped worlds (`worlds/`)
 //!
@@ -45,14 +46,34 @@
 //!
 //! # Random worlds
 //!
-//! [`World::random`] draws a 4.5–6 × 2.4–3 m arena (always within the default firmware build), the take-off
-//! point near one end and the nominal goal near the other (either way round), the home pad under the take-off
-//! point (within 5 cm) and the goal pad 5–30 cm from the nominal goal; one to three walls across the arena,
-//! each with a 0.6–1 m gap, up to four boxes and up to four cylinders, 1 m tall up to the ceiling. Every
-//! obstacle keeps [`KEEP_OUT_M`] from the pads, the take-off point and the nominal goal. A candidate is kept
-//! only if it validates and [`World::is_solvable`] with [`SOLVABILITY_INFLATION_M`]; otherwise the generator
-//! draws again from the same random stream, so a seed always gives the same world.
+//! Two generators (`cfnav sim --random N --generator wide|classic`); a candidate is kept only if it validates
+//! and [`World::is_solvable`] with [`SOLVABILITY_INFLATION_M`], otherwise the generator draws again from
+//! the same random stream, so a seed always gives the same world.
 //!
+//! [`World::random`] (`wide`, the default since issue 14) draws what real arenas have: a 4–6.4 × 2–3.2 m
+//! arena ([`WIDE_ARENA_MIN_M`]..[`WIDE_ARENA_MAX_M`]); the take-off point 0.5–0.9 m from one end and the
+//! nominal goal 0.5–0.9 m from the other; the home pad under the take-off point (within 5 cm) or, one world
+//! in six, beside it (0.25–0.35 m, the drone starting on the floor); the goal pad 0.05–0.35 m from the
+//! nominal goal, or (one world in three) 0.1–0.25 m from a side or end wall with the nominal goal within
+//! 0.35 m of it. Then either a zig-zag corridor (about one world in three: 2–4 walls across the arena whose
+//! 0.6–0.9 m gaps alternate between the two side walls, so every turn lies next to an arena wall) or 0–3
+//! walls with a 0.6–1 m gap anywhere; one world in three an obstacle (box or cylinder) 0.1–0.25 m from the
+//! goal pad ([`NEAR_PAD_GAP_M`]); one world in three a forest of 4–9 thin cylinders (radius
+//! [`FOREST_RADIUS_M`]) 0.3–1.1 m from the goal pad's centre, 0.1 m or more from the pad and 0.5–0.7 m apart;
+//! and up to three boxes and three cylinders anywhere. Everything keeps [`KEEP_OUT_M`] from the take-off
+//! point and the home pad; the walls and the free obstacles keep it from the goal end too.
+//!
+//! [`World::random_classic`] (`classic`) is the generator of the figures before issue 14, kept seed for seed:
+//! a 4.5–6 × 2.4–3 m arena, the home pad within 5 cm of the take-off point and the goal pad 5–30 cm from the
+//! nominal goal, one to three walls with a 0.6–1 m gap, up to four boxes and four cylinders 1 m tall up to
+//! the ceiling, every obstacle [`KEEP_OUT_M`] from the pads, the take-off point and the nominal goal.
+//!
+//! Arenas larger than the default firmware build's 120 × 60 cells (about 6 % of the wide worlds) are flown,
+//! like every world, on the `large-arena` build's grid (the simulator's [`crate::sim::runner::SIM_CELLS`]);
+//! their reports say `needs_large_arena`, and the batch summary counts them (`large_arena_runs`). The default
+//! firmware build would refuse them at the start (`StartRefusal::BadArena`), so with that build such a world
+//! cannot be flown at all, never flown on a grid too small.
+
 //! # Geometry
 //!
 //! The solid world is everything outside the arena's interior box `(0, W) × (0, H) × (0, ceiling)` (the four
@@ -65,13 +86,18 @@ use std::ops::Range;
 use std::path::Path;
 
 use cfnav::nav::map::{GridShape, MAX_HEIGHT_CELLS, MAX_WIDTH_CELLS};
+
+use super::stress::{Disturbances, RawDisturbances, RawSensors, SensorStress, Stress};
 use serde::Deserialize;
 use toml::Spanned;
 
 mod geometry;
 mod random;
 
-pub use random::{KEEP_OUT_M, SOLVABILITY_INFLATION_M};
+pub use random::{
+    FOREST_PAD_GAP_M, FOREST_RADIUS_M, Generator, KEEP_OUT_M, NEAR_PAD_GAP_M, SOLVABILITY_INFLATION_M,
+    WIDE_ARENA_MAX_M, WIDE_ARENA_MIN_M,
+};
 
 /// Radius of the drone's body disc: touching an obstacle with it is a collision (interfaces.md §3).
 pub const BODY_RADIUS_M: f32 = 0.06;
@@ -129,6 +155,8 @@ pub struct World {
     pub cylinders: Vec<Cylinder>,
     /// Seed, time limit, expected outcome.
     pub sim: SimSettings,
+    /// `[sensors]` and `[disturbances]` (stress testing; empty: the simulator's defaults).
+    pub stress: Stress,
 }
 
 /// `[arena]`.
@@ -300,6 +328,8 @@ struct RawWorld {
     #[serde(default)]
     cylinders: Vec<Spanned<RawCylinder>>,
     sim: Option<Spanned<RawSim>>,
+    sensors: Option<Spanned<RawSensors>>,
+    disturbances: Option<Spanned<RawDisturbances>>,
 }
 
 #[derive(Deserialize)]
@@ -507,6 +537,20 @@ fn convert(raw: RawWorld, default_name: &str, spans: &mut Spans) -> Result<World
         sim.expect = spans.optional("sim.expect", s.expect).unwrap_or_default();
     }
 
+    let mut stress = Stress::default();
+    let mut sink = |f: &str, r: Range<usize>| spans.add(f, r);
+    if let Some(t) = raw.sensors {
+        sink("sensors", t.span());
+        stress.sensors = SensorStress::from_raw(t.into_inner(), &mut sink);
+    }
+    if let Some(t) = raw.disturbances {
+        sink("disturbances", t.span());
+        stress.disturbances = Disturbances::from_raw(t.into_inner(), &mut sink).map_err(|e| Invalid {
+            field: e.field,
+            message: e.message,
+        })?;
+    }
+
     Ok(World {
         name,
         arena: Arena { size, ceiling },
@@ -515,6 +559,7 @@ fn convert(raw: RawWorld, default_name: &str, spans: &mut Spans) -> Result<World
         boxes,
         cylinders,
         sim,
+        stress,
     })
 }
 
@@ -829,7 +874,10 @@ impl World {
                 format!("{t} s; expected 0 < time_limit ≤ {MAX_TIME_LIMIT_S} s"),
             );
         }
-        Ok(())
+        self.stress.check().map_err(|e| Invalid {
+            field: e.field,
+            message: e.message,
+        })
     }
 
     /// Check a world built in code (e.g. by a test or a generator) against the rules world files obey.
@@ -963,6 +1011,7 @@ impl World {
                 time_limit: DEFAULT_TIME_LIMIT_S,
                 expect: Expect::Completed,
             },
+            stress: Stress::default(),
         }
     }
 
@@ -1049,6 +1098,7 @@ impl World {
         if self.sim.expect != Expect::Completed {
             s.push_str(&format!("expect = \"{}\"\n", self.sim.expect.as_str()));
         }
+        s.push_str(&self.stress.to_toml_string());
         s
     }
 }

@@ -10,6 +10,7 @@ use super::{
     Arena, BoxObstacle, Cylinder, DEFAULT_HEIGHT_M, DEFAULT_SPEED_MPS, DEFAULT_TIME_LIMIT_S, Expect, Mission, Pad,
     SimSettings, World, dist, rect_point_distance, rect_rect_distance,
 };
+use crate::sim::stress::Stress;
 
 /// Inflation of the true obstacles used to decide that a random world is solvable: the body radius 0.06 m
 /// plus a 0.19 m margin, which leaves room for the firmware's own inflation (about 0.15 m beyond the body)
@@ -151,13 +152,42 @@ fn candidate(rng: &mut SmallRng, seed: u64) -> World {
         }
     }
 
+    let count = rng.random_range(0..=4);
     let mut cylinders = Vec::new();
-    for _ in 0..rng.random_range(0..=4) {
+    scatter_cylinders(rng, count, [w, h], ceiling, &keep, &mut cylinders);
+
+    generated_world(seed, [w, h], ceiling, [start, goal], [home, goal_pad], boxes, cylinders)
+}
+
+// ---------------------------------------------------------------------------------------------------------
+// The widened generator
+
+/// Smallest and largest arena of the widened generator, metres (the largest is the `large-arena` build's).
+pub const WIDE_ARENA_MIN_M: [f32; 2] = [4.0, 2.0];
+/// See [`WIDE_ARENA_MIN_M`].
+pub const WIDE_ARENA_MAX_M: [f32; 2] = [6.4, 3.2];
+/// Edge-to-edge gap between the goal pad and the wall or obstacle it is placed next to, metres.
+pub const NEAR_PAD_GAP_M: (f32, f32) = (0.1, 0.25);
+/// Radii of a forest's thin cylinders, metres.
+pub const FOREST_RADIUS_M: (f32, f32) = (0.08, 0.15);
+/// Least edge gap between a forest cylinder and the goal pad, metres.
+pub const FOREST_PAD_GAP_M: f32 = 0.1;
+
+/// Up to `count` cylinders of radius 5–25 cm where `keep` allows them (20 tries each), appended to `out`.
+fn scatter_cylinders(
+    rng: &mut SmallRng,
+    count: u32,
+    [w, h]: [f32; 2],
+    ceiling: f32,
+    keep: &KeepOut,
+    out: &mut Vec<Cylinder>,
+) {
+    for _ in 0..count {
         for _ in 0..20 {
             let r = cm(rng.random_range(0.05..=0.25));
             let center = [cm(rng.random_range(r..=w - r)), cm(rng.random_range(r..=h - r))];
             if keep.allows_disc(center, r) {
-                cylinders.push(Cylinder {
+                out.push(Cylinder {
                     center,
                     radius: r,
                     height: obstacle_height(rng, ceiling),
@@ -166,10 +196,21 @@ fn candidate(rng: &mut SmallRng, seed: u64) -> World {
             }
         }
     }
+}
 
+/// A generated world with the default mission settings: `[start, goal]`, `[home pad, goal pad]`.
+fn generated_world(
+    seed: u64,
+    size: [f32; 2],
+    ceiling: f32,
+    [start, goal]: [[f32; 2]; 2],
+    [home, goal_pad]: [Pad; 2],
+    boxes: Vec<BoxObstacle>,
+    cylinders: Vec<Cylinder>,
+) -> World {
     World {
         name: format!("random-{seed}"),
-        arena: Arena { size: [w, h], ceiling },
+        arena: Arena { size, ceiling },
         mission: Mission {
             start,
             goal,
@@ -184,7 +225,269 @@ fn candidate(rng: &mut SmallRng, seed: u64) -> World {
             time_limit: DEFAULT_TIME_LIMIT_S,
             expect: Expect::Completed,
         },
+        stress: Stress::default(),
     }
+}
+
+/// A random obstacle placed `gap` (edge to edge) from the pad's footprint on a random side.
+fn obstacle_next_to(rng: &mut SmallRng, pad: &Pad, gap: f32, ceiling: f32) -> (Option<BoxObstacle>, Option<Cylinder>) {
+    let (lo, hi) = pad.footprint();
+    let side = rng.random_range(0..4u8);
+    let along = |rng: &mut SmallRng, a: f32, b: f32| cm(rng.random_range(a - 0.1..=b + 0.1));
+    if rng.random_bool(0.5) {
+        let r = cm(rng.random_range(0.08..=0.25));
+        let c = match side {
+            0 => [cm(lo[0] - gap - r), along(rng, lo[1], hi[1])],
+            1 => [cm(hi[0] + gap + r), along(rng, lo[1], hi[1])],
+            2 => [along(rng, lo[0], hi[0]), cm(lo[1] - gap - r)],
+            _ => [along(rng, lo[0], hi[0]), cm(hi[1] + gap + r)],
+        };
+        let cyl = Cylinder {
+            center: c,
+            radius: r,
+            height: obstacle_height(rng, ceiling),
+        };
+        (None, Some(cyl))
+    } else {
+        let size = [cm(rng.random_range(0.1..=0.5)), cm(rng.random_range(0.1..=0.5))];
+        let (min, max) = match side {
+            0 => {
+                let y = along(rng, lo[1], hi[1]) - size[1] / 2.0;
+                ([cm(lo[0] - gap - size[0]), cm(y)], [cm(lo[0] - gap), cm(y + size[1])])
+            }
+            1 => {
+                let y = along(rng, lo[1], hi[1]) - size[1] / 2.0;
+                ([cm(hi[0] + gap), cm(y)], [cm(hi[0] + gap + size[0]), cm(y + size[1])])
+            }
+            2 => {
+                let x = along(rng, lo[0], hi[0]) - size[0] / 2.0;
+                ([cm(x), cm(lo[1] - gap - size[1])], [cm(x + size[0]), cm(lo[1] - gap)])
+            }
+            _ => {
+                let x = along(rng, lo[0], hi[0]) - size[0] / 2.0;
+                ([cm(x), cm(hi[1] + gap)], [cm(x + size[0]), cm(hi[1] + gap + size[1])])
+            }
+        };
+        let b = BoxObstacle {
+            min,
+            max,
+            height: obstacle_height(rng, ceiling),
+        };
+        (Some(b), None)
+    }
+}
+
+/// One candidate of the widened generator (see "Random worlds" in the module documentation).
+fn candidate_wide(rng: &mut SmallRng, seed: u64) -> World {
+    let w = cells5(rng.random_range(WIDE_ARENA_MIN_M[0]..=WIDE_ARENA_MAX_M[0]));
+    let h = cells5(rng.random_range(WIDE_ARENA_MIN_M[1]..=WIDE_ARENA_MAX_M[1]));
+    let ceiling = (rng.random_range(2.0f32..=2.6) * 10.0).round() / 10.0;
+    let mut start = [cm(rng.random_range(0.5..=0.9)), cm(rng.random_range(0.5..=h - 0.5))];
+    let mut goal = [cm(w - rng.random_range(0.5..=0.9)), cm(rng.random_range(0.4..=h - 0.4))];
+    let mirrored = rng.random_bool(0.5);
+    if mirrored {
+        start[0] = cm(w - start[0]);
+        goal[0] = cm(w - goal[0]);
+    }
+    // Home: under the take-off point (within 5 cm), or (one world in six) beside it, the drone starting on
+    // the floor 0.25–0.35 m from the pad's centre.
+    let home = if rng.random_bool(1.0 / 6.0) {
+        pad_near(rng, start, (0.25, 0.35), [w, h])
+    } else {
+        pad_near(rng, start, (0.0, 0.05), [w, h])
+    };
+    // The goal pad: 0.05–0.35 m from the nominal goal, and in one world in three 0.1–0.25 m from a wall
+    // (the two side walls or the far end).
+    let pad_by_wall = rng.random_bool(1.0 / 3.0);
+    let goal_pad = if pad_by_wall {
+        let gap = cm(rng.random_range(NEAR_PAD_GAP_M.0..=NEAR_PAD_GAP_M.1));
+        let half = PAD_SIZE[0] / 2.0;
+        let c = match rng.random_range(0..3u8) {
+            0 => [goal[0] + rng.random_range(-0.2..=0.2), half + gap],
+            1 => [goal[0] + rng.random_range(-0.2..=0.2), h - half - gap],
+            _ if mirrored => [half + gap, goal[1] + rng.random_range(-0.2..=0.2)],
+            _ => [w - half - gap, goal[1] + rng.random_range(-0.2..=0.2)],
+        };
+        let c = [cm(c[0].clamp(half, w - half)), cm(c[1].clamp(half, h - half))];
+        // The nominal goal within 0.35 m of the pad, inside the arena with room for the body.
+        let d = rng.random_range(0.05..=0.33f32);
+        let a = rng.random_range(0.0..std::f32::consts::TAU);
+        goal = [
+            cm((c[0] + d * a.cos()).clamp(0.3, w - 0.3)),
+            cm((c[1] + d * a.sin()).clamp(0.3, h - 0.3)),
+        ];
+        Pad {
+            center: c,
+            size: PAD_SIZE,
+            height: PAD_HEIGHT,
+        }
+    } else {
+        pad_near(rng, goal, (0.05, 0.35), [w, h])
+    };
+    // Start and home keep the classic keep-out; the goal end keeps it from walls and the filler obstacles,
+    // but the obstacle next to the pad and the forest come closer by design.
+    let keep = KeepOut {
+        points: vec![start, goal],
+        pads: vec![home.footprint(), goal_pad.footprint()],
+    };
+    let near_keep = KeepOut {
+        points: vec![start],
+        pads: vec![home.footprint()],
+    };
+    let clear_of_goal_pad_rect =
+        |r: ([f32; 2], [f32; 2]), gap: f32| rect_rect_distance(r, goal_pad.footprint()) >= gap - 1e-4;
+    let clear_of_goal_pad_disc =
+        |c: [f32; 2], r: f32, gap: f32| rect_point_distance(goal_pad.footprint(), c) - r >= gap - 1e-4;
+
+    let mut boxes = Vec::new();
+    let mut cylinders = Vec::new();
+    let (x_lo, x_hi) = (start[0].min(goal[0]) + 0.9, start[0].max(goal[0]) - 0.9);
+    if rng.random_bool(0.35) {
+        // A zig-zag corridor: walls across the arena whose gaps alternate between the two side walls, so each
+        // turn lies next to an arena wall.
+        let n = rng.random_range(2..=4);
+        let mut bottom = rng.random_bool(0.5);
+        let mut x = x_lo;
+        for _ in 0..n {
+            let t = cm(rng.random_range(0.05..=0.2));
+            let gap = cm(rng.random_range(0.6..=0.9));
+            if x + t > x_hi {
+                break;
+            }
+            let xa = cm(x);
+            let b = if bottom {
+                BoxObstacle {
+                    min: [xa, gap],
+                    max: [cm(xa + t), h],
+                    height: ceiling,
+                }
+            } else {
+                BoxObstacle {
+                    min: [xa, 0.0],
+                    max: [cm(xa + t), cm(h - gap)],
+                    height: ceiling,
+                }
+            };
+            if keep.allows_rect(b.footprint()) {
+                boxes.push(b);
+                bottom = !bottom;
+            }
+            x = xa + t + rng.random_range(0.7..=1.2);
+        }
+    } else {
+        // Walls across the arena, each with one gap anywhere.
+        let mut wall_xs: Vec<(f32, f32)> = Vec::new();
+        for _ in 0..rng.random_range(0..=3) {
+            for _ in 0..20 {
+                let t = cm(rng.random_range(0.05..=0.25));
+                if x_hi - t <= x_lo {
+                    break;
+                }
+                let x = cm(rng.random_range(x_lo..=x_hi - t));
+                if wall_xs.iter().any(|&(a, b)| x < b + 0.7 && a < x + t + 0.7) {
+                    continue;
+                }
+                let gap = cm(rng.random_range(0.6..=1.0));
+                let gy = cm(rng.random_range(0.0..=(h - gap).max(0.0)));
+                let mut segments = Vec::new();
+                if gy > 0.05 {
+                    segments.push(BoxObstacle {
+                        min: [x, 0.0],
+                        max: [cm(x + t), gy],
+                        height: ceiling,
+                    });
+                }
+                if gy + gap < h - 0.05 {
+                    segments.push(BoxObstacle {
+                        min: [x, gy + gap],
+                        max: [cm(x + t), h],
+                        height: ceiling,
+                    });
+                }
+                if segments.iter().all(|b| keep.allows_rect(b.footprint())) {
+                    boxes.extend(segments);
+                    wall_xs.push((x, x + t));
+                    break;
+                }
+            }
+        }
+    }
+
+    // An obstacle 0.1–0.25 m from the goal pad (one world in three).
+    if rng.random_bool(1.0 / 3.0) {
+        for _ in 0..20 {
+            let gap = cm(rng.random_range(NEAR_PAD_GAP_M.0..=NEAR_PAD_GAP_M.1));
+            match obstacle_next_to(rng, &goal_pad, gap, ceiling) {
+                (Some(b), _) if near_keep.allows_rect(b.footprint()) && clear_of_goal_pad_rect(b.footprint(), 0.1) => {
+                    boxes.push(b);
+                    break;
+                }
+                (_, Some(c))
+                    if near_keep.allows_disc(c.center, c.radius) && clear_of_goal_pad_disc(c.center, c.radius, 0.1) =>
+                {
+                    cylinders.push(c);
+                    break;
+                }
+                _ => {}
+            }
+        }
+    }
+
+    // A forest of thin cylinders around the goal (one world in three): up to 4–9 of them, centres 0.3–1.1 m
+    // from the goal pad's centre, at least 0.1 m from the pad and 0.5–0.7 m apart edge to edge (room for the
+    // drone's inflated path between them, so that the forest is a maze rather than a fence).
+    if rng.random_bool(1.0 / 3.0) {
+        let n = rng.random_range(4..=9);
+        let spacing = rng.random_range(0.5..=0.7f32);
+        let first = cylinders.len();
+        for _ in 0..n {
+            for _ in 0..30 {
+                let r = cm(rng.random_range(FOREST_RADIUS_M.0..=FOREST_RADIUS_M.1));
+                let d = rng.random_range(0.3..=1.1f32);
+                let a = rng.random_range(0.0..std::f32::consts::TAU);
+                let c = [
+                    cm(goal_pad.center[0] + d * a.cos()),
+                    cm(goal_pad.center[1] + d * a.sin()),
+                ];
+                let inside = c[0] - r > 0.05 && c[1] - r > 0.05 && c[0] + r < w - 0.05 && c[1] + r < h - 0.05;
+                let apart = cylinders[first..]
+                    .iter()
+                    .all(|o: &Cylinder| dist(o.center, c) - o.radius - r >= spacing);
+                if inside && apart && near_keep.allows_disc(c, r) && clear_of_goal_pad_disc(c, r, FOREST_PAD_GAP_M) {
+                    cylinders.push(Cylinder {
+                        center: c,
+                        radius: r,
+                        height: obstacle_height(rng, ceiling),
+                    });
+                    break;
+                }
+            }
+        }
+    }
+
+    // Filler: up to three boxes and three cylinders anywhere, with the classic keep-out.
+    for _ in 0..rng.random_range(0..=3) {
+        for _ in 0..20 {
+            let size = [cm(rng.random_range(0.1..=0.6)), cm(rng.random_range(0.1..=0.6))];
+            let min = [
+                cm(rng.random_range(0.0..=w - size[0])),
+                cm(rng.random_range(0.0..=h - size[1])),
+            ];
+            let b = BoxObstacle {
+                min,
+                max: [cm(min[0] + size[0]).min(w), cm(min[1] + size[1]).min(h)],
+                height: obstacle_height(rng, ceiling),
+            };
+            if keep.allows_rect(b.footprint()) {
+                boxes.push(b);
+                break;
+            }
+        }
+    }
+    let count = rng.random_range(0..=3);
+    scatter_cylinders(rng, count, [w, h], ceiling, &keep, &mut cylinders);
+
+    generated_world(seed, [w, h], ceiling, [start, goal], [home, goal_pad], boxes, cylinders)
 }
 
 /// The last resort: the default world's arena, mission and pads without obstacles.
@@ -197,15 +500,39 @@ fn open_world(seed: u64) -> World {
     w
 }
 
+/// Which random generator `--random` uses.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, clap::ValueEnum)]
+pub enum Generator {
+    /// The widened generator (issue 14): 4 × 2 to 6.4 × 3.2 m arenas, pads next to walls and obstacles,
+    /// forests of thin cylinders around the goal, zig-zag corridors, goal pads up to 0.35 m off.
+    #[default]
+    Wide,
+    /// The generator up to issue 14 (its seeds give the same worlds as before, for the older figures).
+    Classic,
+}
+
 impl World {
-    /// A random world for `seed` (see "Random worlds" in the module documentation): walls with gaps, boxes,
-    /// cylinders, pads near the take-off point and the nominal goal; always valid and solvable with
-    /// [`SOLVABILITY_INFLATION_M`]; the same for the same seed. Its `name` is `random-SEED` and its
-    /// `sim.seed` is `seed`.
+    /// A random world for `seed` from the widened generator (see "Random worlds" in the module
+    /// documentation); always valid and solvable with [`SOLVABILITY_INFLATION_M`]; the same for the same
+    /// seed. Its `name` is `random-SEED` and its `sim.seed` is `seed`.
     pub fn random(seed: u64) -> World {
+        Self::random_with(Generator::Wide, seed)
+    }
+
+    /// A random world of the generator used up to issue 14 (walls with gaps, boxes, cylinders, every
+    /// obstacle 0.4 m from the pads, 4.5–6 × 2.4–3 m arenas): the same world for a seed as before.
+    pub fn random_classic(seed: u64) -> World {
+        Self::random_with(Generator::Classic, seed)
+    }
+
+    /// A random world of `generator` for `seed`.
+    pub fn random_with(generator: Generator, seed: u64) -> World {
         let mut rng = SmallRng::seed_from_u64(seed);
         for _ in 0..MAX_ATTEMPTS {
-            let w = candidate(&mut rng, seed);
+            let w = match generator {
+                Generator::Classic => candidate(&mut rng, seed),
+                Generator::Wide => candidate_wide(&mut rng, seed),
+            };
             if w.check().is_ok() && w.is_solvable(SOLVABILITY_INFLATION_M) {
                 return w;
             }

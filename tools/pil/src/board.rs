@@ -1,0 +1,208 @@
+//! The emulated Crazyflie 2.1: the flash image from the firmware ELF, the machine (rsemu's Cortex-M4F and
+//! STM32F4 models, `crazyflie21.machine`), the device models on its buses and the host's views of it (GPIO
+//! output registers, FLASH_ACR, RCC_CSR, the RTT up-buffer, the syslink byte stream).
+//!
+//! Job: everything that touches rsemu's API, so the rest of the tool is plain Rust.
+//!
+//! Non-goals: no physics (later milestones), no bootloader: the first 16 KiB of flash hold a two-word vector
+//! table (the application's initial SP and reset vector), which is what the Crazyflie bootloader hands over
+//! (crazyflie-hardware.md §1.3: it loads MSP from 0x08004000 and jumps to its reset vector; the image sets VTOR
+//! itself, cortex-m-rt `set-vtor`). The application bytes are the ELF's LOAD segments, unmodified.
+
+use std::sync::Arc;
+
+use anyhow::{Context, Result, anyhow, bail};
+use object::{Object, ObjectSegment, ObjectSymbol};
+use rsemu::bus::i2c::buses;
+use rsemu::core::clock::GlobalTime;
+use rsemu::core::space::{AddressSpace, MemAttrs};
+use rsemu::core::value::Width;
+use rsemu::host::chardev::{CharPort, ports};
+use rsemu::machine::{Machine, catalog};
+
+use crate::devices::{Bmi088, Eeprom, Faults, default_config_block};
+use crate::pin::{self, PinHandle};
+use crate::{apb8, dreq};
+
+/// The machine description (derived from rsemu's STM32F407 board).
+pub const MACHINE_TEXT: &str = include_str!("../crazyflie21.machine");
+
+/// Flash base and size (STM32F405RG: 1 MiB).
+pub const FLASH_BASE: u64 = 0x0800_0000;
+pub const FLASH_SIZE: usize = 1 << 20;
+/// Where the application starts (after the bootloader's 16 KiB).
+pub const APP_BASE: u64 = 0x0800_4000;
+
+/// RM0090 §3.9.1: FLASH_ACR, LATENCY[3:0], PRFTEN bit 8, ICEN bit 9, DCEN bit 10.
+pub const FLASH_ACR: u64 = 0x4002_3C00;
+/// RM0090 §7.3.21: RCC_CSR, IWDGRSTF bit 29.
+pub const RCC_CSR: u64 = 0x4002_3874;
+/// GPIOx_ODR (RM0090 §8.4.6): port C at 0x40020800, port D at 0x40020C00, ODR at +0x14.
+pub const GPIOC_ODR: u64 = 0x4002_0814;
+pub const GPIOD_ODR: u64 = 0x4002_0C14;
+
+/// The flash image and what the host needs from the ELF.
+pub struct Image {
+    pub flash: Vec<u8>,
+    pub rtt_address: Option<u64>,
+}
+
+/// Builds the 1 MiB flash image from the ELF's LOAD segments (erased bytes are 0xFF) and the two-word vector
+/// table at the flash base.
+pub fn load_image(elf: &[u8]) -> Result<Image> {
+    let file = object::File::parse(elf).context("the firmware is not an ELF file")?;
+    let mut flash = vec![0xFF; FLASH_SIZE];
+    let mut app_bytes = 0;
+    for segment in file.segments() {
+        let data = segment.data().context("reading a segment")?;
+        if data.is_empty() {
+            continue;
+        }
+        // The load (physical) address: .data's initial values are stored in flash after .rodata.
+        let (offset, _) = segment.file_range();
+        let lma = physical_address(elf, offset).unwrap_or(segment.address());
+        if lma < FLASH_BASE || lma + data.len() as u64 > FLASH_BASE + FLASH_SIZE as u64 {
+            continue;
+        }
+        if lma < APP_BASE {
+            bail!("a LOAD segment at {lma:#x} lies in the bootloader's sector");
+        }
+        let at = (lma - FLASH_BASE) as usize;
+        flash[at..at + data.len()].copy_from_slice(data);
+        app_bytes += data.len();
+    }
+    if app_bytes == 0 {
+        bail!("no LOAD segment in flash: is this the thumbv7em firmware ELF?");
+    }
+    let app = (APP_BASE - FLASH_BASE) as usize;
+    let sp_and_reset: [u8; 8] = flash[app..app + 8].try_into().context("vector table")?;
+    flash[..8].copy_from_slice(&sp_and_reset);
+    let rtt_address = file
+        .symbols()
+        .find(|s| s.name() == Ok("_SEGGER_RTT"))
+        .map(|s| s.address());
+    Ok(Image { flash, rtt_address })
+}
+
+/// The physical address of the program header whose file range starts at `offset` (ELF32 little-endian;
+/// `object`'s segment API gives only the virtual address).
+fn physical_address(elf: &[u8], offset: u64) -> Option<u64> {
+    let u32_at = |at: usize| {
+        elf.get(at..at + 4)
+            .map(|b| u32::from_le_bytes([b[0], b[1], b[2], b[3]]))
+    };
+    let u16_at = |at: usize| elf.get(at..at + 2).map(|b| u16::from_le_bytes([b[0], b[1]]));
+    if elf.get(4) != Some(&1) {
+        return None; // not ELF32
+    }
+    let phoff = u32_at(0x1C)? as usize;
+    let phentsize = u16_at(0x2A)? as usize;
+    let phnum = u16_at(0x2C)? as usize;
+    (0..phnum).find_map(|i| {
+        let ph = phoff + i * phentsize;
+        let p_type = u32_at(ph)?;
+        let p_offset = u32_at(ph + 4)?;
+        let p_paddr = u32_at(ph + 12)?;
+        (p_type == 1 && u64::from(p_offset) == offset).then_some(u64::from(p_paddr))
+    })
+}
+
+/// The running board.
+pub struct Board {
+    pub machine: Machine,
+    pub syslink: Arc<CharPort>,
+    pub imu: Arc<Bmi088>,
+    /// The gyroscope's data-ready line (PC14).
+    pub imu_int3: PinHandle,
+    mem: Arc<AddressSpace>,
+}
+
+impl Board {
+    /// Builds the machine around `flash` with the device models and faults.
+    pub fn new(flash: Vec<u8>, faults: Faults) -> Result<Self> {
+        let mut registry = catalog::registry().map_err(|e| anyhow!("rsemu registry: {e}"))?;
+        registry
+            .add(&dreq::CLASS)
+            .map_err(|e| anyhow!("registering pil.dreq: {e}"))?;
+        registry
+            .add(&apb8::CLASS)
+            .map_err(|e| anyhow!("registering pil.apb8: {e}"))?;
+        registry
+            .add(&pin::CLASS)
+            .map_err(|e| anyhow!("registering pil.pin: {e}"))?;
+        let mut options = catalog::build_options().map_err(|e| anyhow!("rsemu build options: {e}"))?;
+        options.classes.insert(dreq::schema());
+        options.classes.insert(apb8::schema());
+        options.classes.insert(pin::schema());
+        let imu_int3 = PinHandle::default();
+        let handle = imu_int3.clone();
+        options
+            .bindings
+            .bind(pin::CLASS_NAME, move |_props| {
+                Ok(Arc::new(pin::Pin::new(handle.clone())))
+            })
+            .map_err(|e| anyhow!("binding pil.pin: {e}"))?;
+        options
+            .bindings
+            .bind(apb8::CLASS_NAME, |props| Ok(Arc::new(apb8::Apb8::new(props)?)))
+            .map_err(|e| anyhow!("binding pil.apb8: {e}"))?;
+        options
+            .bindings
+            .bind(dreq::CLASS_NAME, |props| Ok(Arc::new(dreq::Dreq::new(props)?)))
+            .map_err(|e| anyhow!("binding pil.dreq: {e}"))?;
+        let hosts = Arc::clone(&options.realize.hosts);
+        let imu = Arc::new(Bmi088::new(faults));
+        let sensors = buses::open(&hosts, "sensors").map_err(|e| anyhow!("I2C3 bus: {e}"))?;
+        sensors
+            .attach(Arc::clone(&imu) as _)
+            .map_err(|e| anyhow!("attaching the BMI088: {e}"))?;
+        let deck = buses::open(&hosts, "deck").map_err(|e| anyhow!("I2C1 bus: {e}"))?;
+        deck.attach(Arc::new(Eeprom::new(&default_config_block())))
+            .map_err(|e| anyhow!("attaching the EEPROM: {e}"))?;
+        let syslink = ports::open(&hosts, "syslink").map_err(|e| anyhow!("USART6 port: {e}"))?;
+        options.realize.media.insert("firmware", flash);
+        let machine = rsemu::machine::build("crazyflie21", MACHINE_TEXT, &registry, &options)
+            .map_err(|e| anyhow!("the machine does not build: {e}"))?;
+        let mem = Arc::clone(
+            machine
+                .space("mem")
+                .ok_or_else(|| anyhow!("the machine has no `mem` space"))?,
+        );
+        Ok(Self {
+            machine,
+            syslink,
+            imu,
+            imu_int3,
+            mem,
+        })
+    }
+
+    /// Runs `ns` nanoseconds of virtual time.
+    pub fn run_ns(&mut self, ns: u64) -> Result<()> {
+        self.machine
+            .run_for(GlobalTime::from_nanos(ns))
+            .map_err(|e| anyhow!("the emulator stopped: {e}"))
+    }
+
+    /// Virtual time since power-on, in ns.
+    pub fn now_ns(&self) -> u64 {
+        self.machine.now().as_nanos()
+    }
+
+    /// A side-effect-free 32-bit read.
+    pub fn peek32(&self, addr: u64) -> Option<u32> {
+        self.mem.read(addr, Width::U32, MemAttrs::DEBUG).ok().map(|v| v as u32)
+    }
+
+    /// A side-effect-free byte read.
+    pub fn peek8(&self, addr: u64) -> Option<u8> {
+        self.mem.read(addr, Width::U8, MemAttrs::DEBUG).ok().map(|v| v as u8)
+    }
+
+    /// A host write into RAM (the RTT read pointer).
+    pub fn poke32(&self, addr: u64, value: u32) -> bool {
+        self.mem
+            .write(addr, Width::U32, u64::from(value), MemAttrs::DEBUG)
+            .is_ok()
+    }
+}

@@ -1,0 +1,352 @@
+//! `cfnav-pil`: processor-in-the-loop. Runs the unmodified cfnav firmware ELF on an emulated Crazyflie 2.1
+//! (rsemu's Cortex-M4F and STM32F4 models, `crazyflie21.machine`) and reports what the image does: the status
+//! LEDs through the GPIO model, the defmt log from its RTT buffer, FLASH_ACR, watchdog resets, the syslink
+//! packets it sends, and its I2C traffic to the BMI088 model.
+//!
+//! Milestone 1 of issue 15 (docs/pil.md): the image boots to "ready". Exit 0 when the LEDs showed "ready" for
+//! a whole second, 1 when they did not within the time limit, 2 on a usage or setup error.
+//!
+//! Determinism: the machine is a pure function of the image and the options (no host clock reaches it); the
+//! report's `fingerprint` hashes the LED samples, the log and the syslink bytes so two runs can be compared.
+
+mod apb8;
+mod board;
+mod devices;
+mod dreq;
+mod leds;
+mod pin;
+mod rtt;
+
+use std::path::PathBuf;
+use std::process::ExitCode;
+use std::time::Instant;
+
+use anyhow::{Context, Result, bail};
+use clap::Parser;
+use serde::Serialize;
+
+use cfnav::radio::syslink::{SyslinkDecoder, SyslinkPacket, encode, kind};
+use cfnav::system::status_led::LedFrame;
+
+use crate::board::{Board, FLASH_ACR, GPIOC_ODR, GPIOD_ODR, RCC_CSR};
+use crate::devices::{BusStats, Faults};
+
+#[derive(Parser, Debug)]
+#[command(
+    name = "cfnav-pil",
+    about = "Run the unmodified cfnav firmware ELF on an emulated Crazyflie 2.1"
+)]
+struct Args {
+    /// The firmware ELF (default: $CARGO_TARGET_DIR or target, then thumbv7em-none-eabihf/release/firmware).
+    #[arg(long)]
+    elf: Option<PathBuf>,
+    /// Virtual seconds to run at most.
+    #[arg(long, default_value_t = 4.0)]
+    seconds: f64,
+    /// Keep running after "ready" was seen (until --seconds).
+    #[arg(long)]
+    no_stop: bool,
+    /// Inject a fault: bmi088-reset-nack (the IMU does not acknowledge its soft reset), sensor-bus-dead
+    /// (nothing on I2C3 acknowledges). Repeatable.
+    #[arg(long = "fault")]
+    faults: Vec<String>,
+    /// The nRF51 end stays silent (no echo of the radio settings): a syslink whose radio chip does not answer.
+    #[arg(long)]
+    silent_nrf: bool,
+    /// Write the report as JSON.
+    #[arg(long)]
+    json: Option<PathBuf>,
+    /// Print the decoded defmt log as it arrives.
+    #[arg(long)]
+    log: bool,
+    /// Reserved for milestone 3 (sensors fed by a simulator world); refused today.
+    #[arg(long)]
+    world: Option<PathBuf>,
+}
+
+#[derive(Debug, Serialize)]
+struct Acr {
+    raw: u32,
+    latency_ws: u32,
+    prften: bool,
+    icen: bool,
+    dcen: bool,
+}
+
+#[derive(Debug, Serialize)]
+struct Report {
+    elf: String,
+    /// FNV-1a of the ELF file, to tell images apart.
+    elf_fnv: String,
+    faults: Vec<String>,
+    outcome: &'static str,
+    ready: bool,
+    /// Virtual ms at which the first whole second of "ready" began.
+    ready_at_ms: Option<u64>,
+    /// The status the last whole second of LEDs showed, if one.
+    final_status: Option<&'static str>,
+    /// Each status the LEDs showed and when (the start of its first whole-second window), in order.
+    status_timeline: Vec<(u64, &'static str)>,
+    virtual_s: f64,
+    wall_s: f64,
+    acr: Option<Acr>,
+    acr_caches_on: bool,
+    iwdg_reset_flag: bool,
+    /// USART6 SR, CR1, CR3 at the end (RM0090 §30.6).
+    usart6_sr_cr1_cr3: [u32; 3],
+    boots_logged: usize,
+    faults_logged: Vec<String>,
+    log_lines: usize,
+    log_errors: usize,
+    log_malformed: usize,
+    syslink_packets_from_image: Vec<String>,
+    imu_bus: BusStats,
+    imu_drdy_pulses: u64,
+    fingerprint: String,
+    log: Vec<rtt::LogLine>,
+}
+
+/// FNV-1a, 64 bit: a stable fingerprint of what the run produced.
+struct Fnv(u64);
+
+impl Fnv {
+    fn new() -> Self {
+        Self(0xcbf2_9ce4_8422_2325)
+    }
+    fn bytes(&mut self, b: &[u8]) {
+        for &x in b {
+            self.0 ^= u64::from(x);
+            self.0 = self.0.wrapping_mul(0x0000_0100_0000_01b3);
+        }
+    }
+}
+
+fn default_elf() -> PathBuf {
+    let target = std::env::var_os("CARGO_TARGET_DIR").map_or_else(|| PathBuf::from("target"), PathBuf::from);
+    target.join("thumbv7em-none-eabihf/release/firmware")
+}
+
+fn parse_faults(names: &[String]) -> Result<Faults> {
+    let mut f = Faults::default();
+    for n in names {
+        match n.as_str() {
+            "bmi088-reset-nack" => f.bmi088_reset_nack = true,
+            "sensor-bus-dead" => f.sensor_bus_dead = true,
+            other => bail!("unknown fault `{other}` (known: bmi088-reset-nack, sensor-bus-dead)"),
+        }
+    }
+    Ok(f)
+}
+
+/// The nRF51's answers to what the image sends: the radio settings are echoed (as the nRF firmware does,
+/// crazyflie-hardware.md §3.3), RADIO_READY is acknowledged with the same type.
+fn nrf_answer(packet: &SyslinkPacket) -> Option<SyslinkPacket> {
+    match packet.kind {
+        kind::RADIO_CHANNEL | kind::RADIO_DATARATE | kind::RADIO_ADDRESS | kind::RADIO_READY => {
+            SyslinkPacket::new(packet.kind, &packet.payload).ok()
+        }
+        _ => None,
+    }
+}
+
+fn run(args: &Args) -> Result<(Report, bool)> {
+    if args.world.is_some() {
+        bail!("--world: the simulator's sensors are milestone 3 (docs/pil.md); milestone 1 boots on a bench");
+    }
+    if !(args.seconds > 0.0 && args.seconds <= 600.0) {
+        bail!("--seconds must be in (0, 600]");
+    }
+    let faults = parse_faults(&args.faults)?;
+    let elf_path = args.elf.clone().unwrap_or_else(default_elf);
+    let elf = std::fs::read(&elf_path).with_context(|| {
+        format!(
+            "reading {} (build it with `cargo run --release -p cfnav-tools -- firmware`)",
+            elf_path.display()
+        )
+    })?;
+    let image = board::load_image(&elf)?;
+    let table = defmt_decoder::Table::parse(&elf)
+        .context("reading the .defmt table")?
+        .context("the ELF has no .defmt table")?;
+    let rtt_address = image.rtt_address.context("the ELF has no _SEGGER_RTT symbol")?;
+    let mut board = Board::new(image.flash, faults)?;
+    let mut rtt = rtt::Rtt::new(rtt_address, &table);
+
+    let wall = Instant::now();
+    let step_ns = 1_000_000u64;
+    let end_ns = (args.seconds * 1e9) as u64;
+    let mut samples: std::collections::VecDeque<(u64, LedFrame)> = Default::default();
+    let mut timeline: Vec<(u64, &'static str)> = Vec::new();
+    let mut ready_at_ms = None;
+    let mut final_status = None;
+    let mut fp = Fnv::new();
+    let mut decoder = SyslinkDecoder::new();
+    let mut from_image = Vec::new();
+    let mut out = [0u8; cfnav::radio::syslink::MAX_FRAME];
+    let pulse_ns = 50_000u64;
+    let mut drdy_pulses = 0u64;
+    while board.now_ns() < end_ns {
+        // The gyroscope's 1 kHz data-ready pulse on INT3, once the firmware has enabled and mapped it.
+        if board.imu.int3_drdy_enabled() {
+            board.imu_int3.set(true);
+            board.run_ns(pulse_ns)?;
+            board.imu_int3.set(false);
+            board.run_ns(step_ns - pulse_ns)?;
+            drdy_pulses += 1;
+        } else {
+            board.run_ns(step_ns)?;
+        }
+        let t_ms = board.now_ns() / 1_000_000;
+        let pins = leds::Pins {
+            gpioc_moder: board.peek32(GPIOC_ODR - 0x14).unwrap_or(0),
+            gpioc_odr: board.peek32(GPIOC_ODR).unwrap_or(0),
+            gpiod_moder: board.peek32(GPIOD_ODR - 0x14).unwrap_or(0),
+            gpiod_odr: board.peek32(GPIOD_ODR).unwrap_or(0),
+        };
+        let frame = leds::frame(pins);
+        fp.bytes(&[
+            u8::from(frame.blue_l),
+            u8::from(frame.green_l),
+            u8::from(frame.red_l),
+            u8::from(frame.green_r),
+            u8::from(frame.red_r),
+        ]);
+        samples.push_back((t_ms, frame));
+        while samples.front().is_some_and(|&(t, _)| t + leds::WINDOW_MS <= t_ms) {
+            samples.pop_front();
+        }
+        // The LED task redraws every 25 ms: classifying every 25th sample sees every change.
+        if t_ms % 25 == 0 {
+            let window: Vec<_> = samples.iter().copied().collect();
+            final_status = leds::classify(&window);
+            if let Some(s) = final_status {
+                let start = window[0].0;
+                if timeline.last().map(|&(_, n)| n) != Some(leds::name(s)) {
+                    timeline.push((start, leds::name(s)));
+                }
+                if s == cfnav::system::status_led::BoardStatus::Ready && ready_at_ms.is_none() {
+                    ready_at_ms = Some(start);
+                }
+            }
+        }
+        for line in rtt.poll(&board) {
+            fp.bytes(line.text.as_bytes());
+            if args.log {
+                println!("{:>9.3} | {}", line.read_at_ns as f64 / 1e9, line.text);
+            }
+        }
+        let sent = board.syslink.drain();
+        fp.bytes(&sent);
+        for b in sent {
+            if let Some(Ok(packet)) = decoder.push(b) {
+                from_image.push(format!("{:#04x}", packet.kind));
+                if !args.silent_nrf
+                    && let Some(answer) = nrf_answer(&packet)
+                    && let Ok(n) = encode(&answer, &mut out)
+                {
+                    board.syslink.feed(&out[..n]);
+                }
+            }
+        }
+        if ready_at_ms.is_some() && !args.no_stop {
+            break;
+        }
+    }
+    let acr = board.peek32(FLASH_ACR).map(|raw| Acr {
+        raw,
+        latency_ws: raw & 0xF,
+        prften: raw & (1 << 8) != 0,
+        icen: raw & (1 << 9) != 0,
+        dcen: raw & (1 << 10) != 0,
+    });
+    let acr_caches_on = acr.as_ref().is_some_and(|a| a.icen && a.dcen);
+    let iwdg_reset_flag = board.peek32(RCC_CSR).is_some_and(|v| v & (1 << 29) != 0);
+    let log = rtt.lines.clone();
+    let boots_logged = log.iter().filter(|l| l.text.contains("booting")).count();
+    let faults_logged = log
+        .iter()
+        .filter(|l| l.text.contains("fault: "))
+        .map(|l| l.text.clone())
+        .collect();
+    let ready = ready_at_ms.is_some();
+    let report = Report {
+        elf: elf_path.display().to_string(),
+        elf_fnv: {
+            let mut h = Fnv::new();
+            h.bytes(&elf);
+            format!("{:016x}", h.0)
+        },
+        faults: args.faults.clone(),
+        outcome: if ready { "ready" } else { "not_ready" },
+        ready,
+        ready_at_ms,
+        final_status: final_status.map(leds::name),
+        status_timeline: timeline,
+        virtual_s: board.now_ns() as f64 / 1e9,
+        wall_s: wall.elapsed().as_secs_f64(),
+        acr,
+        acr_caches_on,
+        iwdg_reset_flag,
+        usart6_sr_cr1_cr3: [0x00, 0x0C, 0x14].map(|off| board.peek32(0x4001_1400 + off).unwrap_or(0)),
+        boots_logged,
+        faults_logged,
+        log_lines: log.len(),
+        log_errors: log.iter().filter(|l| l.level.as_deref() == Some("error")).count(),
+        log_malformed: rtt.malformed,
+        syslink_packets_from_image: from_image,
+        imu_bus: board.imu.stats(),
+        imu_drdy_pulses: drdy_pulses,
+        fingerprint: format!("{:016x}", fp.0),
+        log,
+    };
+    Ok((report, ready))
+}
+
+fn main() -> ExitCode {
+    let args = Args::parse();
+    match run(&args) {
+        Ok((report, ready)) => {
+            println!(
+                "outcome={} ready_at_ms={} final_status={} virtual_s={:.3} wall_s={:.2} acr_caches_on={} \
+                 acr_latency_ws={} iwdg_reset_flag={} boots_logged={} log_lines={} log_errors={} \
+                 imu_soft_resets={} imu_nacked_bytes={} syslink_packets={} fingerprint={}",
+                report.outcome,
+                report.ready_at_ms.map_or_else(|| "-".to_string(), |t| t.to_string()),
+                report.final_status.unwrap_or("-"),
+                report.virtual_s,
+                report.wall_s,
+                report.acr_caches_on,
+                report.acr.as_ref().map_or(0, |a| a.latency_ws),
+                report.iwdg_reset_flag,
+                report.boots_logged,
+                report.log_lines,
+                report.log_errors,
+                report.imu_bus.soft_resets,
+                report.imu_bus.nacked_bytes,
+                report.syslink_packets_from_image.len(),
+                report.fingerprint,
+            );
+            for f in &report.faults_logged {
+                println!("firmware fault: {f}");
+            }
+            if let Some(path) = &args.json {
+                let text = match serde_json::to_string_pretty(&report) {
+                    Ok(t) => t,
+                    Err(e) => {
+                        eprintln!("error: encoding the report: {e}");
+                        return ExitCode::from(2);
+                    }
+                };
+                if let Err(e) = std::fs::write(path, text) {
+                    eprintln!("error: writing {}: {e}", path.display());
+                    return ExitCode::from(2);
+                }
+            }
+            if ready { ExitCode::SUCCESS } else { ExitCode::from(1) }
+        }
+        Err(e) => {
+            eprintln!("error: {e:#}");
+            ExitCode::from(2)
+        }
+    }
+}

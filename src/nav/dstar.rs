@@ -144,6 +144,11 @@ pub struct DStarLite<const CELLS: usize, const QUEUE: usize> {
     resuming: bool,
     /// The start's `g` or `rhs` may have changed since [`DStarLite::compute`] last computed its key.
     start_touched: bool,
+    /// Ties on `f` are broken deepest-first (the first search after [`DStarLite::reset`]) rather than
+    /// smaller-`g`-first (the paper's order, every later repair); see `key_of`.
+    deepest_first: bool,
+    /// The first search has ended: the queue must be re-keyed in the paper's order before the next change.
+    rekey_pending: bool,
 }
 
 impl<const CELLS: usize, const QUEUE: usize> Default for DStarLite<CELLS, QUEUE> {
@@ -206,8 +211,14 @@ fn add_cost(c: u16, g: u16) -> u16 {
 ///   of first expanding every cell that lies on some optimal path (the octile heuristic is exact on open
 ///   ground, so those all tie).
 #[inline(always)]
-fn key_of(h: u32, km: u32, g: u16, rhs: u16) -> Key {
+fn key_of(h: u32, km: u32, g: u16, rhs: u16, deepest_first: bool) -> Key {
     let f = u32::from(g.min(rhs)) + h + km;
+    if !deepest_first {
+        return Key {
+            k1: f << 1,
+            k2: g.min(rhs),
+        };
+    }
     if g < rhs {
         Key { k1: f << 1, k2: g }
     } else {
@@ -253,6 +264,8 @@ impl<const CELLS: usize, const QUEUE: usize> DStarLite<CELLS, QUEUE> {
             expansions: 0,
             resuming: false,
             start_touched: true,
+            deepest_first: true,
+            rekey_pending: false,
         }
     }
 
@@ -278,8 +291,10 @@ impl<const CELLS: usize, const QUEUE: usize> DStarLite<CELLS, QUEUE> {
         self.km = 0;
         self.expansions = 0;
         self.resuming = false;
+        self.deepest_first = true;
+        self.rekey_pending = false;
         let goal_index = shape.index(goal);
-        let key = key_of(octile(start, goal), 0, INFINITE, 0);
+        let key = key_of(octile(start, goal), 0, INFINITE, 0, true);
         self.open.push(goal_index, key, 0).map_err(|_| PlanError::QueueFull)?;
         self.readiness = Readiness::Ready;
         Ok(())
@@ -447,6 +462,10 @@ impl<const CELLS: usize, const QUEUE: usize> DStarLite<CELLS, QUEUE> {
             }
         }
         self.resuming = false;
+        if self.deepest_first {
+            self.deepest_first = false;
+            self.rekey_pending = true;
+        }
         let cost = self.rhs(start);
         Ok(if cost == INFINITE {
             PlanStatus::NoPath
@@ -524,17 +543,21 @@ impl<const CELLS: usize, const QUEUE: usize> DStarLite<CELLS, QUEUE> {
 
     /// Account for start moves in `km` (always valid: by the triangle inequality the stored keys remain
     /// lower bounds of the fresh ones).
+    ///
+    /// Also re-keys the whole queue, with fresh keys (`km` back at 0), when `km` grows large or when the
+    /// first search has just switched the tie-break to the paper's order.
     fn sync_start(&mut self) {
-        if self.start == self.last_start {
-            return;
+        if self.start != self.last_start {
+            self.km = self.km.saturating_add(octile(self.last_start, self.start));
+            self.last_start = self.start;
         }
-        self.km = self.km.saturating_add(octile(self.last_start, self.start));
-        self.last_start = self.start;
-        if self.km > KM_REKEY_LIMIT {
+        if self.km > KM_REKEY_LIMIT || self.rekey_pending {
             self.km = 0;
-            let (shape, start, g) = (self.shape, self.start, &self.g);
-            self.open
-                .rekey(|cell, rhs| key_of(octile(start, shape.cell(cell)), 0, g[cell], rhs));
+            self.rekey_pending = false;
+            let (shape, start, g, deepest_first) = (self.shape, self.start, &self.g, self.deepest_first);
+            self.open.rekey(|cell, rhs| {
+                key_of(octile(start, shape.cell(cell)), 0, g[cell], rhs, deepest_first)
+            });
         }
     }
 
@@ -551,7 +574,7 @@ impl<const CELLS: usize, const QUEUE: usize> DStarLite<CELLS, QUEUE> {
         let dy = y.abs_diff(i32::from(self.start.y));
         let (lo, hi) = if dx < dy { (dx, dy) } else { (dy, dx) };
         let h = u32::from(STRAIGHT_COST) * hi + u32::from(DIAGONAL_COST - STRAIGHT_COST) * lo;
-        key_of(h, self.km, g, rhs)
+        key_of(h, self.km, g, rhs, self.deepest_first)
     }
 
     /// D* Lite's UpdateVertex with the new `rhs`: queue the cell iff it is inconsistent.

@@ -270,6 +270,14 @@ fn bench() -> Result<(), ()> {
             b.replan.cost
         );
     }
+    // The first replan after a first plan is the same call for every k; the first plan's remaining work.
+    let first_replan = report.boxes[0].first_replan;
+    hprintln!("first_replan_instructions={}", first_replan.instructions);
+    hprintln!("first_replan_expansions={}", first_replan.expansions);
+    hprintln!(
+        "first_plan_and_first_replan_instructions={}",
+        first.instructions + first_replan.instructions
+    );
     let boxes = || report.boxes.iter().map(|b| &b.replan);
     hprintln!("box_replans={}", report.boxes.len());
     print_summary("box_instructions", summary_of(boxes(), |s| s.instructions));

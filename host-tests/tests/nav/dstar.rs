@@ -5,7 +5,7 @@ use cfnav::nav::dstar::{DStarLite, PlanError, PlanStatus};
 use cfnav::nav::map::{Cell, GridShape};
 use cfnav::nav::path::{PathError, extract_path};
 use heapless::Vec as HVec;
-use host_tests::oracle::{VecMap, dijkstra, parse, path_cost};
+use host_tests::oracle::{VecMap, dijkstra, moves, parse, path_cost};
 use proptest::prelude::*;
 use rand::rngs::SmallRng;
 use rand::{Rng, SeedableRng};
@@ -355,6 +355,59 @@ proptest! {
             let s = solve(&mut p, &map);
             path = check_against_oracle(&*p, &map, s, &ctx);
         }
+    }
+}
+
+/// The path the mission flies, by its geometric rule alone (independent of any search order): from the
+/// start, step to the first of +x, +y, −x, −y, then the diagonals (+1,+1), (−1,+1), (−1,−1), (+1,−1) that
+/// lies on some shortest path (move cost + Dijkstra's cost-to-goal = the cell's own cost-to-goal).
+fn straight_first_path(map: &VecMap, start: Cell, goal: Cell) -> Option<Vec<Cell>> {
+    const ORDER: [(i32, i32); 8] = [(1, 0), (0, 1), (-1, 0), (0, -1), (1, 1), (-1, 1), (-1, -1), (1, -1)];
+    let mut remaining = dijkstra(map, start, goal)?;
+    let mut path = vec![start];
+    let mut here = start;
+    while here != goal {
+        let legal = moves(map, here);
+        let (next, rest) = ORDER
+            .iter()
+            .filter_map(|&(dx, dy)| {
+                let (x, y) = (i32::from(here.x) + dx, i32::from(here.y) + dy);
+                let &(n, c) = legal.iter().find(|(n, _)| i32::from(n.x) == x && i32::from(n.y) == y)?;
+                let rest = dijkstra(map, n, goal)?;
+                (c + rest == remaining).then_some((n, rest))
+            })
+            .next()
+            .expect("a cell on a shortest path has a successor on one");
+        path.push(next);
+        (here, remaining) = (next, rest);
+    }
+    Some(path)
+}
+
+proptest! {
+    #![proptest_config(ProptestConfig::with_cases(300))]
+    /// Which of several shortest paths is flown does not depend on the first search's tie-break: after
+    /// the first replan (here one without any change, as the mission's next tick) the path read off is the
+    /// straight-first one of [`straight_first_path`], the choice the mission flew before the first search
+    /// went deepest-first (that order alone reads off whichever optimal path it happened to expand).
+    #[test]
+    fn after_the_first_replan_the_path_is_the_straight_first_one(
+        seed in any::<u64>(),
+        w in 2u16..16,
+        h in 2u16..12,
+        density_pct in 0u8..35,
+        ends in (any::<u16>(), any::<u16>(), any::<u16>(), any::<u16>()),
+    ) {
+        let start = Cell::new(ends.0 % w, ends.1 % h);
+        let goal = Cell::new(ends.2 % w, ends.3 % h);
+        let map = seeded_map(seed, w, h, density_pct, &[start, goal]);
+        let mut p: Box<SmallPlanner> = boxed();
+        p.reset(belief_shape(&map), start, goal).unwrap();
+        let s = solve(&mut p, &map);
+        check_against_oracle(&*p, &map, s, "first plan");
+        let s = solve(&mut p, &map);
+        let path = check_against_oracle(&*p, &map, s, "first replan");
+        prop_assert_eq!(path, straight_first_path(&map, start, goal));
     }
 }
 

@@ -27,16 +27,21 @@
 //! - Changed cells: when a cell's blocked state flips, the edges that change are those entering it and the
 //!   diagonals that pass beside it; all of them leave one of its 8 neighbours, so those neighbours get their
 //!   `rhs` recomputed from their successors and are re-queued as needed.
-//! - Ties on `f = min(g, rhs) + h + km` are broken in two classes (see `key_of`): under-consistent cells
-//!   first (smaller `g` first, as in the paper), because a cell whose `g` is too small can tie with the
-//!   start or with a cell whose `rhs` came through it and must be raised first; then over-consistent and
-//!   consistent cells, the one nearest the start (larger `rhs`) first, as an A* prefers deep nodes. The
-//!   octile heuristic is exact on open ground, so every cell on some optimal path ties on `f`; the paper's
-//!   smaller-`g`-first order expands all of them before stopping (424 cells for the seed map's 89-cell first
-//!   path), this order walks one optimal path and stops at the start (88). The Dijkstra-oracle tests in
-//!   `host-tests/tests/nav/dstar.rs` catch a plain deepest-first order (it returns wrong costs after
-//!   blocks); this one passes them. Price: a replan after an obstacle on the path has fewer pre-computed
-//!   alternatives (a 20 cm box on the seed path: 169 expansions, 9 with the paper's order).
+//! - Ties on `f = min(g, rhs) + h + km`: the octile heuristic is exact on open ground, so every cell on
+//!   some optimal path ties on `f`. The paper's order (smaller `min(g, rhs)` first) expands all of them
+//!   before stopping: 424 cells for the seed map's 89-cell first path. The *first search* after
+//!   [`DStarLite::reset`] breaks ties in two classes instead (see `key_of`): under-consistent cells first
+//!   (a cell whose `g` is too small can tie with the start or with a cell whose `rhs` came through it and
+//!   must be raised first), then the settling cell nearest the start (larger `rhs`) first, as an A* prefers
+//!   deep nodes; it walks one optimal path and stops at the start (88 expansions), so the first path is
+//!   ready in a quarter of the work. Every later repair uses the paper's order (the queue is re-keyed once,
+//!   at the first call after the first search): the first replan then expands the remaining optimal cells
+//!   (336 on the seed map), after which every optimal path is known, so [`DStarLite::next_cell`]'s
+//!   straight-first choice among them is a geometric rule, not an accident of expansion order (the mission
+//!   flies the same paths as with the paper's order throughout), and an obstacle dropped on the path finds a
+//!   computed alternative (a 20 cm box on the seed path: 9 expansions; 169 if the first search's order were
+//!   kept). The Dijkstra-oracle tests in `host-tests/tests/nav/dstar.rs` cover both orders and the switch,
+//!   and catch a plain deepest-first order (wrong costs after blocks).
 //! - The search stops as soon as the start is consistent and its key is not above the queue's top
 //!   (the start's key is recomputed only when the start was expanded or its `rhs` changed).
 //! - Move checks read the 4 straight neighbours of a cell once: a diagonal between a cell and its neighbour
@@ -47,7 +52,7 @@
 //!   answer ([`PlanStatus::NoPath`]), never a hang.
 //!
 //! Memory: `g` `2·CELLS` bytes + the queue `2·CELLS + 10·QUEUE` bytes + a few scalars. The firmware's
-//! [`ArenaPlanner`] (7200 cells, 1024 queue entries) takes 39 076 B.
+//! [`ArenaPlanner`] (7200 cells, 1024 queue entries) takes 39 080 B.
 //!
 //! Complexity: a repair expands `O(k)` cells for `k` affected cells, each expansion `O(8 · log QUEUE)`.
 //! If the queue overflows the planner refuses further work ([`PlanError::QueueFull`]) until
@@ -198,8 +203,9 @@ fn add_cost(c: u16, g: u16) -> u16 {
 
 /// The queue key of a cell with `g` and `rhs` whose heuristic is `h`, under the key modifier `km`.
 ///
-/// D* Lite orders by `f = min(g, rhs) + h + km` first (the paper's `k1`); this key is `2·f + tag` so that
-/// ties on `f` are broken in two classes:
+/// D* Lite orders by `f = min(g, rhs) + h + km` first (the paper's `k1`); this key's `k1` is `2·f + tag`.
+/// Without `deepest_first` the tag is 0 and ties on `f` go to the smaller `min(g, rhs)` (the paper's
+/// `k2`). With it (the first search) ties on `f` are broken in two classes:
 /// - under-consistent cells (`g < rhs`) first, smaller `g` first, as in the paper. They must come first:
 ///   a cell whose `g` is too small (its path was cut) can tie on `f` with the start or with an
 ///   over-consistent cell whose `rhs` was computed through it, and must be raised before either is settled
@@ -555,9 +561,8 @@ impl<const CELLS: usize, const QUEUE: usize> DStarLite<CELLS, QUEUE> {
             self.km = 0;
             self.rekey_pending = false;
             let (shape, start, g, deepest_first) = (self.shape, self.start, &self.g, self.deepest_first);
-            self.open.rekey(|cell, rhs| {
-                key_of(octile(start, shape.cell(cell)), 0, g[cell], rhs, deepest_first)
-            });
+            self.open
+                .rekey(|cell, rhs| key_of(octile(start, shape.cell(cell)), 0, g[cell], rhs, deepest_first));
         }
     }
 

@@ -693,7 +693,10 @@ mod tests {
         for b in &report.boxes {
             // Every re-plan from scratch repeats the first plan exactly, and every box changes cells.
             assert_eq!(b.baseline_expansions, first.expansions);
-            assert_eq!(b.first_replan.cost, first.cost, "a replan without changes keeps the cost");
+            assert_eq!(
+                b.first_replan.cost, first.cost,
+                "a replan without changes keeps the cost"
+            );
             assert!(b.replan.changed > 0 && b.replan.changed <= 16);
             assert!(b.replan.cost >= first.cost);
         }

@@ -530,9 +530,8 @@ fn with_nominal_clocks_the_deck_reader_polls_little() {
     let (polls_before, busy_before, t0) = (bus.ready_polls, bus.busy_ns, clock.ns());
     let m = run_deck_reader(&mut bus, &clock, z, &multi, 0.0, 10.0);
     assert!(m.z_rate_of_odr() >= 0.97, "{:.3}", m.z_rate_of_odr());
-    for sensor in 0..6 {
-        let polls = bus.ready_polls[sensor] - polls_before[sensor];
-        let per_reading = polls as f64 / m.read[sensor].max(1) as f64;
+    for (sensor, (after, before)) in bus.ready_polls.iter().zip(polls_before).enumerate() {
+        let per_reading = (after - before) as f64 / m.read[sensor].max(1) as f64;
         assert!(
             per_reading <= 8.0,
             "sensor {sensor}: {per_reading:.1} polls per reading"

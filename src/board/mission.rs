@@ -5,8 +5,11 @@
 //!
 //! Messages: takes [`super::MISSION_REQUESTS`] (start/abort from the radio) and [`super::NAV_INPUTS`]
 //! (height and Multi-ranger readings with their estimates), reads [`super::fast_status`], sends
-//! [`MissionCommand`]s to the control task through [`super::FAST_INPUTS`] (awaiting a free slot, so a start
-//! or a setpoint is never dropped), answers start requests on [`super::START_OUTCOME`].
+//! [`MissionCommand`]s to the control task through [`super::FAST_INPUTS`] (awaiting a free slot while the
+//! control loop runs, so a start or a setpoint is never dropped; dropped when no control loop was started,
+//! e.g. after an IMU fault: nothing drains the channel then, and awaiting it would stop thread mode, the
+//! watchdog would reset the MCU and the fault LEDs would never show), answers start requests on
+//! [`super::START_OUTCOME`].
 
 use core::mem::MaybeUninit;
 use core::sync::atomic::{AtomicBool, Ordering};
@@ -19,8 +22,9 @@ use defmt::{info, warn};
 use embassy_time::{Duration, Ticker, Timer};
 
 use super::{
-    CONTROL_STEPS, DECKS_OK, FAST_INPUTS, FastInput, LOAD, MISSION_REQUESTS, MISSION_RUNNING, MissionRequest,
-    NAV_INPUTS, NavInput, START_OUTCOME, THREAD_BEATS, cycles, fast_status, now_us, update_log, yield_now,
+    CONTROL_RUNNING, CONTROL_STEPS, DECKS_OK, FAST_INPUTS, FastInput, LOAD, MISSION_REQUESTS, MISSION_RUNNING,
+    MissionRequest, NAV_INPUTS, NavInput, START_OUTCOME, THREAD_BEATS, cycles, fast_status, now_us, update_log,
+    yield_now,
 };
 
 /// The navigator sized for the firmware's arena.
@@ -50,6 +54,18 @@ pub fn take_navigator(config: &FlightConfig) -> Option<&'static mut FwNavigator>
     // else, so this is the only reference ever made to it; the slot is valid, aligned, 'static storage, and
     // writing a fully initialised value into a `MaybeUninit` is always sound.
     Some(unsafe { (*slot).write(navigator) })
+}
+
+/// Hands a command to the control task: waits for a free slot while the control loop runs (it drains the
+/// channel every millisecond; if it stops, the watchdog's control rule resets the MCU); without a control
+/// loop (a boot fault: the motors stay off) the command is dropped when the channel is full, so the
+/// mission task, thread mode's heartbeat, never waits for a reader that does not exist.
+async fn send_to_control(command: MissionCommand) {
+    if CONTROL_RUNNING.load(Ordering::Acquire) {
+        FAST_INPUTS.send(FastInput::Mission(command)).await;
+    } else {
+        let _ = FAST_INPUTS.try_send(FastInput::Mission(command));
+    }
 }
 
 /// The 50 Hz mission loop.
@@ -92,7 +108,7 @@ pub async fn mission_task(nav: &'static mut FwNavigator) {
         // The start message must reach the stabilizer before the first mission tick: the tick reads the
         // re-anchored estimate. Wait until the control loop has run a few steps since it was queued.
         if let Some(command) = started {
-            FAST_INPUTS.send(FastInput::Mission(command)).await;
+            send_to_control(command).await;
             let queued_at = CONTROL_STEPS.load(Ordering::Acquire);
             // Bounded: with the control loop down (a fault) nothing flies anyway.
             for _ in 0..50 {
@@ -110,7 +126,7 @@ pub async fn mission_task(nav: &'static mut FwNavigator) {
         let state = nav.state();
         LOAD.end(section, cycles());
         if let Some(command @ MissionCommand::Setpoint { .. }) = command {
-            FAST_INPUTS.send(FastInput::Mission(command)).await;
+            send_to_control(command).await;
         }
         MISSION_RUNNING.store(running, Ordering::Release);
         if was_running && !running {

@@ -10,7 +10,8 @@
 //!
 //! Bring-up order on the deck bus (`cfnav::drivers::multiranger`): the expander holds the five Multi-ranger
 //! sensors in reset first, so only the Flow deck's ranger answers at 0x29; it moves to 0x6A; then the
-//! Multi-ranger sensors come up one by one. One task owns I2C1 afterwards and reads both decks.
+//! Multi-ranger sensors come up one by one. One task owns I2C1 afterwards and reads both decks without
+//! waiting on any sensor ([`deck_task`]).
 //! * EEPROM at 0x50 on I2C1: the config block (radio settings), read once at boot.
 //!
 //! Deck presence is decided by probing at boot (the PMW3901's identity, the expander answering); the
@@ -18,7 +19,7 @@
 //! ([`super::DECKS_OK`]).
 
 use cfnav::drivers::i2c_guard::{BusRecovery, GuardConfig, GuardedI2c};
-use cfnav::drivers::multiranger::{FIRST_ADDRESS, FLOW_DECK_Z_ADDRESS, MultiRanger};
+use cfnav::drivers::multiranger::{DeckReader, FIRST_ADDRESS, FLOW_DECK_Z_ADDRESS, MultiRanger};
 use cfnav::drivers::pca95x4;
 use cfnav::drivers::pmw3901::Pmw3901;
 use cfnav::drivers::vl53l1x::{RangingConfig, Vl53l1x};
@@ -33,7 +34,7 @@ use embassy_stm32::pac;
 use embassy_stm32::pac::gpio::vals as gpio_vals;
 use embassy_stm32::spi::Spi;
 use embassy_stm32::spi::mode::Master as SpiMaster;
-use embassy_time::{Delay, Duration, Ticker, Timer, with_timeout};
+use embassy_time::{Delay, Duration, Instant, Ticker, Timer, with_timeout};
 use embedded_hal_async::i2c::I2c as _;
 use embedded_hal_async::spi::{ErrorType, Operation, SpiDevice};
 
@@ -309,41 +310,35 @@ fn range_mm(range: RangeReading) -> u16 {
     }
 }
 
-/// Height ranger period (stock `zranger2.c`: 25 ms).
-pub const ZRANGE_PERIOD: Duration = Duration::from_millis(25);
+/// Height ranger period (stock `zranger2.c`: 25 ms), ms.
+pub const ZRANGE_PERIOD_MS: u32 = RangingConfig::FLOW_DECK_Z.inter_measurement_ms;
+/// Multi-ranger beam period (stock `multiranger.c`: 100 ms), ms.
+pub const BEAM_PERIOD_MS: u32 = RangingConfig::MULTI_RANGER.inter_measurement_ms;
 
-/// The deck bus: the height ranger at 40 Hz → control task, the Multi-ranger every 4th period (10 Hz) →
-/// mission task; both into the log variables.
+/// The deck bus: the height ranger (40 Hz) → control task, the Multi-ranger's sweeps (10 Hz) → control
+/// and mission tasks; both into the log variables. Never waits on a sensor: `cfnav`'s [`DeckReader`]
+/// polls each sensor's data-ready only from shortly before its next reading is due and reads it at once,
+/// so the beams' drifting clocks cannot starve the height reading (issue 12 item 5); the task sleeps until
+/// the next sensor is due.
 #[embassy_executor::task]
-pub async fn deck_task(mut i2c: DeckI2c, mut rangers: DeckRangers) {
-    let mut ticker = Ticker::every(ZRANGE_PERIOD);
-    let mut tick = 0u32;
+pub async fn deck_task(mut i2c: DeckI2c, rangers: DeckRangers) {
+    let beams = rangers.multi.map(|m| m.sensors_in_order()).unwrap_or([None; 5]);
+    let mut reader = DeckReader::new(rangers.z, ZRANGE_PERIOD_MS, beams, BEAM_PERIOD_MS, now_us());
     let mut errors = 0u32;
-    let mut reported = 0u32;
+    let mut restarts = 0u32;
     loop {
-        ticker.next().await;
-        tick = tick.wrapping_add(1);
-        if let Some(z) = rangers.z.as_mut() {
-            match z.data_ready(&mut i2c).await {
-                Ok(true) => match z.read_range(&mut i2c).await {
-                    Ok(range) => {
-                        let _ = FAST_INPUTS.try_send(FastInput::ZRange(range));
-                        update_log(|s| s.flight.ranges_mm[5] = range_mm(range));
-                    }
-                    Err(_) => errors = errors.saturating_add(1),
-                },
-                Ok(false) => {}
-                Err(_) => errors = errors.saturating_add(1),
-            }
+        let Some(due_us) = reader.next_due_us() else {
+            // No ranger came up: nothing to read, ever.
+            core::future::pending::<()>().await;
+            continue;
+        };
+        Timer::at(Instant::from_micros(due_us)).await;
+        let events = reader.service(&mut i2c, &mut now_us).await;
+        if let Some(range) = events.z {
+            let _ = FAST_INPUTS.try_send(FastInput::ZRange(range));
+            update_log(|s| s.flight.ranges_mm[5] = range_mm(range));
         }
-        if tick.is_multiple_of(4)
-            && let Some(multi) = rangers.multi.as_mut()
-        {
-            let outcome = multi.read_all(&mut i2c, &mut Delay).await;
-            if outcome.faults.iter().any(Option::is_some) {
-                errors = errors.saturating_add(1);
-            }
-            let sample = outcome.sample;
+        if let Some(sample) = events.sweep {
             let _ = FAST_INPUTS.try_send(FastInput::MultiRanger(sample));
             // Dropped if the mission is behind (it drains every 20 ms): the next sweep is 100 ms later.
             let _ = NAV_INPUTS.try_send(NavInput::MultiRanger(sample, fast_status().estimate));
@@ -357,11 +352,22 @@ pub async fn deck_task(mut i2c: DeckI2c, mut rangers: DeckRangers) {
                 ]);
             });
         }
-        if errors != reported {
-            if errors.is_power_of_two() {
-                warn!("deck ranger read errors: {} so far", errors);
+        if events.errors > 0 {
+            let before = errors;
+            errors = errors.saturating_add(events.errors);
+            if (before + 1..=errors).any(u32::is_power_of_two) {
+                warn!(
+                    "deck ranger read errors: {} so far ({})",
+                    errors,
+                    defmt::Debug2Format(&events.first_error)
+                );
             }
-            reported = errors;
+        }
+        if events.restarts > 0 {
+            restarts = restarts.saturating_add(events.restarts);
+            if restarts.is_power_of_two() {
+                warn!("deck rangers restarted (reading overdue): {} so far", restarts);
+            }
         }
     }
 }

@@ -2,6 +2,7 @@
 //! buses.
 
 mod bmi088;
+mod deck_schedule;
 mod i2c_guard;
 mod multiranger;
 mod pca95x4;

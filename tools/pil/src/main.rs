@@ -3,8 +3,9 @@
 //! LEDs through the GPIO model, the defmt log from its RTT buffer, FLASH_ACR, watchdog resets, the syslink
 //! packets it sends, and its I2C traffic to the BMI088 model.
 //!
-//! Milestone 1 of issue 15 (docs/pil.md): the image boots to "ready". Exit 0 when the LEDs showed "ready" for
-//! a whole second, 1 when they did not within the time limit, 2 on a usage or setup error.
+//! Milestone 1 of issue 15 (docs/pil.md): the image boots to "ready". Exit 0 when the LEDs showed the expected
+//! status (`--expect`: "ready" by default, "fault" for a fault that must end safe) for a whole second and the
+//! IWDG never reset the core, 1 when not within the time limit, 2 on a usage or setup error.
 //!
 //! Determinism: the machine is a pure function of the image and the options (no host clock reaches it); the
 //! report's `fingerprint` hashes the LED samples, the log and the syslink bytes so two runs can be compared.
@@ -26,7 +27,7 @@ use clap::Parser;
 use serde::Serialize;
 
 use cfnav::radio::syslink::{SyslinkDecoder, SyslinkPacket, encode, kind};
-use cfnav::system::status_led::LedFrame;
+use cfnav::system::status_led::{BoardStatus, LedFrame};
 
 use crate::board::{Board, FLASH_ACR, GPIOC_ODR, GPIOD_ODR, RCC_CSR};
 use crate::devices::{BusStats, Faults};
@@ -43,9 +44,12 @@ struct Args {
     /// Virtual seconds to run at most.
     #[arg(long, default_value_t = 4.0)]
     seconds: f64,
-    /// Keep running after "ready" was seen (until --seconds).
+    /// Keep running after the expected status was seen (until --seconds).
     #[arg(long)]
     no_stop: bool,
+    /// The LED status that counts as success: ready, fault, booting, mission_running, battery_low.
+    #[arg(long, default_value = "ready")]
+    expect: String,
     /// Inject a fault: bmi088-reset-nack (the IMU does not acknowledge its soft reset), sensor-bus-dead
     /// (nothing on I2C3 acknowledges). Repeatable.
     #[arg(long = "fault")]
@@ -83,6 +87,10 @@ struct Report {
     ready: bool,
     /// Virtual ms at which the first whole second of "ready" began.
     ready_at_ms: Option<u64>,
+    /// The status asked for with `--expect`.
+    expected: &'static str,
+    /// Virtual ms at which the first whole second of the expected status began.
+    expected_at_ms: Option<u64>,
     /// The status the last whole second of LEDs showed, if one.
     final_status: Option<&'static str>,
     /// Each status the LEDs showed and when (the start of its first whole-second window), in order.
@@ -138,6 +146,19 @@ fn parse_faults(names: &[String]) -> Result<Faults> {
     Ok(f)
 }
 
+fn parse_status(name: &str) -> Result<BoardStatus> {
+    [
+        BoardStatus::Booting,
+        BoardStatus::Ready,
+        BoardStatus::MissionRunning,
+        BoardStatus::LowBattery,
+        BoardStatus::Fault,
+    ]
+    .into_iter()
+    .find(|&s| leds::name(s) == name)
+    .with_context(|| format!("unknown --expect `{name}` (known: booting, ready, mission_running, battery_low, fault)"))
+}
+
 /// The nRF51's answers to what the image sends: the radio settings are echoed (as the nRF firmware does,
 /// crazyflie-hardware.md §3.3), RADIO_READY is acknowledged with the same type.
 fn nrf_answer(packet: &SyslinkPacket) -> Option<SyslinkPacket> {
@@ -157,6 +178,7 @@ fn run(args: &Args) -> Result<(Report, bool)> {
         bail!("--seconds must be in (0, 600]");
     }
     let faults = parse_faults(&args.faults)?;
+    let expected = parse_status(&args.expect)?;
     let elf_path = args.elf.clone().unwrap_or_else(default_elf);
     let elf = std::fs::read(&elf_path).with_context(|| {
         format!(
@@ -178,6 +200,7 @@ fn run(args: &Args) -> Result<(Report, bool)> {
     let mut samples: std::collections::VecDeque<(u64, LedFrame)> = Default::default();
     let mut timeline: Vec<(u64, &'static str)> = Vec::new();
     let mut ready_at_ms = None;
+    let mut expected_at_ms = None;
     let mut final_status = None;
     let mut fp = Fnv::new();
     let mut decoder = SyslinkDecoder::new();
@@ -224,8 +247,11 @@ fn run(args: &Args) -> Result<(Report, bool)> {
                 if timeline.last().map(|&(_, n)| n) != Some(leds::name(s)) {
                     timeline.push((start, leds::name(s)));
                 }
-                if s == cfnav::system::status_led::BoardStatus::Ready && ready_at_ms.is_none() {
+                if s == BoardStatus::Ready && ready_at_ms.is_none() {
                     ready_at_ms = Some(start);
+                }
+                if s == expected && expected_at_ms.is_none() {
+                    expected_at_ms = Some(start);
                 }
             }
         }
@@ -248,7 +274,7 @@ fn run(args: &Args) -> Result<(Report, bool)> {
                 }
             }
         }
-        if ready_at_ms.is_some() && !args.no_stop {
+        if expected_at_ms.is_some() && !args.no_stop {
             break;
         }
     }
@@ -269,6 +295,7 @@ fn run(args: &Args) -> Result<(Report, bool)> {
         .map(|l| l.text.clone())
         .collect();
     let ready = ready_at_ms.is_some();
+    let passed = expected_at_ms.is_some() && !iwdg_reset_flag;
     let report = Report {
         elf: elf_path.display().to_string(),
         elf_fnv: {
@@ -280,6 +307,8 @@ fn run(args: &Args) -> Result<(Report, bool)> {
         outcome: if ready { "ready" } else { "not_ready" },
         ready,
         ready_at_ms,
+        expected: leds::name(expected),
+        expected_at_ms,
         final_status: final_status.map(leds::name),
         status_timeline: timeline,
         virtual_s: board.now_ns() as f64 / 1e9,
@@ -299,19 +328,21 @@ fn run(args: &Args) -> Result<(Report, bool)> {
         fingerprint: format!("{:016x}", fp.0),
         log,
     };
-    Ok((report, ready))
+    Ok((report, passed))
 }
 
 fn main() -> ExitCode {
     let args = Args::parse();
     match run(&args) {
-        Ok((report, ready)) => {
+        Ok((report, passed)) => {
             println!(
-                "outcome={} ready_at_ms={} final_status={} virtual_s={:.3} wall_s={:.2} acr_caches_on={} \
+                "outcome={} ready_at_ms={} expected={} expected_at_ms={} final_status={} virtual_s={:.3} wall_s={:.2} acr_caches_on={} \
                  acr_latency_ws={} iwdg_reset_flag={} boots_logged={} log_lines={} log_errors={} \
                  imu_soft_resets={} imu_nacked_bytes={} syslink_packets={} fingerprint={}",
                 report.outcome,
                 report.ready_at_ms.map_or_else(|| "-".to_string(), |t| t.to_string()),
+                report.expected,
+                report.expected_at_ms.map_or_else(|| "-".to_string(), |t| t.to_string()),
                 report.final_status.unwrap_or("-"),
                 report.virtual_s,
                 report.wall_s,
@@ -342,7 +373,7 @@ fn main() -> ExitCode {
                     return ExitCode::from(2);
                 }
             }
-            if ready { ExitCode::SUCCESS } else { ExitCode::from(1) }
+            if passed { ExitCode::SUCCESS } else { ExitCode::from(1) }
         }
         Err(e) => {
             eprintln!("error: {e:#}");

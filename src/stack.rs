@@ -37,11 +37,13 @@
 //! under 2 KB; a [`FastStatus`] is about 120 bytes, a [`MissionCommand`] about 40.
 
 use crate::flight::control::{ControlOutput, Controller, ControllerConfig};
+use crate::flight::estimator::map_fix::{CONFIRMED_LOG_ODDS, MapFixes, RayGrid, cast_fixes};
 use crate::flight::estimator::{Estimator, EstimatorConfig};
 use crate::flight::high_level::{HighLevel, HlCommand, HlPhase, HlRefusal};
 use crate::flight::supervisor::{
     Supervisor, SupervisorConfig, SupervisorInput, SupervisorOutput, SupervisorState, clamp_min_height,
 };
+use crate::nav::map::{CELL_SIZE_M, Cell};
 use crate::mission::{Mission, MissionConfig, MissionInputs, MissionParams, MissionState, StartRefusal};
 use crate::types::{
     FlowSample, ImuSample, Micros, MotorDuty, MultiRangerSample, RangeReading, Setpoint, StateEstimate,
@@ -130,6 +132,9 @@ pub enum MissionCommand {
         /// The take-off point, arena frame, m.
         start_m: (f32, f32),
     },
+    /// The map-relative fixes of a Multi-ranger sweep (module `estimator::map_fix`), cast against the map
+    /// as it was before the sweep was written into it.
+    MapFixes(MapFixes),
 }
 
 /// The fast part: estimator, supervisor and controller, and the setpoint in force. See the module docs.
@@ -337,6 +342,7 @@ impl Stabilizer {
                 let yaw = self.estimator.state().attitude_rad[2];
                 self.estimator.reset([start_m.0, start_m.1, 0.0], yaw);
             }
+            MissionCommand::MapFixes(fixes) => self.estimator.on_map_fixes(&fixes),
         }
     }
 
@@ -432,9 +438,54 @@ impl<const CELLS: usize, const QUEUE: usize> Navigator<CELLS, QUEUE> {
         self.mission.on_zrange(range, estimate);
     }
 
-    /// The Multi-ranger's five beams with the current estimate (mapping, avoidance).
-    pub fn on_multiranger(&mut self, sample: &MultiRangerSample, estimate: &StateEstimate) {
+    /// The Multi-ranger's five beams with the current estimate (mapping, avoidance). Returns the sweep's
+    /// map-relative fixes for the stabilizer, if any: cast first, against the map as it was, then the sweep
+    /// is written (module `estimator::map_fix`). Fixes are cast only while the mission maps (a flying phase
+    /// at mapping height, the estimate valid), so the map and the fixes see the same beams.
+    pub fn on_multiranger(&mut self, sample: &MultiRangerSample, estimate: &StateEstimate) -> Option<MissionCommand> {
+        let fixes = self.map_fixes(sample, estimate);
         self.mission.on_ranges(sample, estimate);
+        fixes.map(MissionCommand::MapFixes)
+    }
+
+    /// Casts the sweep's fixes against the mission's map (see [`Navigator::on_multiranger`]).
+    fn map_fixes(&self, sample: &MultiRangerSample, estimate: &StateEstimate) -> Option<MapFixes> {
+        use MissionState as S;
+        let mapping = matches!(
+            self.mission.state(),
+            S::TakeOffOutbound
+                | S::TakeOffReturn
+                | S::NavigateToGoal
+                | S::NavigateHome
+                | S::SearchGoalPad
+                | S::SearchHomePad
+                | S::ApproachGoalPad
+                | S::ApproachHomePad
+                | S::NoPathHover
+        );
+        let params = self.mission.params();
+        if !(mapping && estimate.valid && estimate.position_m[2] >= 0.8 * params.height_m) {
+            return None;
+        }
+        let map = self.mission.grid();
+        let shape = map.shape();
+        let grid = RayGrid {
+            width: i32::from(shape.width),
+            height: i32::from(shape.height),
+            cell_m: CELL_SIZE_M,
+            arena_m: params.arena_m,
+        };
+        // (The ray cast asks only cells inside the grid.)
+        let cell = |x: i32, y: i32| Cell::new(x as u16, y as u16);
+        let fixes = cast_fixes(
+            &grid,
+            sample,
+            [estimate.position_m[0], estimate.position_m[1]],
+            estimate.attitude_rad[2],
+            |x, y| map.log_odds(cell(x, y)) >= CONFIRMED_LOG_ODDS,
+            |x, y| shape.contains(x, y) && map.is_occupied(cell(x, y)),
+        );
+        (!fixes.is_empty()).then_some(fixes)
     }
 
     /// 50 Hz: one mission step (at most one bounded planner slice). Returns the setpoint for the stabilizer,
@@ -533,11 +584,13 @@ impl<const CELLS: usize, const QUEUE: usize> FlightCore<CELLS, QUEUE> {
         self.navigator.on_zrange(range, &estimate);
     }
 
-    /// 10 Hz: the Multi-ranger's five beams.
+    /// 10 Hz: the Multi-ranger's five beams (the sweep's map fixes go to the stabilizer at once).
     pub fn on_multiranger(&mut self, sample: &MultiRangerSample) {
         self.stabilizer.on_multiranger(sample);
         let estimate = self.stabilizer.estimate();
-        self.navigator.on_multiranger(sample, &estimate);
+        if let Some(command) = self.navigator.on_multiranger(sample, &estimate) {
+            self.stabilizer.apply(command);
+        }
     }
 
     /// 100 Hz: the battery voltage reported by the power controller, V.

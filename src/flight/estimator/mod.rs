@@ -189,6 +189,7 @@ mod calib;
 mod ekf_math;
 mod predict;
 mod surface;
+pub mod map_fix;
 mod updates;
 pub mod wall_hold;
 
@@ -317,6 +318,11 @@ pub struct EstimatorConfig {
     pub wall_std_relative: f32,
     /// Wall readings whose innovation exceeds this many standard deviations are rejected. Default 3.
     pub wall_gate_sigma: f32,
+    /// Fuse the map-relative fixes the navigator casts from each Multi-ranger sweep (module `map_fix`,
+    /// [`Estimator::on_map_fixes`]). Default true.
+    pub map_fix: bool,
+    /// Map fixes whose innovation exceeds this many standard deviations are rejected. Default 3.
+    pub map_fix_gate_sigma: f32,
     /// Gravity-direction update std at rest on the ground, m/s² per axis. Default 0.2.
     pub rest_accel_std_m_s2: f32,
     /// Initial std of x and y at a reset, m. Default 0.05 (the start pad's position is known).
@@ -367,6 +373,8 @@ impl Default for EstimatorConfig {
             wall_std_floor_m: 0.005,
             wall_std_relative: 0.02,
             wall_gate_sigma: 3.0,
+            map_fix: true,
+            map_fix_gate_sigma: 3.0,
             rest_accel_std_m_s2: 0.2,
             initial_std_xy_m: 0.05,
             initial_std_z_m: 0.02,
@@ -434,6 +442,8 @@ impl EstimatorConfig {
             wall_std_floor_m: pos(self.wall_std_floor_m, d.wall_std_floor_m),
             wall_std_relative: nonneg(self.wall_std_relative, d.wall_std_relative),
             wall_gate_sigma: pos(self.wall_gate_sigma, d.wall_gate_sigma),
+            map_fix: self.map_fix,
+            map_fix_gate_sigma: pos(self.map_fix_gate_sigma, d.map_fix_gate_sigma),
             rest_accel_std_m_s2: pos(self.rest_accel_std_m_s2, d.rest_accel_std_m_s2),
             initial_std_xy_m: pos(self.initial_std_xy_m, d.initial_std_xy_m),
             initial_std_z_m: pos(self.initial_std_z_m, d.initial_std_z_m),
@@ -529,6 +539,10 @@ pub struct Diagnostics {
     pub wall_fused: u32,
     /// Wall ranges rejected by the gate.
     pub wall_rejected: u32,
+    /// Map-relative fixes fused (module `map_fix`).
+    pub map_fused: u32,
+    /// Map-relative fixes rejected by the gate.
+    pub map_rejected: u32,
 }
 
 /// The estimator. See the module documentation.

@@ -37,7 +37,7 @@
 //! under 2 KB; a [`FastStatus`] is about 120 bytes, a [`MissionCommand`] about 40.
 
 use crate::flight::control::{ControlOutput, Controller, ControllerConfig};
-use crate::flight::estimator::map_fix::{CONFIRMED_LOG_ODDS, MapFixes, RayGrid, cast_fixes};
+use crate::flight::estimator::map_fix::{CONFIRMED_LOG_ODDS, Landmarks, MapFixes, RayGrid, cast_fixes};
 use crate::flight::estimator::{Estimator, EstimatorConfig};
 use crate::flight::high_level::{HighLevel, HlCommand, HlPhase, HlRefusal};
 use crate::flight::supervisor::{
@@ -391,6 +391,8 @@ impl Stabilizer {
 pub struct Navigator<const CELLS: usize, const QUEUE: usize> {
     mission: Mission<CELLS, QUEUE>,
     decks_ok: bool,
+    /// The obstacle surfaces the map fixes measure against (module `estimator::map_fix`), per mission.
+    landmarks: Landmarks,
 }
 
 impl<const CELLS: usize, const QUEUE: usize> Navigator<CELLS, QUEUE> {
@@ -399,6 +401,7 @@ impl<const CELLS: usize, const QUEUE: usize> Navigator<CELLS, QUEUE> {
         Ok(Self {
             mission: Mission::new(config.mission).map_err(|_| FlightConfigError::Mission)?,
             decks_ok: true,
+            landmarks: Landmarks::new(),
         })
     }
 
@@ -423,6 +426,7 @@ impl<const CELLS: usize, const QUEUE: usize> Navigator<CELLS, QUEUE> {
             return Err(StartError::DeckMissing);
         }
         self.mission.start(params).map_err(StartError::Params)?;
+        self.landmarks.clear();
         Ok(MissionCommand::Started {
             start_m: params.start_m,
         })
@@ -449,7 +453,7 @@ impl<const CELLS: usize, const QUEUE: usize> Navigator<CELLS, QUEUE> {
     }
 
     /// Casts the sweep's fixes against the mission's map (see [`Navigator::on_multiranger`]).
-    fn map_fixes(&self, sample: &MultiRangerSample, estimate: &StateEstimate) -> Option<MapFixes> {
+    fn map_fixes(&mut self, sample: &MultiRangerSample, estimate: &StateEstimate) -> Option<MapFixes> {
         use MissionState as S;
         let mapping = matches!(
             self.mission.state(),
@@ -482,6 +486,7 @@ impl<const CELLS: usize, const QUEUE: usize> Navigator<CELLS, QUEUE> {
             sample,
             [estimate.position_m[0], estimate.position_m[1]],
             estimate.attitude_rad[2],
+            &mut self.landmarks,
             |x, y| map.log_odds(cell(x, y)) >= CONFIRMED_LOG_ODDS,
             |x, y| shape.contains(x, y) && map.is_occupied(cell(x, y)),
         );

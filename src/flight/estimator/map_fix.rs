@@ -17,12 +17,21 @@
 //!   scalar measurement `d_n = c − p·n` (Jacobian `−n` on x, y), gated at `map_fix_gate_sigma`.
 //!
 //! Surfaces. *The arena's walls* are known exactly (the mission's `arena_m`: planes x = 0, x = X, y = 0,
-//! y = Y); a mapped cell in the row or column along a wall is that wall's own trace and counts as the
-//! wall. *An obstacle cell* is quantised: the surface lies somewhere inside the 5 cm cell, so the plane
-//! is taken through the cell's centre, square to the face the ray entered by (x or y), with the
-//! quantisation's std (`cell / √12` ≈ 1.4 cm) added; a cell is used only if one of its two neighbours
-//! along that face is occupied too (a straight piece of surface, not the corner of a box or a thin
-//! cylinder, whose faces the grid cannot tell).
+//! y = Y); a mapped cell within half a cell of a wall is that wall's own trace and is skipped, so the ray
+//! reaches the exact wall. *An obstacle's surface* is a [`Landmark`]: the ray cast finds its first
+//! confirmed cell and the face the ray entered by (x or y); a cell is used only if one of its two
+//! neighbours along that face is occupied too (a straight piece of surface, not the corner of a box or a
+//! thin cylinder, whose faces the grid cannot tell). The first [`LANDMARK_SETTLE`] beams that end at such
+//! a face place its plane (the mean of where they ended: estimated position + measured distance along the
+//! normal; no fix meanwhile), and from then on the plane is frozen and every beam that reaches a confirmed
+//! cell within 1.5 cells of it is a fix against it.
+//!
+//! Why landmarks rather than the cells themselves (measured, BENCHMARKS.md §5): with the plane through
+//! the first confirmed cell's centre, the fixes ratcheted. The first confirmed cell along a ray is the
+//! nearest of the cells the noisy hits straddle, so its centre is biased towards the drone; the fix then
+//! moves the estimate away from the surface, the next hits (written from the moved estimate) confirm a
+//! cell nearer still, and so on: on the default world (noise seed 14) the estimate crept 21 cm behind the
+//! truth in 10 s of flight towards a wall. A frozen, unquantised plane cannot follow the map.
 //!
 //! Rules against a self-reinforcing loop (the map is written in the estimated frame, so a map and an
 //! estimate could drift together): only cells *confirmed* by at least two hits net of misses
@@ -37,7 +46,8 @@
 //! observable, not done), mapping (the mission owns the map), loop closure.
 //!
 //! Units and frames: metres, radians, arena frame (origin at the arena's lower-left corner). Memory: a
-//! [`MapFixes`] is 4 × 20 bytes plus tags; no state is kept between sweeps. Cost: at most
+//! [`MapFixes`] is 4 × 20 bytes plus tags; [`Landmarks`] (the navigator keeps one per flight) 48 × 16
+//! bytes. Cost: at most
 //! [`MAX_RANGE_M`] / cell × 2 + 2 cell visits per beam (≈ 102 at 5 cm: a grid walk visits at most one cell
 //! per x or y boundary crossed), four beams per sweep; then up to four scalar EKF updates.
 
@@ -61,8 +71,6 @@ pub const PRE_GATE_M: f32 = 0.3;
 pub const RANGER_STD_FLOOR_M: f32 = 0.005;
 /// Ranger noise per metre of range.
 pub const RANGER_STD_RELATIVE: f32 = 0.02;
-/// The std of a surface's position inside a grid cell, as a fraction of the cell (uniform: 1/√12).
-const CELL_QUANTISATION: f32 = 0.288_675_13;
 
 /// What a ray reached.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -208,7 +216,7 @@ pub struct MapFix {
     pub measured_m: f32,
     /// The same distance expected from the estimated position when the beam was cast, m.
     pub expected_m: f32,
-    /// The std of `measured_m − expected_m` (ranger and, for a mapped cell, quantisation), m.
+    /// The std of `measured_m − expected_m` (ranger and, for a landmark, its plane's), m.
     pub std_m: f32,
 }
 
@@ -226,8 +234,106 @@ impl MapFixes {
     }
 }
 
+/// A straight piece of an obstacle's surface, frozen in the arena frame the first few times a beam sees it
+/// (see the module documentation, "Landmarks").
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Landmark {
+    /// The axis the surface is square to: 0 = a face of constant x, 1 = constant y.
+    pub axis: u8,
+    /// The side it was seen from: the normal pointing away from the drone, +1 or −1 along `axis`.
+    pub sign: i8,
+    /// The surface's coordinate along `axis`, m: the mean of where the first [`LANDMARK_SETTLE`] beams
+    /// ended (estimated position + measured distance along the normal).
+    pub plane_m: f32,
+    /// The cells along the face it covers (first and last index across `axis`).
+    pub along: (i16, i16),
+    /// Beams averaged into `plane_m` (at most [`LANDMARK_SETTLE`]; fixes only from then on).
+    pub seen: u8,
+}
+
+/// A landmark gives fixes once this many beams have placed it.
+pub const LANDMARK_SETTLE: u8 = 5;
+/// Landmarks kept; a new one replaces the oldest when full.
+pub const MAX_LANDMARKS: usize = 48;
+/// A confirmed cell belongs to a landmark whose plane lies within this many cells of the cell's centre.
+const LANDMARK_MATCH_CELLS: f32 = 1.5;
+/// ... and whose extent along the face reaches within this many cells of it.
+const LANDMARK_GAP_CELLS: i16 = 2;
+/// The std of a settled landmark's plane relative to the ranger noise of one fix, m.
+const LANDMARK_STD_M: f32 = 0.005;
+
+/// The landmarks of one flight (fixed memory, [`MAX_LANDMARKS`] entries).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Landmarks {
+    items: [Option<Landmark>; MAX_LANDMARKS],
+    next: usize,
+}
+
+impl Default for Landmarks {
+    fn default() -> Self {
+        Self::new()
+    }
+}
+
+impl Landmarks {
+    /// None.
+    pub const fn new() -> Self {
+        Self {
+            items: [None; MAX_LANDMARKS],
+            next: 0,
+        }
+    }
+
+    /// Forget them all (a new flight).
+    pub fn clear(&mut self) {
+        *self = Self::new();
+    }
+
+    /// The landmarks held.
+    pub fn iter(&self) -> impl Iterator<Item = &Landmark> {
+        self.items.iter().flatten()
+    }
+
+    /// The landmark the beam's surface belongs to, creating or settling it with this beam's end
+    /// (`end_m`, the estimated position plus the measured distance along the normal). Returns the plane to
+    /// measure against once the landmark has settled (before this beam was added).
+    fn observe(&mut self, axis: usize, sign: f32, cell_center_m: f32, along: i16, end_m: f32, cell_m: f32) -> Option<f32> {
+        let sign_i: i8 = if sign > 0.0 { 1 } else { -1 };
+        let found = self.items.iter_mut().flatten().find(|l| {
+            usize::from(l.axis) == axis
+                && l.sign == sign_i
+                && (l.plane_m - cell_center_m).abs() <= LANDMARK_MATCH_CELLS * cell_m
+                && along >= l.along.0 - LANDMARK_GAP_CELLS
+                && along <= l.along.1 + LANDMARK_GAP_CELLS
+        });
+        match found {
+            Some(l) => {
+                l.along = (l.along.0.min(along), l.along.1.max(along));
+                if l.seen >= LANDMARK_SETTLE {
+                    return Some(l.plane_m);
+                }
+                l.seen += 1;
+                l.plane_m += (end_m - l.plane_m) / f32::from(l.seen);
+                None
+            }
+            None => {
+                self.items[self.next] = Some(Landmark {
+                    axis: axis as u8,
+                    sign: sign_i,
+                    plane_m: end_m,
+                    along: (along, along),
+                    seen: 1,
+                });
+                self.next = (self.next + 1) % MAX_LANDMARKS;
+                None
+            }
+        }
+    }
+}
+
 /// The fixes of one sweep (`sample`) from the estimated position `position_m` and heading `yaw_rad`,
-/// against the confirmed cells of the map as it is *before* this sweep is written (see the module docs).
+/// against the arena's walls and the `landmarks` found at the confirmed cells of the map as it is *before*
+/// this sweep is written (see the module docs); beams that place a new landmark give no fix.
 /// `confirmed(column, row)` says whether a cell holds a confirmed obstacle
 /// (log-odds ≥ [`CONFIRMED_LOG_ODDS`]); `occupied` whether it is occupied at all (the straight-surface
 /// check). Non-finite input gives no fix.
@@ -236,6 +342,7 @@ pub fn cast_fixes(
     sample: &MultiRangerSample,
     position_m: [f32; 2],
     yaw_rad: f32,
+    landmarks: &mut Landmarks,
     confirmed: impl Fn(i32, i32) -> bool,
     occupied: impl Fn(i32, i32) -> bool,
 ) -> MapFixes {
@@ -274,14 +381,29 @@ pub fn cast_fixes(
         }
         let mut normal = [0.0; 2];
         normal[hit.axis] = hit.sign;
-        let expected = hit.sign * (hit.plane_m - position_m[hit.axis]);
         let measured = r * cos_inc;
+        let plane_m = if hit.wall {
+            hit.plane_m
+        } else {
+            let (x, y) = hit.cell;
+            let along = if hit.axis == 0 { y } else { x } as i16;
+            let end_m = position_m[hit.axis] + hit.sign * measured;
+            if (end_m - hit.plane_m).abs() > LANDMARK_MATCH_CELLS * grid.cell_m {
+                // The beam did not end at this cell (something else, or an outlier).
+                continue;
+            }
+            let Some(plane) = landmarks.observe(hit.axis, hit.sign, hit.plane_m, along, end_m, grid.cell_m) else {
+                continue;
+            };
+            plane
+        };
+        let expected = hit.sign * (plane_m - position_m[hit.axis]);
         if !((measured - expected).abs() <= PRE_GATE_M) {
             continue;
         }
         let ranger_std = (RANGER_STD_FLOOR_M + RANGER_STD_RELATIVE * r) * cos_inc;
-        let quant_std = if hit.wall { 0.0 } else { CELL_QUANTISATION * grid.cell_m };
-        let std_m = libm::sqrtf(ranger_std * ranger_std + quant_std * quant_std);
+        let plane_std = if hit.wall { 0.0 } else { LANDMARK_STD_M };
+        let std_m = libm::sqrtf(ranger_std * ranger_std + plane_std * plane_std);
         out.fixes[beam] = Some(MapFix {
             normal,
             measured_m: measured,

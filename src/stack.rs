@@ -12,7 +12,7 @@
 //!
 //! Messages: the stabilizer publishes a [`FastStatus`] (estimate, supervisor verdict, whether the motors are
 //! stopped, when the commander last spoke: ~120 bytes) for the navigator; the navigator answers with a
-//! [`MissionCommand`] (a setpoint, or "a mission started here"). On the MCU each side copies a message in or
+//! [`MissionCommand`] (a setpoint, "a mission started here", or a sweep's map fixes). On the MCU each side copies a message in or
 //! out under a critical section of a few microseconds; here [`FlightCore`] hands them over directly.
 //!
 //! [`FlightCore`] is that composition for the simulator and the tests:
@@ -22,7 +22,7 @@
 //! | [`FlightCore::on_imu`] | 1 kHz (gyro data-ready) | estimator prediction, supervisor, controller → motor duties |
 //! | [`FlightCore::on_flow`] | 100 Hz | estimator flow update |
 //! | [`FlightCore::on_zrange`] | 40 Hz | estimator height update, pad detector |
-//! | [`FlightCore::on_multiranger`] | 10 Hz | wall anchors while holding a place, mapping, avoidance input |
+//! | [`FlightCore::on_multiranger`] | 10 Hz | wall anchors while holding a place, map fixes (cast, then mapped), avoidance input |
 //! | [`FlightCore::on_battery`] | 100 Hz | battery voltage |
 //! | [`FlightCore::mission_tick`] | 50 Hz | mission state machine → setpoint (bounded planner slice) |
 //!
@@ -34,7 +34,8 @@
 //! Non-goals: drivers, radio, timing (the caller owns the clock and passes `now`), locking (the caller picks
 //! how messages cross between priorities).
 //! Memory: the navigator's mission dominates (grid + planner, see [`crate::mission`]); the stabilizer is
-//! under 2 KB; a [`FastStatus`] is about 120 bytes, a [`MissionCommand`] about 40.
+//! under 2 KB; a [`FastStatus`] is about 120 bytes, a [`MissionCommand`] about 100 (the map fixes of a
+//! sweep, four of 24 bytes; before them about 40). The navigator's map-fix landmarks take 48 × 16 bytes.
 
 use crate::flight::control::{ControlOutput, Controller, ControllerConfig};
 use crate::flight::estimator::map_fix::{CONFIRMED_LOG_ODDS, Landmarks, MapFixes, RayGrid, cast_fixes};

@@ -184,9 +184,10 @@ pub fn ray_cast(
             break;
         }
         if cx < 0 || cy < 0 || cx >= grid.width || cy >= grid.height {
-            // Out of the grid but not yet at the arena's wall (a grid smaller than the arena): nothing
-            // is known there.
-            return None;
+            // Out of the grid: at the wall when the grid ends there (the walk's summed steps may land a
+            // rounding error short of `t_wall`); otherwise (a grid smaller than the arena) nothing is known.
+            let at_wall = t_enter >= t_wall - 0.5 * s && t_wall <= max_m;
+            return at_wall.then(|| wall_hit((cx, cy)));
         }
         // A cell within half a cell of a wall is that wall's own trace: the exact wall replaces it.
         let (lo_x, lo_y) = (cx as f32 * s, cy as f32 * s);

@@ -44,8 +44,8 @@ use crate::flight::high_level::{HighLevel, HlCommand, HlPhase, HlRefusal};
 use crate::flight::supervisor::{
     Supervisor, SupervisorConfig, SupervisorInput, SupervisorOutput, SupervisorState, clamp_min_height,
 };
-use crate::nav::map::{CELL_SIZE_M, Cell};
 use crate::mission::{Mission, MissionConfig, MissionInputs, MissionParams, MissionState, StartRefusal};
+use crate::nav::map::{CELL_SIZE_M, Cell};
 use crate::types::{
     FlowSample, ImuSample, Micros, MotorDuty, MultiRangerSample, RangeReading, Setpoint, StateEstimate,
 };

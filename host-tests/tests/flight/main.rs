@@ -4,6 +4,6 @@
 mod control;
 mod estimator;
 mod high_level;
-mod supervisor;
 mod map_fix;
+mod supervisor;
 mod wall_hold;

@@ -219,7 +219,15 @@ fn an_unmapped_object_in_front_of_a_wall_gives_no_fix() {
     let (x, y) = (1.5, 1.0);
     let mut sample = exact_sweep(&grid, &[], (x, y), 0.0);
     sample.front_m = sample.front_m.map(|r| r - (PRE_GATE_M + 0.2));
-    let fixes = cast_fixes(&grid, &sample, [x, y], 0.0, &mut Landmarks::new(), |_, _| false, |_, _| false);
+    let fixes = cast_fixes(
+        &grid,
+        &sample,
+        [x, y],
+        0.0,
+        &mut Landmarks::new(),
+        |_, _| false,
+        |_, _| false,
+    );
     assert!(fixes.fixes[0].is_none(), "{:?}", fixes.fixes[0]);
     assert!(fixes.fixes[1].is_some() && fixes.fixes[2].is_some() && fixes.fixes[3].is_some());
 }
@@ -228,7 +236,12 @@ fn an_unmapped_object_in_front_of_a_wall_gives_no_fix() {
 fn bad_input_gives_no_fix() {
     let grid = arena();
     let sample = exact_sweep(&grid, &[], (1.5, 1.0), 0.0);
-    for (p, yaw) in [([f32::NAN, 1.0], 0.0), ([1.5, 1.0], f32::INFINITY), ([-1.0, 1.0], 0.0), ([9.0, 1.0], 0.0)] {
+    for (p, yaw) in [
+        ([f32::NAN, 1.0], 0.0),
+        ([1.5, 1.0], f32::INFINITY),
+        ([-1.0, 1.0], 0.0),
+        ([9.0, 1.0], 0.0),
+    ] {
         let fixes = cast_fixes(&grid, &sample, p, yaw, &mut Landmarks::new(), |_, _| true, |_, _| true);
         assert!(fixes.is_empty(), "{p:?} {yaw}: {fixes:?}");
     }
@@ -237,7 +250,18 @@ fn bad_input_gives_no_fix() {
     weird.back_m = Some(-1.0);
     weird.left_m = Some(f32::INFINITY);
     weird.right_m = Some(1e30);
-    assert!(cast_fixes(&grid, &weird, [1.5, 1.0], 0.0, &mut Landmarks::new(), |_, _| false, |_, _| false).is_empty());
+    assert!(
+        cast_fixes(
+            &grid,
+            &weird,
+            [1.5, 1.0],
+            0.0,
+            &mut Landmarks::new(),
+            |_, _| false,
+            |_, _| false
+        )
+        .is_empty()
+    );
     assert!(ray_cast(&grid, (1.0, 1.0), (0.0, 0.0), 2.0, |_, _| true).is_none());
     assert!(ray_cast(&grid, (1.0, 1.0), (f32::NAN, 1.0), 2.0, |_, _| true).is_none());
 }
@@ -306,13 +330,21 @@ fn a_cell_is_used_only_once_a_second_sweep_confirms_it() {
     let face = Cell::new(40, 20);
     assert!(map.is_occupied(face) && map.log_odds(face) < CONFIRMED_LOG_ODDS);
     let once = cast_on(&map, shape, &sample, [x, y], &mut landmarks);
-    assert!(once.fixes[0].is_none(), "one sweep's own hit must not be used: {:?}", once.fixes[0]);
+    assert!(
+        once.fixes[0].is_none(),
+        "one sweep's own hit must not be used: {:?}",
+        once.fixes[0]
+    );
     assert_eq!(landmarks.iter().count(), 0, "nor placed as a landmark");
     write_front(&mut map, x, y, range + 0.01);
     assert!(map.log_odds(face) >= CONFIRMED_LOG_ODDS);
     for k in 0..LANDMARK_SETTLE {
         let f = cast_on(&map, shape, &sample, [x, y], &mut landmarks);
-        assert!(f.fixes[0].is_none(), "beam {k} places the landmark, no fix yet: {:?}", f.fixes[0]);
+        assert!(
+            f.fixes[0].is_none(),
+            "beam {k} places the landmark, no fix yet: {:?}",
+            f.fixes[0]
+        );
     }
     let fix = cast_on(&map, shape, &sample, [x, y], &mut landmarks).fixes[0].expect("a settled face gives a fix");
     // The plane where the beams ended (2.0 m), not the cell's centre (2.025 m).
@@ -357,7 +389,10 @@ fn fixes_and_map_writes_do_not_ratchet() {
             write_front(&mut map, x_est, y, sample.front_m.unwrap());
             worst = worst.max((x_est - x_true).abs());
         }
-        assert!(worst < 0.02, "seed {seed}: the estimate walked {worst} m from the truth");
+        assert!(
+            worst < 0.02,
+            "seed {seed}: the estimate walked {worst} m from the truth"
+        );
     }
 }
 
@@ -470,7 +505,11 @@ fn map_fixes_stop_the_drift_over_a_mission() {
                 .filter(|(t, _)| *t > end - 20.0)
                 .map(|(_, e)| *e)
                 .fold(0.0f32, f32::max);
-            println!("seed {seed}: {state:?}, RMS {:.1} cm, max over the last 20 s {:.1} cm", rms * 100.0, late * 100.0);
+            println!(
+                "seed {seed}: {state:?}, RMS {:.1} cm, max over the last 20 s {:.1} cm",
+                rms * 100.0,
+                late * 100.0
+            );
             rms_all.push(rms);
             late_max.push(late);
         }

@@ -298,7 +298,15 @@ impl Landmarks {
     /// The landmark the beam's surface belongs to, creating or settling it with this beam's end
     /// (`end_m`, the estimated position plus the measured distance along the normal). Returns the plane to
     /// measure against once the landmark has settled (before this beam was added).
-    fn observe(&mut self, axis: usize, sign: f32, cell_center_m: f32, along: i16, end_m: f32, cell_m: f32) -> Option<f32> {
+    fn observe(
+        &mut self,
+        axis: usize,
+        sign: f32,
+        cell_center_m: f32,
+        along: i16,
+        end_m: f32,
+        cell_m: f32,
+    ) -> Option<f32> {
         let sign_i: i8 = if sign > 0.0 { 1 } else { -1 };
         let found = self.items.iter_mut().flatten().find(|l| {
             usize::from(l.axis) == axis

@@ -198,9 +198,9 @@
 
 mod calib;
 mod ekf_math;
+pub mod map_fix;
 mod predict;
 mod surface;
-pub mod map_fix;
 mod updates;
 pub mod wall_hold;
 

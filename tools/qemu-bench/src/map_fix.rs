@@ -102,9 +102,8 @@ pub fn map_fix_bench(meter: &mut impl Meter) -> Result<(), ()> {
             }
         }
         let p = est.state().position_m;
-        let (fixes, n) = meter.measure(|| {
-            cast_fixes(&grid, &sweep, [p[0], p[1]], yaw, &mut landmarks, confirmed, occupied)
-        });
+        let (fixes, n) =
+            meter.measure(|| cast_fixes(&grid, &sweep, [p[0], p[1]], yaw, &mut landmarks, confirmed, occupied));
         cast_counts[run] = n;
         if fixes.fixes.iter().any(Option::is_none) {
             hprintln!("error=map_fix_missing_fix");

@@ -12,7 +12,7 @@
 //!
 //! Messages: the stabilizer publishes a [`FastStatus`] (estimate, supervisor verdict, whether the motors are
 //! stopped, when the commander last spoke: ~120 bytes) for the navigator; the navigator answers with a
-//! [`MissionCommand`] (a setpoint, or "a mission started here"). On the MCU each side copies a message in or
+//! [`MissionCommand`] (a setpoint, "a mission started here", or a sweep's map fixes). On the MCU each side copies a message in or
 //! out under a critical section of a few microseconds; here [`FlightCore`] hands them over directly.
 //!
 //! [`FlightCore`] is that composition for the simulator and the tests:
@@ -22,7 +22,7 @@
 //! | [`FlightCore::on_imu`] | 1 kHz (gyro data-ready) | estimator prediction, supervisor, controller → motor duties |
 //! | [`FlightCore::on_flow`] | 100 Hz | estimator flow update |
 //! | [`FlightCore::on_zrange`] | 40 Hz | estimator height update, pad detector |
-//! | [`FlightCore::on_multiranger`] | 10 Hz | wall anchors while holding a place, mapping, avoidance input |
+//! | [`FlightCore::on_multiranger`] | 10 Hz | wall anchors while holding a place, map fixes (cast, then mapped), avoidance input |
 //! | [`FlightCore::on_battery`] | 100 Hz | battery voltage |
 //! | [`FlightCore::mission_tick`] | 50 Hz | mission state machine → setpoint (bounded planner slice) |
 //!
@@ -34,15 +34,18 @@
 //! Non-goals: drivers, radio, timing (the caller owns the clock and passes `now`), locking (the caller picks
 //! how messages cross between priorities).
 //! Memory: the navigator's mission dominates (grid + planner, see [`crate::mission`]); the stabilizer is
-//! under 2 KB; a [`FastStatus`] is about 120 bytes, a [`MissionCommand`] about 40.
+//! under 2 KB; a [`FastStatus`] is about 120 bytes, a [`MissionCommand`] about 100 (the map fixes of a
+//! sweep, four of 24 bytes; before them about 40). The navigator's map-fix landmarks take 48 × 16 bytes.
 
 use crate::flight::control::{ControlOutput, Controller, ControllerConfig};
+use crate::flight::estimator::map_fix::{CONFIRMED_LOG_ODDS, Landmarks, MapFixes, RayGrid, cast_fixes};
 use crate::flight::estimator::{Estimator, EstimatorConfig};
 use crate::flight::high_level::{HighLevel, HlCommand, HlPhase, HlRefusal};
 use crate::flight::supervisor::{
     Supervisor, SupervisorConfig, SupervisorInput, SupervisorOutput, SupervisorState, clamp_min_height,
 };
 use crate::mission::{Mission, MissionConfig, MissionInputs, MissionParams, MissionState, StartRefusal};
+use crate::nav::map::{CELL_SIZE_M, Cell};
 use crate::types::{
     FlowSample, ImuSample, Micros, MotorDuty, MultiRangerSample, RangeReading, Setpoint, StateEstimate,
 };
@@ -130,6 +133,9 @@ pub enum MissionCommand {
         /// The take-off point, arena frame, m.
         start_m: (f32, f32),
     },
+    /// The map-relative fixes of a Multi-ranger sweep (module `estimator::map_fix`), cast against the map
+    /// as it was before the sweep was written into it.
+    MapFixes(MapFixes),
 }
 
 /// The fast part: estimator, supervisor and controller, and the setpoint in force. See the module docs.
@@ -337,6 +343,7 @@ impl Stabilizer {
                 let yaw = self.estimator.state().attitude_rad[2];
                 self.estimator.reset([start_m.0, start_m.1, 0.0], yaw);
             }
+            MissionCommand::MapFixes(fixes) => self.estimator.on_map_fixes(&fixes),
         }
     }
 
@@ -385,6 +392,8 @@ impl Stabilizer {
 pub struct Navigator<const CELLS: usize, const QUEUE: usize> {
     mission: Mission<CELLS, QUEUE>,
     decks_ok: bool,
+    /// The obstacle surfaces the map fixes measure against (module `estimator::map_fix`), per mission.
+    landmarks: Landmarks,
 }
 
 impl<const CELLS: usize, const QUEUE: usize> Navigator<CELLS, QUEUE> {
@@ -393,6 +402,7 @@ impl<const CELLS: usize, const QUEUE: usize> Navigator<CELLS, QUEUE> {
         Ok(Self {
             mission: Mission::new(config.mission).map_err(|_| FlightConfigError::Mission)?,
             decks_ok: true,
+            landmarks: Landmarks::new(),
         })
     }
 
@@ -417,6 +427,7 @@ impl<const CELLS: usize, const QUEUE: usize> Navigator<CELLS, QUEUE> {
             return Err(StartError::DeckMissing);
         }
         self.mission.start(params).map_err(StartError::Params)?;
+        self.landmarks.clear();
         Ok(MissionCommand::Started {
             start_m: params.start_m,
         })
@@ -432,9 +443,55 @@ impl<const CELLS: usize, const QUEUE: usize> Navigator<CELLS, QUEUE> {
         self.mission.on_zrange(range, estimate);
     }
 
-    /// The Multi-ranger's five beams with the current estimate (mapping, avoidance).
-    pub fn on_multiranger(&mut self, sample: &MultiRangerSample, estimate: &StateEstimate) {
+    /// The Multi-ranger's five beams with the current estimate (mapping, avoidance). Returns the sweep's
+    /// map-relative fixes for the stabilizer, if any: cast first, against the map as it was, then the sweep
+    /// is written (module `estimator::map_fix`). Fixes are cast only while the mission maps (a flying phase
+    /// at mapping height, the estimate valid), so the map and the fixes see the same beams.
+    pub fn on_multiranger(&mut self, sample: &MultiRangerSample, estimate: &StateEstimate) -> Option<MissionCommand> {
+        let fixes = self.map_fixes(sample, estimate);
         self.mission.on_ranges(sample, estimate);
+        fixes.map(MissionCommand::MapFixes)
+    }
+
+    /// Casts the sweep's fixes against the mission's map (see [`Navigator::on_multiranger`]).
+    fn map_fixes(&mut self, sample: &MultiRangerSample, estimate: &StateEstimate) -> Option<MapFixes> {
+        use MissionState as S;
+        let mapping = matches!(
+            self.mission.state(),
+            S::TakeOffOutbound
+                | S::TakeOffReturn
+                | S::NavigateToGoal
+                | S::NavigateHome
+                | S::SearchGoalPad
+                | S::SearchHomePad
+                | S::ApproachGoalPad
+                | S::ApproachHomePad
+                | S::NoPathHover
+        );
+        let params = self.mission.params();
+        if !(mapping && estimate.valid && estimate.position_m[2] >= 0.8 * params.height_m) {
+            return None;
+        }
+        let map = self.mission.grid();
+        let shape = map.shape();
+        let grid = RayGrid {
+            width: i32::from(shape.width),
+            height: i32::from(shape.height),
+            cell_m: CELL_SIZE_M,
+            arena_m: params.arena_m,
+        };
+        // (The ray cast asks only cells inside the grid.)
+        let cell = |x: i32, y: i32| Cell::new(x as u16, y as u16);
+        let fixes = cast_fixes(
+            &grid,
+            sample,
+            [estimate.position_m[0], estimate.position_m[1]],
+            estimate.attitude_rad[2],
+            &mut self.landmarks,
+            |x, y| map.log_odds(cell(x, y)) >= CONFIRMED_LOG_ODDS,
+            |x, y| shape.contains(x, y) && map.is_occupied(cell(x, y)),
+        );
+        (!fixes.is_empty()).then_some(fixes)
     }
 
     /// 50 Hz: one mission step (at most one bounded planner slice). Returns the setpoint for the stabilizer,
@@ -533,11 +590,13 @@ impl<const CELLS: usize, const QUEUE: usize> FlightCore<CELLS, QUEUE> {
         self.navigator.on_zrange(range, &estimate);
     }
 
-    /// 10 Hz: the Multi-ranger's five beams.
+    /// 10 Hz: the Multi-ranger's five beams (the sweep's map fixes go to the stabilizer at once).
     pub fn on_multiranger(&mut self, sample: &MultiRangerSample) {
         self.stabilizer.on_multiranger(sample);
         let estimate = self.stabilizer.estimate();
-        self.navigator.on_multiranger(sample, &estimate);
+        if let Some(command) = self.navigator.on_multiranger(sample, &estimate) {
+            self.stabilizer.apply(command);
+        }
     }
 
     /// 100 Hz: the battery voltage reported by the power controller, V.

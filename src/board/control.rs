@@ -15,7 +15,7 @@
 use core::sync::atomic::Ordering;
 
 use cfnav::drivers::bmi088::{AccelTrim, Bmi088};
-use cfnav::stack::Stabilizer;
+use cfnav::stack::{MissionCommand, Stabilizer};
 use cfnav::system::cpu_load::{Level, LoopTiming, LoopWindow};
 use cfnav::system::step_pacing::HeavyInputGate;
 use defmt::warn;
@@ -61,9 +61,12 @@ fn UART4() {
 pub type Imu = Bmi088<super::sensors::GuardedBus>;
 
 /// The inputs whose estimator update is costly (flow ≈ 14 k, Multi-ranger with wall anchors ≈ 20 k
-/// instructions; BENCHMARKS.md §6).
+/// instructions, a sweep's map fixes about as much; BENCHMARKS.md §6).
 fn is_heavy(input: &FastInput) -> bool {
-    matches!(input, FastInput::Flow(_) | FastInput::MultiRanger(_))
+    matches!(
+        input,
+        FastInput::Flow(_) | FastInput::MultiRanger(_) | FastInput::Mission(MissionCommand::MapFixes(_))
+    )
 }
 
 /// Drains the inputs queued for the stabilizer since the previous step, at most one costly one.

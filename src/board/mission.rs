@@ -101,7 +101,12 @@ pub async fn mission_task(nav: &'static mut FwNavigator) {
         while let Ok(input) = NAV_INPUTS.try_receive() {
             match input {
                 NavInput::ZRange(range, estimate) => nav.on_zrange(range, &estimate),
-                NavInput::MultiRanger(sample, estimate) => nav.on_multiranger(&sample, &estimate),
+                NavInput::MultiRanger(sample, estimate) => {
+                    if let Some(fixes) = nav.on_multiranger(&sample, &estimate) {
+                        // The sweep's map fixes (a full queue drops them: the next sweep brings new ones).
+                        let _ = FAST_INPUTS.try_send(FastInput::Mission(fixes));
+                    }
+                }
             }
         }
         LOAD.end(section, cycles());

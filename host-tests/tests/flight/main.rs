@@ -1,8 +1,9 @@
 //! Flight (src/flight): the estimator against the simulator's ground truth, the controller and mixer, the
-//! supervisor's safety rules, the wall anchors.
+//! supervisor's safety rules, the wall anchors, the map-relative fixes.
 
 mod control;
 mod estimator;
 mod high_level;
+mod map_fix;
 mod supervisor;
 mod wall_hold;

@@ -2,6 +2,7 @@
 //! the surface tracker, and the wall anchors of the horizontal beams; each one a sequential scalar update
 //! with a 3σ gate and a Joseph-form covariance step.
 
+use super::map_fix::MapFixes;
 use super::surface::Entry;
 use super::{
     COVARIANCE_MAX, COVARIANCE_MIN, Estimator, FLOW_RESOLUTION, N, SD, SV, SZ, V3, Vec9, dot9, euler_from_rot,
@@ -165,6 +166,42 @@ impl Estimator {
             if self.scalar_update(&h, innovation, r_var) {
                 self.walls.accepted(beam);
                 self.diag.wall_fused = self.diag.wall_fused.saturating_add(1);
+            }
+        }
+        self.supervise(true);
+    }
+
+    /// The map-relative fixes of one Multi-ranger sweep (module `map_fix`), cast by the navigator from
+    /// the estimate it was given with the sweep. Each is a scalar measurement of the distance to a surface
+    /// along its normal `n`, `c − p·n` (Jacobian `−n` on x, y), gated at `map_fix_gate_sigma`. The
+    /// innovation is the one computed at the cast (`measured − expected`, less what the sweep's earlier
+    /// fixes already moved the estimate along `n`): the reading and the expected
+    /// distance belong to the same moment, so a fix applied a few milliseconds later (the navigator runs
+    /// in thread mode) still corrects by the error the estimate had then, which the flow's slow drift
+    /// keeps nearly unchanged. Used only in flight; nothing happens without `map_fix` configured.
+    pub fn on_map_fixes(&mut self, fixes: &MapFixes) {
+        if !(self.cfg.map_fix && self.calibrated && self.airborne) || fixes.is_empty() {
+            return;
+        }
+        self.predict_covariance();
+        // The fixes before this one moved the estimate by `p − start`: the expected distance moves with it.
+        let start = [self.pos[0], self.pos[1]];
+        for fix in fixes.fixes.iter().flatten() {
+            let shift = (self.pos[0] - start[0]) * fix.normal[0] + (self.pos[1] - start[1]) * fix.normal[1];
+            let innovation = fix.measured_m - (fix.expected_m - shift);
+            let mut h = [0.0; N];
+            h[0] = -fix.normal[0];
+            h[1] = -fix.normal[1];
+            let r_var = sq(fix.std_m);
+            let s = self.innovation_variance(&h, r_var);
+            // (A NaN innovation, std or variance is rejected too.)
+            let within_gate = r_var > 0.0 && sq(innovation) <= sq(self.cfg.map_fix_gate_sigma) * s;
+            if !within_gate {
+                self.diag.map_rejected = self.diag.map_rejected.saturating_add(1);
+                continue;
+            }
+            if self.scalar_update(&h, innovation, r_var) {
+                self.diag.map_fused = self.diag.map_fused.saturating_add(1);
             }
         }
         self.supervise(true);

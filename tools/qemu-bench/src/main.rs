@@ -9,6 +9,8 @@
 #[cfg(target_os = "none")]
 mod control;
 #[cfg(target_os = "none")]
+mod map_fix;
+#[cfg(target_os = "none")]
 mod mcu;
 #[cfg(target_os = "none")]
 mod rt;

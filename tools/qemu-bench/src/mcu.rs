@@ -289,6 +289,7 @@ fn bench() -> Result<(), ()> {
     hprintln!("grid_bytes={}", grid_bytes);
     hprintln!("ram_total_bytes={}", planner_bytes + grid_bytes);
     estimator_bench(&mut meter)?;
+    crate::map_fix::map_fix_bench(&mut meter)?;
     crate::control::control_step_bench(&mut meter)?;
     crate::control::planner_slice_bench(&mut meter)?;
     hprintln!("result=ok");

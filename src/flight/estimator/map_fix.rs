@@ -1,0 +1,424 @@
+//! Map-relative localization: the horizontal Multi-ranger beams measured against the occupancy map the
+//! drone has already built, as scalar position fixes for the EKF.
+//!
+//! Why: flow-only position is a random walk (≈ 1 cm/√s, 10–25 cm over a mission; BENCHMARKS.md §5). The
+//! arena's walls and the obstacles the map already holds do not move, so a beam that reaches one of them
+//! measures the drone's distance to it. The wall anchors (`wall_hold`) do this only while hovering and only
+//! square to the axes; here every sweep in flight is used, at any heading, against the map.
+//!
+//! Job, in two halves that run on different sides of the firmware:
+//! * [`cast_fixes`] (the navigator's side, thread mode, where the map lives): for each horizontal beam,
+//!   an exact grid walk ([`ray_cast`]) from the estimated position along the beam's estimated direction to
+//!   the first *confirmed* obstacle cell or the arena's wall, and from it a [`MapFix`]: the surface's
+//!   normal `n` (pointing away from the drone), the measured and the expected distance to the surface
+//!   along `n`, and the std of the difference. It runs *before* the same sweep is written into the map,
+//!   against the map as it was, so a beam never sees the cell it is about to write.
+//! * [`Estimator::on_map_fixes`](super::Estimator::on_map_fixes) (the stabilizer's side): each fix is a
+//!   scalar measurement `d_n = c − p·n` (Jacobian `−n` on x, y), gated at `map_fix_gate_sigma`.
+//!
+//! Surfaces. *The arena's walls* are known exactly (the mission's `arena_m`: planes x = 0, x = X, y = 0,
+//! y = Y); a mapped cell within half a cell of a wall is that wall's own trace and is skipped, so the ray
+//! reaches the exact wall. *An obstacle's surface* is a [`Landmark`]: the ray cast finds its first
+//! confirmed cell and the face the ray entered by (x or y); a cell is used only if one of its two
+//! neighbours along that face is occupied too (a straight piece of surface, not the corner of a box or a
+//! thin cylinder, whose faces the grid cannot tell). The first [`LANDMARK_SETTLE`] beams that end at such
+//! a face place its plane (the mean of where they ended: estimated position + measured distance along the
+//! normal; no fix meanwhile), and from then on the plane is frozen and every beam that reaches a confirmed
+//! cell within 1.5 cells of it is a fix against it.
+//!
+//! Why landmarks rather than the cells themselves (measured, BENCHMARKS.md §5): with the plane through
+//! the first confirmed cell's centre, the fixes ratcheted. The first confirmed cell along a ray is the
+//! nearest of the cells the noisy hits straddle, so its centre is biased towards the drone; the fix then
+//! moves the estimate away from the surface, the next hits (written from the moved estimate) confirm a
+//! cell nearer still, and so on: on the default world (noise seed 14) the estimate crept 21 cm behind the
+//! truth in 10 s of flight towards a wall. A frozen, unquantised plane cannot follow the map.
+//!
+//! Rules against a self-reinforcing loop (the map is written in the estimated frame, so a map and an
+//! estimate could drift together): only cells *confirmed* by at least two hits net of misses
+//! ([`CONFIRMED_LOG_ODDS`], two returns from different sweeps or different beams, i.e. other poses or
+//! times) are used; the caller casts before it writes the sweep; the arena's walls, which no drift can
+//! move, win over a cell that lies within half a cell of them. Outliers (a person, an unmapped box in front
+//! of a mapped wall, a ranger outlier): the measured range must lie within [`PRE_GATE_M`] of the expected
+//! one, then the estimator's 3σ gate decides. Beams at more than [`MAX_INCIDENCE_RAD`] to the surface's
+//! normal are not used (a grazing beam's range depends on where along the surface it lands).
+//!
+//! Non-goals: heading correction (yaw is held by the gyro; with two beams on one wall it would be
+//! observable, not done), mapping (the mission owns the map), loop closure.
+//!
+//! Units and frames: metres, radians, arena frame (origin at the arena's lower-left corner). Memory: a
+//! [`MapFixes`] is 4 × 20 bytes plus tags; [`Landmarks`] (the navigator keeps one per flight) 48 × 16
+//! bytes. Cost: at most
+//! [`MAX_RANGE_M`] / cell × 2 + 2 cell visits per beam (≈ 102 at 5 cm: a grid walk visits at most one cell
+//! per x or y boundary crossed), four beams per sweep; then up to four scalar EKF updates.
+
+use crate::types::MultiRangerSample;
+
+/// Beams longer than this give no fix, m (the ranger's noise grows with the range; the walk is bounded
+/// by it).
+pub const MAX_RANGE_M: f32 = 2.5;
+/// Beams shorter than this give no fix, m (something at the drone).
+pub const MIN_RANGE_M: f32 = 0.1;
+/// A cell counts as a surface only at or above this log-odds: two hits (+8 each) net of misses (−3 each)
+/// from other sweeps or beams (the grid's default occupied threshold, 6, is one hit).
+pub const CONFIRMED_LOG_ODDS: i8 = 16;
+/// A beam more than this off the surface's normal gives no fix, rad (40°).
+pub const MAX_INCIDENCE_RAD: f32 = 0.70;
+/// A measured range further than this from the expected one is something else (an unmapped object in
+/// front, an outlier), m.
+pub const PRE_GATE_M: f32 = 0.3;
+/// Ranger noise of the fix: this floor plus [`RANGER_STD_RELATIVE`] × range, m (the VL53L1x: a few mm plus
+/// ≈ 1 % of the range; doubled for surfaces that are not quite flat).
+pub const RANGER_STD_FLOOR_M: f32 = 0.005;
+/// Ranger noise per metre of range.
+pub const RANGER_STD_RELATIVE: f32 = 0.02;
+
+/// What a ray reached.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct RayHit {
+    /// Distance from the origin to where the ray enters the surface's cell (or meets the wall), m.
+    pub distance_m: f32,
+    /// The axis the surface is square to: 0 = a face of constant x, 1 = constant y.
+    pub axis: usize,
+    /// The surface's normal along `axis`, pointing away from the origin: +1 or −1.
+    pub sign: f32,
+    /// The surface plane's coordinate along `axis`, m (a cell's centre, or the wall).
+    pub plane_m: f32,
+    /// The arena's wall (exact) rather than a mapped cell (quantised).
+    pub wall: bool,
+    /// The cell the ray entered (column, row); for the wall, the last cell before it.
+    pub cell: (i32, i32),
+}
+
+/// The grid a ray walks: `width × height` cells of `cell_m`, covering `[0, width·cell) × [0, height·cell)`,
+/// inside an arena whose walls are the planes x = 0, x = `arena_m.0`, y = 0, y = `arena_m.1`.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct RayGrid {
+    /// Columns.
+    pub width: i32,
+    /// Rows.
+    pub height: i32,
+    /// Cell edge, m.
+    pub cell_m: f32,
+    /// The arena's size, m.
+    pub arena_m: (f32, f32),
+}
+
+/// Walks the ray from `origin` (m) along the unit vector `dir` for at most `max_m` and returns the first
+/// cell for which `confirmed(column, row)` holds (the cell containing the origin excluded), or the arena's
+/// wall if the ray meets it first, or `None`. Amanatides–Woo: every cell the ray crosses is visited once, in
+/// order, at most `2·max_m/cell + 2` of them. Cells outside `grid` are never asked. Non-finite input, an
+/// origin outside the arena or a zero direction give `None`.
+pub fn ray_cast(
+    grid: &RayGrid,
+    origin: (f32, f32),
+    dir: (f32, f32),
+    max_m: f32,
+    confirmed: impl Fn(i32, i32) -> bool,
+) -> Option<RayHit> {
+    let (ox, oy) = origin;
+    let (ux, uy) = dir;
+    let (ax, ay) = grid.arena_m;
+    let s = grid.cell_m;
+    let finite = [ox, oy, ux, uy, ax, ay, s, max_m].iter().all(|v| v.is_finite());
+    if !finite || s <= 0.0 || max_m <= 0.0 || ux * ux + uy * uy < 0.25 {
+        return None;
+    }
+    if !(ox > 0.0 && oy > 0.0 && ox < ax && oy < ay) {
+        return None;
+    }
+    // The wall the ray meets first.
+    let along = |o: f32, u: f32, far: f32| -> f32 {
+        if u > 1e-9 {
+            (far - o) / u
+        } else if u < -1e-9 {
+            -o / u
+        } else {
+            f32::INFINITY
+        }
+    };
+    let (twx, twy) = (along(ox, ux, ax), along(oy, uy, ay));
+    let (t_wall, wall_axis) = if twx <= twy { (twx, 0) } else { (twy, 1) };
+    let wall_hit = |cell: (i32, i32)| {
+        let (u, far) = if wall_axis == 0 { (ux, ax) } else { (uy, ay) };
+        RayHit {
+            distance_m: t_wall,
+            axis: wall_axis,
+            sign: if u > 0.0 { 1.0 } else { -1.0 },
+            plane_m: if u > 0.0 { far } else { 0.0 },
+            wall: true,
+            cell,
+        }
+    };
+
+    let mut cx = libm::floorf(ox / s) as i32;
+    let mut cy = libm::floorf(oy / s) as i32;
+    let step_x: i32 = if ux > 0.0 { 1 } else { -1 };
+    let step_y: i32 = if uy > 0.0 { 1 } else { -1 };
+    let next_boundary = |c: i32, step: i32, o: f32, u: f32| -> f32 {
+        if u.abs() <= 1e-9 {
+            return f32::INFINITY;
+        }
+        let b = if step > 0 { (c + 1) as f32 * s } else { c as f32 * s };
+        ((b - o) / u).max(0.0)
+    };
+    let mut t_max_x = next_boundary(cx, step_x, ox, ux);
+    let mut t_max_y = next_boundary(cy, step_y, oy, uy);
+    let dt_x = if ux.abs() > 1e-9 { s / ux.abs() } else { f32::INFINITY };
+    let dt_y = if uy.abs() > 1e-9 { s / uy.abs() } else { f32::INFINITY };
+    let limit = max_m.min(t_wall);
+    let max_steps = (2.0 * max_m / s) as u32 + 2;
+    for _ in 0..max_steps {
+        // Step into the next cell.
+        let (t_enter, axis) = if t_max_x <= t_max_y {
+            let t = t_max_x;
+            cx += step_x;
+            t_max_x += dt_x;
+            (t, 0)
+        } else {
+            let t = t_max_y;
+            cy += step_y;
+            t_max_y += dt_y;
+            (t, 1)
+        };
+        if t_enter >= limit {
+            break;
+        }
+        if cx < 0 || cy < 0 || cx >= grid.width || cy >= grid.height {
+            // Out of the grid: at the wall when the grid ends there (the walk's summed steps may land a
+            // rounding error short of `t_wall`); otherwise (a grid smaller than the arena) nothing is known.
+            let at_wall = t_enter >= t_wall - 0.5 * s && t_wall <= max_m;
+            return at_wall.then(|| wall_hit((cx, cy)));
+        }
+        // A cell within half a cell of a wall is that wall's own trace: the exact wall replaces it.
+        let (lo_x, lo_y) = (cx as f32 * s, cy as f32 * s);
+        let trace = lo_x <= 0.5 * s || lo_y <= 0.5 * s || lo_x + s >= ax - 0.5 * s || lo_y + s >= ay - 0.5 * s;
+        if trace || !confirmed(cx, cy) {
+            continue;
+        }
+        let (lo, u) = if axis == 0 { (lo_x, ux) } else { (lo_y, uy) };
+        return Some(RayHit {
+            distance_m: t_enter,
+            axis,
+            sign: if u > 0.0 { 1.0 } else { -1.0 },
+            plane_m: lo + 0.5 * s,
+            wall: false,
+            cell: (cx, cy),
+        });
+    }
+    (t_wall <= max_m).then(|| wall_hit((cx, cy)))
+}
+
+/// One beam's fix: the distance to a surface measured along its normal.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct MapFix {
+    /// The surface's unit normal, pointing away from the drone (arena frame).
+    pub normal: [f32; 2],
+    /// The measured distance from the drone to the surface along `normal`: range × cos(incidence), m.
+    pub measured_m: f32,
+    /// The same distance expected from the estimated position when the beam was cast, m.
+    pub expected_m: f32,
+    /// The std of `measured_m − expected_m` (ranger and, for a landmark, its plane's), m.
+    pub std_m: f32,
+}
+
+/// The fixes of one Multi-ranger sweep, in the order of [`MultiRangerSample::horizontal`].
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct MapFixes {
+    /// One per horizontal beam.
+    pub fixes: [Option<MapFix>; 4],
+}
+
+impl MapFixes {
+    /// Whether no beam gave a fix.
+    pub fn is_empty(&self) -> bool {
+        self.fixes.iter().all(Option::is_none)
+    }
+}
+
+/// A straight piece of an obstacle's surface, frozen in the arena frame the first few times a beam sees it
+/// (see the module documentation, "Landmarks").
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Landmark {
+    /// The axis the surface is square to: 0 = a face of constant x, 1 = constant y.
+    pub axis: u8,
+    /// The side it was seen from: the normal pointing away from the drone, +1 or −1 along `axis`.
+    pub sign: i8,
+    /// The surface's coordinate along `axis`, m: the mean of where the first [`LANDMARK_SETTLE`] beams
+    /// ended (estimated position + measured distance along the normal).
+    pub plane_m: f32,
+    /// The cells along the face it covers (first and last index across `axis`).
+    pub along: (i16, i16),
+    /// Beams averaged into `plane_m` (at most [`LANDMARK_SETTLE`]; fixes only from then on).
+    pub seen: u8,
+}
+
+/// A landmark gives fixes once this many beams have placed it.
+pub const LANDMARK_SETTLE: u8 = 5;
+/// Landmarks kept; a new one replaces the oldest when full.
+pub const MAX_LANDMARKS: usize = 48;
+/// A confirmed cell belongs to a landmark whose plane lies within this many cells of the cell's centre.
+const LANDMARK_MATCH_CELLS: f32 = 1.5;
+/// ... and whose extent along the face reaches within this many cells of it.
+const LANDMARK_GAP_CELLS: i16 = 2;
+/// The std of a settled landmark's plane relative to the ranger noise of one fix, m.
+const LANDMARK_STD_M: f32 = 0.005;
+
+/// The landmarks of one flight (fixed memory, [`MAX_LANDMARKS`] entries).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Landmarks {
+    items: [Option<Landmark>; MAX_LANDMARKS],
+    next: usize,
+}
+
+impl Default for Landmarks {
+    fn default() -> Self {
+        Self::new()
+    }
+}
+
+impl Landmarks {
+    /// None.
+    pub const fn new() -> Self {
+        Self {
+            items: [None; MAX_LANDMARKS],
+            next: 0,
+        }
+    }
+
+    /// Forget them all (a new flight).
+    pub fn clear(&mut self) {
+        *self = Self::new();
+    }
+
+    /// The landmarks held.
+    pub fn iter(&self) -> impl Iterator<Item = &Landmark> {
+        self.items.iter().flatten()
+    }
+
+    /// The landmark the beam's surface belongs to, creating or settling it with this beam's end
+    /// (`end_m`, the estimated position plus the measured distance along the normal). Returns the plane to
+    /// measure against once the landmark has settled (before this beam was added).
+    fn observe(
+        &mut self,
+        axis: usize,
+        sign: f32,
+        cell_center_m: f32,
+        along: i16,
+        end_m: f32,
+        cell_m: f32,
+    ) -> Option<f32> {
+        let sign_i: i8 = if sign > 0.0 { 1 } else { -1 };
+        let found = self.items.iter_mut().flatten().find(|l| {
+            usize::from(l.axis) == axis
+                && l.sign == sign_i
+                && (l.plane_m - cell_center_m).abs() <= LANDMARK_MATCH_CELLS * cell_m
+                && along >= l.along.0 - LANDMARK_GAP_CELLS
+                && along <= l.along.1 + LANDMARK_GAP_CELLS
+        });
+        match found {
+            Some(l) => {
+                l.along = (l.along.0.min(along), l.along.1.max(along));
+                if l.seen >= LANDMARK_SETTLE {
+                    return Some(l.plane_m);
+                }
+                l.seen += 1;
+                l.plane_m += (end_m - l.plane_m) / f32::from(l.seen);
+                None
+            }
+            None => {
+                self.items[self.next] = Some(Landmark {
+                    axis: axis as u8,
+                    sign: sign_i,
+                    plane_m: end_m,
+                    along: (along, along),
+                    seen: 1,
+                });
+                self.next = (self.next + 1) % MAX_LANDMARKS;
+                None
+            }
+        }
+    }
+}
+
+/// The fixes of one sweep (`sample`) from the estimated position `position_m` and heading `yaw_rad`,
+/// against the arena's walls and the `landmarks` found at the confirmed cells of the map as it is *before*
+/// this sweep is written (see the module docs); beams that place a new landmark give no fix.
+/// `confirmed(column, row)` says whether a cell holds a confirmed obstacle
+/// (log-odds ≥ [`CONFIRMED_LOG_ODDS`]); `occupied` whether it is occupied at all (the straight-surface
+/// check). Non-finite input gives no fix.
+pub fn cast_fixes(
+    grid: &RayGrid,
+    sample: &MultiRangerSample,
+    position_m: [f32; 2],
+    yaw_rad: f32,
+    landmarks: &mut Landmarks,
+    confirmed: impl Fn(i32, i32) -> bool,
+    occupied: impl Fn(i32, i32) -> bool,
+) -> MapFixes {
+    let mut out = MapFixes::default();
+    if !(yaw_rad.is_finite() && position_m.iter().all(|p| p.is_finite())) {
+        return out;
+    }
+    let (sn, cs) = (libm::sinf(yaw_rad), libm::cosf(yaw_rad));
+    let min_cos = libm::cosf(MAX_INCIDENCE_RAD);
+    for (beam, range) in sample.horizontal().into_iter().enumerate() {
+        let Some(r) = range.filter(|r| r.is_finite() && (MIN_RANGE_M..=MAX_RANGE_M).contains(r)) else {
+            continue;
+        };
+        let (bx, by) = MultiRangerSample::HORIZONTAL_BEAMS_BODY[beam];
+        let u = [cs * bx - sn * by, sn * bx + cs * by];
+        // Cast a little beyond the reading: a surface the noise put just past it is still the one seen.
+        let reach = (r + PRE_GATE_M).min(MAX_RANGE_M + PRE_GATE_M);
+        let Some(hit) = ray_cast(grid, (position_m[0], position_m[1]), (u[0], u[1]), reach, &confirmed) else {
+            continue;
+        };
+        let cos_inc = hit.sign * u[hit.axis];
+        if !(cos_inc >= min_cos) {
+            continue;
+        }
+        if !hit.wall {
+            // A straight piece of surface: a neighbour along the face is occupied too.
+            let (x, y) = hit.cell;
+            let along = if hit.axis == 0 {
+                occupied(x, y - 1) || occupied(x, y + 1)
+            } else {
+                occupied(x - 1, y) || occupied(x + 1, y)
+            };
+            if !along {
+                continue;
+            }
+        }
+        let mut normal = [0.0; 2];
+        normal[hit.axis] = hit.sign;
+        let measured = r * cos_inc;
+        let plane_m = if hit.wall {
+            hit.plane_m
+        } else {
+            let (x, y) = hit.cell;
+            let along = if hit.axis == 0 { y } else { x } as i16;
+            let end_m = position_m[hit.axis] + hit.sign * measured;
+            if (end_m - hit.plane_m).abs() > LANDMARK_MATCH_CELLS * grid.cell_m {
+                // The beam did not end at this cell (something else, or an outlier).
+                continue;
+            }
+            let Some(plane) = landmarks.observe(hit.axis, hit.sign, hit.plane_m, along, end_m, grid.cell_m) else {
+                continue;
+            };
+            plane
+        };
+        let expected = hit.sign * (plane_m - position_m[hit.axis]);
+        if !((measured - expected).abs() <= PRE_GATE_M) {
+            continue;
+        }
+        let ranger_std = (RANGER_STD_FLOOR_M + RANGER_STD_RELATIVE * r) * cos_inc;
+        let plane_std = if hit.wall { 0.0 } else { LANDMARK_STD_M };
+        let std_m = libm::sqrtf(ranger_std * ranger_std + plane_std * plane_std);
+        out.fixes[beam] = Some(MapFix {
+            normal,
+            measured_m: measured,
+            expected_m: expected,
+            std_m,
+        });
+    }
+    out
+}

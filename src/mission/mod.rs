@@ -244,6 +244,8 @@ pub struct Mission<const CELLS: usize, const QUEUE: usize> {
     /// front ranger looks where it is going (four beams see nothing diagonal to them).
     heading: f32,
     stats: MissionStats,
+    /// The descent gate's state and the search's retries for this leg (`landing`).
+    touchdown: landing::Touchdown,
 }
 
 /// Counters for logs and the simulator's report.
@@ -284,6 +286,7 @@ impl<const CELLS: usize, const QUEUE: usize> Mission<CELLS, QUEUE> {
             planner_needs_reset: false,
             heading: 0.0,
             stats: MissionStats::default(),
+            touchdown: landing::Touchdown::new(),
         })
     }
 
@@ -366,6 +369,7 @@ impl<const CELLS: usize, const QUEUE: usize> Mission<CELLS, QUEUE> {
         self.last_tick = None;
         self.phase = Phase::Preflight;
         self.heading = 0.0;
+        self.touchdown = landing::Touchdown::new();
         Ok(())
     }
 
@@ -438,6 +442,9 @@ impl<const CELLS: usize, const QUEUE: usize> Mission<CELLS, QUEUE> {
             if sx.is_finite() && sy.is_finite() {
                 self.pad.update(r, sx, sy);
             }
+        }
+        if let (true, Some(r)) = (matches!(self.phase, Phase::Approach { .. } | Phase::Land { .. }), range) {
+            self.touchdown_reading(r, -body_to_arena([0.0, 0.0, -1.0], state.attitude_rad)[2], state);
         }
     }
 

@@ -120,6 +120,9 @@ impl Clearance {
     /// The pad estimate's uncertainty, m: its RMS residual, the drift since its crossings
     /// (`age_s`), and a pad width's worth when a coordinate was not measured by two-sided crossings.
     pub fn uncertainty_m(&self, rms_residual_m: f32, age_s: f32, both_directions: bool) -> f32 {
+        if !(rms_residual_m.is_finite() && age_s.is_finite()) {
+            return f32::INFINITY;
+        }
         let drift = DRIFT_M_PER_SQRT_S * libm::sqrtf(age_s.max(0.0));
         let unmeasured = if both_directions { 0.0 } else { 0.5 * self.pad_size_m };
         rms_residual_m.max(0.0) + drift + unmeasured

@@ -43,12 +43,14 @@
 //!   line ends as soon as it gave a crossing (its rest only costs time), and in the first round a stage
 //!   ends once its direction has two inlier crossings; later rounds fly all three lines of a stage.
 //!   If the pattern ends without a
-//!   lock the drone lands on the best estimate (or the nominal point) and the mission ends with
-//!   [`MissionState::PadNotFound`] after flying the rest of the round trip.
+//!   lock the search widens and re-centres on the best estimate once; if that fails too, the drone lands
+//!   on the estimate only where the descent gate allows it, else clear of the pad, and the mission ends
+//!   with [`MissionState::PadNotFound`] after flying the rest of the round trip (see `landing`).
 //! - **Take-off**: climb at [`MissionConfig::climb_speed_m_s`]; navigation takes over 0.1 m above the
 //!   minimum height, and the rest of the climb overlaps the first metres of travel.
 //! - **Land**: fly back over the pad centre (a velocity profile down to 6 cm from it, then position hold),
-//!   until within [`MissionConfig::settle_tolerance_m`] and slow, descend at
+//!   until within [`MissionConfig::settle_tolerance_m`] and slow and the
+//!   [descent gate](crate::landing::gate) agrees (clearance rule, the pad's level under the drone), descend at
 //!   [`MissionConfig::high_descent_speed_m_s`] down to 0.2 m above the surface and slower below it (the
 //!   flow-only position drifts ≈ 1 cm/√s, so the time from the last crossing to touchdown is landing
 //!   error); the supervisor detects the touchdown and stops the motors, which the mission sees as `landed`.

@@ -61,7 +61,10 @@ pub struct SurfaceVotes {
 impl SurfaceVotes {
     /// No readings yet.
     pub const fn new() -> Self {
-        Self { pad_run: 0, floor_run: 0 }
+        Self {
+            pad_run: 0,
+            floor_run: 0,
+        }
     }
 
     /// Forget the readings (the drone moved to a new target).

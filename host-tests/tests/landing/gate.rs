@@ -43,7 +43,11 @@ fn descent_outcome(dx: f32, dy: f32) -> Option<bool> {
     }
     let ox = (dx.abs() - 0.5 * PAD_SIDE_M).max(0.0);
     let oy = (dy.abs() - 0.5 * PAD_SIDE_M).max(0.0);
-    if ox.hypot(oy) < BODY_RADIUS_M { None } else { Some(false) }
+    if ox.hypot(oy) < BODY_RADIUS_M {
+        None
+    } else {
+        Some(false)
+    }
 }
 
 /// Hover `readings` downward readings at the true offset (small random wander and tilt) and ask the gate.
@@ -88,7 +92,10 @@ fn a_pad_descent_happens_only_where_the_centre_is_over_the_pads_top() {
             Verdict::Wait => panic!("40 readings at one level and still undecided at ({dx:.3}, {dy:.3})"),
         }
     }
-    assert!(descents > 200 && refusals > 1000, "{descents} descents, {refusals} refusals");
+    assert!(
+        descents > 200 && refusals > 1000,
+        "{descents} descents, {refusals} refusals"
+    );
 }
 
 #[test]
@@ -97,8 +104,16 @@ fn an_estimate_at_the_pads_edge_is_refused() {
     // at the pad's edge, where the body touches the side on the way down (the oracle says so).
     let mut rng = SmallRng::seed_from_u64(3);
     for (dx, dy) in [(0.16, 0.0), (0.0, -0.18), (0.2, 0.05), (-0.19, 0.19), (0.155, -0.02)] {
-        assert_eq!(descent_outcome(dx, dy), None, "the oracle: ({dx}, {dy}) touches the side");
-        assert_eq!(hover_verdict(Target::PadTop, dx, dy, 40, &mut rng), Verdict::Refuse, "({dx}, {dy})");
+        assert_eq!(
+            descent_outcome(dx, dy),
+            None,
+            "the oracle: ({dx}, {dy}) touches the side"
+        );
+        assert_eq!(
+            hover_verdict(Target::PadTop, dx, dy, 40, &mut rng),
+            Verdict::Refuse,
+            "({dx}, {dy})"
+        );
     }
     // In the estimate frame: a drone 0.12 m from the pad estimate, or any estimate with one coordinate
     // unmeasured (crossings in one direction only), breaks the clearance rule; a centred one keeps it.

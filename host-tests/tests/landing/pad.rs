@@ -731,7 +731,11 @@ fn a_grazed_cylinder_is_not_taken_for_a_pad() {
         if r < 1.0 { 0.04 + 0.16 * (1.0 - r * r) } else { 0.0 }
     };
     let pad = |x: f32, y: f32| {
-        if (x - CENTRE.0).abs() <= 0.15 && (y - CENTRE.1).abs() <= 0.15 { PAD_HEIGHT_M } else { 0.0 }
+        if (x - CENTRE.0).abs() <= 0.15 && (y - CENTRE.1).abs() <= 0.15 {
+            PAD_HEIGHT_M
+        } else {
+            0.0
+        }
     };
     let mut lines = Vec::new();
     for offset in [-0.05f32, 0.0, 0.05] {

@@ -36,8 +36,10 @@
 //! 6. **Crossings**: an `Enter` followed by an `Exit` is a crossing if the drone flew straight between
 //!    them (travel ≈ chord, the headings just before both edges along the chord), the chord is a
 //!    plausible pad width (`min_chord_ratio`…`max_chord_ratio` × `pad_size_m`), the level in between is
-//!    at least `min_step_m` below the level before, and the level after matches the level before (same
-//!    floor on both sides). Unpaired edges (a line that ends or turns on the pad, a spurious step) never
+//!    at least `min_step_m` below the level before, the level after matches the level before (same
+//!    floor on both sides), and the top in between is flat (10th–90th percentile spread of its bins,
+//!    4 cm in from each edge, ≤ 3 cm): a beam grazing a cylinder's curved side or sliding down an
+//!    obstacle's foot reads a range that keeps changing, a pad's top does not. Unpaired edges (a line that ends or turns on the pad, a spurious step) never
 //!    enter the estimate.
 //!    6b. **Turn-backs**: an `Enter` followed by an `Exit` with the opposite heading, both on the same side of
 //!    the pad (within 5 cm along the travel), is a line that ended on the pad and came back (next to a
@@ -96,6 +98,13 @@ const COS_MAX_HEADING_ERROR: f32 = 0.9397;
 /// Travel between the edges of a crossing may exceed the chord by 5 % + 2 cm (position noise) at most.
 const TRAVEL_SLACK_RATIO: f32 = 1.05;
 const TRAVEL_SLACK_M: f32 = 0.02;
+/// A crossing's top, between its edges less this at each end, must be flat (see `flat_between`), m.
+const FLAT_TOP_INSET_M: f32 = 0.04;
+/// Largest spread (10th to 90th percentile of the bins) of a flat top, m: ten times the VL53L1x's noise at
+/// 0.4 m, a third of a 10 cm pad's height.
+const FLAT_TOP_SPREAD_M: f32 = 0.03;
+/// Fewest bins the flatness check needs (fewer: the ring no longer holds the top, the check passes).
+const FLAT_TOP_MIN_BINS: usize = 5;
 /// A turn-back's two edges must lie on one pad side: their separation along the travel direction, m.
 const TURN_BACK_SIDE_TOLERANCE_M: f32 = 0.05;
 
@@ -880,6 +889,9 @@ impl<const EDGES: usize> PadDetector<EDGES> {
         if libm::fabsf(floor_after - floor_before) > cfg.step_match_m + 0.5 * height {
             return None;
         }
+        if !self.flat_between(enter.odo, exit.odo) {
+            return None;
+        }
         Some(Crossing {
             enter: (enter.edge.x, enter.edge.y),
             exit: (exit.edge.x, exit.edge.y),
@@ -887,6 +899,39 @@ impl<const EDGES: usize> PadDetector<EDGES> {
             inlier: true,
             turn_back: false,
         })
+    }
+
+    /// Whether the binned ranges between two edges (travel `from_odo` to `to_odo`, less
+    /// [`FLAT_TOP_INSET_M`] at each end where the footprint blurs the step) form a flat top: the spread
+    /// between their 10th and 90th percentiles is at most [`FLAT_TOP_SPREAD_M`] (module docs, step 6).
+    /// A pad's top is flat; a beam grazing a cylinder's curved side, or sliding down an obstacle's foot,
+    /// reads a range that keeps changing. Passes when the ring no longer holds enough of those bins.
+    fn flat_between(&self, from_odo: f32, to_odo: f32) -> bool {
+        let (lo, hi) = (from_odo + FLAT_TOP_INSET_M, to_odo - FLAT_TOP_INSET_M);
+        let mut values = [0.0f32; RING];
+        let mut n = 0usize;
+        let newest = self.bins.wrapping_sub(1);
+        for back in 0..RING as u32 {
+            let Some(serial) = newest.checked_sub(back) else { break };
+            let Some(b) = self.ring_bin(serial) else { break };
+            if b.odo < lo {
+                break;
+            }
+            if b.odo <= hi
+                && let Some(slot) = values.get_mut(n)
+            {
+                *slot = b.range;
+                n += 1;
+            }
+        }
+        if n < FLAT_TOP_MIN_BINS {
+            return true;
+        }
+        let values = values.get_mut(..n).unwrap_or(&mut []);
+        values.sort_unstable_by(f32::total_cmp);
+        let p10 = values.get(n / 10).copied().unwrap_or(0.0);
+        let p90 = values.get(n - 1 - n / 10).copied().unwrap_or(0.0);
+        p90 - p10 <= FLAT_TOP_SPREAD_M
     }
 
     /// The half crossing made by entering the pad and leaving it over the same side after turning back

@@ -1,8 +1,57 @@
 //! Approach and touchdown: back over the pad centre on a velocity profile, position hold close to it, then
 //! a descent that is fast high up and soft near the surface, until the supervisor reports the touchdown.
+//!
+//! No descent without the [descent gate](crate::landing::gate)'s consent: over a pad, the clearance rule
+//! (offset + the estimate's uncertainty within the pad's top, with a margin) and a run of downward readings
+//! at the pad's level; over the floor (the pad was not found), a run at the floor's level. A refusal over a
+//! pad starts the refinement afresh around the estimate (at most [`MAX_REFUSALS`] times, then the search
+//! gives up and lands clear of the pad); a refusal over the floor moves to the next floor spot. A descent
+//! whose readings turn to the floor while still above the pad's height climbs back and counts as a refusal.
 
-use super::{Leg, Mission, MissionInputs, MissionState, Phase};
+use super::{Leg, Mission, MissionInputs, MissionState, Phase, Search};
+use crate::landing::gate::{self, Clearance, SurfaceVotes, Target, Verdict};
 use crate::types::{Micros, Setpoint, StateEstimate};
+
+/// Descents refused over a pad (each followed by a fresh refinement) before the search gives up, per leg.
+pub(super) const MAX_REFUSALS: u8 = 2;
+/// Floor spots refused (a pad top under each) before the drone lands where it is.
+const MAX_FLOOR_REFUSALS: u8 = 4;
+/// The body's centre keeps this far inside the pad's edge, beyond the estimate's uncertainty, m.
+const PAD_EDGE_MARGIN_M: f32 = 0.04;
+/// Pad height assumed before the detector has measured one, m (the pads are ~10 cm high).
+const PAD_HEIGHT_FALLBACK_M: f32 = 0.1;
+/// An approach that has not descended after this long is refused, s (readings missing or undecided).
+const APPROACH_TIMEOUT_S: f32 = 6.0;
+
+/// The descent gate's state for the current leg (see the module docs).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub(super) struct Touchdown {
+    /// What the current approach lands on.
+    pub target: Target,
+    /// Downward readings over the target since the drone settled there.
+    pub votes: SurfaceVotes,
+    /// Descents refused over a pad on this leg.
+    pub refusals: u8,
+    /// Searches widened and re-centred on this leg.
+    pub widenings: u8,
+    /// Floor spots refused on this leg.
+    pub floor_refusals: u8,
+    /// When the current approach began.
+    pub since: Option<Micros>,
+}
+
+impl Touchdown {
+    pub(super) const fn new() -> Self {
+        Self {
+            target: Target::PadTop,
+            votes: SurfaceVotes::new(),
+            refusals: 0,
+            widenings: 0,
+            floor_refusals: 0,
+            since: None,
+        }
+    }
+}
 
 /// Descent rate of an emergency landing without a usable estimate, m/s.
 const FAULT_DESCENT_SPEED_M_S: f32 = 0.5;
@@ -38,8 +87,98 @@ impl<const CELLS: usize, const QUEUE: usize> Mission<CELLS, QUEUE> {
         }
     }
 
-    /// Over the pad: a velocity profile towards its centre, position hold within
-    /// [`APPROACH_HOLD_RADIUS_M`]; once settled, the descent begins.
+    /// The pad's height as the detector measured it (median of its crossings' steps), m.
+    pub(super) fn pad_height(&self) -> f32 {
+        let mut steps = [0.0f32; 8];
+        let mut n = 0;
+        for (slot, c) in steps.iter_mut().zip(self.pad.crossings().iter().filter(|c| c.inlier)) {
+            *slot = c.step_m;
+            n += 1;
+        }
+        let steps = steps.get_mut(..n).unwrap_or(&mut []);
+        steps.sort_unstable_by(f32::total_cmp);
+        match steps.get(n / 2) {
+            Some(h) if h.is_finite() && *h > 0.0 => *h,
+            _ => PAD_HEIGHT_FALLBACK_M,
+        }
+    }
+
+    /// A downward reading while approaching or descending: the gate's surface votes.
+    pub(super) fn touchdown_reading(&mut self, range_m: f32, cos_tilt: f32, state: &StateEstimate) {
+        let pad_height = self.pad_height();
+        self.touchdown
+            .votes
+            .update(range_m, cos_tilt, state.position_m[2], pad_height);
+    }
+
+    /// Start an approach to `(x, y)`, landing on `target`.
+    pub(super) fn begin_approach(&mut self, (x, y): (f32, f32), target: Target) -> Setpoint {
+        self.touchdown.target = target;
+        self.touchdown.votes.clear();
+        self.touchdown.since = None;
+        self.phase = Phase::Approach {
+            x,
+            y,
+            settled_since: None,
+        };
+        Setpoint::Position {
+            x_m: x,
+            y_m: y,
+            z_m: self.params.height_m,
+            yaw_rad: self.heading,
+        }
+    }
+
+    /// The clearance rule (module docs) for a drone `offset_m` from the pad estimate, `age_s` after the
+    /// approach began.
+    fn clearance_allows(&self, offset_m: f32, age_s: f32) -> bool {
+        let rule = Clearance {
+            pad_size_m: self.config.pad.pad_size_m,
+            margin_m: PAD_EDGE_MARGIN_M,
+        };
+        let Some(e) = self.pad.estimate() else {
+            return false;
+        };
+        let both = e.min_direction_crossings >= 0.8;
+        rule.allows(offset_m, rule.uncertainty_m(e.rms_residual_m, age_s, both))
+    }
+
+    /// The gate refused a descent: over a pad, refine afresh around the estimate (or give up after
+    /// [`MAX_REFUSALS`]); over the floor, try the next floor spot.
+    fn refuse_descent(&mut self, state: &StateEstimate, (px, py): (f32, f32)) -> Setpoint {
+        match self.touchdown.target {
+            Target::PadTop => {
+                self.touchdown.refusals = self.touchdown.refusals.saturating_add(1);
+                if self.touchdown.refusals > MAX_REFUSALS {
+                    return self.give_up_search(state);
+                }
+                let centre = self.pad.estimate().map_or((px, py), |e| (e.x, e.y));
+                self.pad.reset();
+                let refine = Search::Refine {
+                    stage: 0,
+                    line: 0,
+                    end: 0,
+                    centre,
+                    first_along_x: self.touchdown.refusals % 2 == 1,
+                    crossings_before: 0,
+                };
+                self.phase = Phase::Search(refine);
+                self.search(refine, state, 0.02)
+            }
+            Target::Floor => {
+                self.touchdown.floor_refusals = self.touchdown.floor_refusals.saturating_add(1);
+                if self.touchdown.floor_refusals > MAX_FLOOR_REFUSALS {
+                    // Every spot had a pad under it: the centre is over a pad's top, where no side is touched.
+                    self.phase = Phase::Land { x: px, y: py };
+                    return self.land_setpoint(state, (px, py));
+                }
+                self.land_clear_of_pad(state)
+            }
+        }
+    }
+
+    /// Over the target: a velocity profile towards it, position hold within [`APPROACH_HOLD_RADIUS_M`];
+    /// once settled there and the [descent gate](crate::landing::gate) agrees, the descent begins.
     pub(super) fn approach(
         &mut self,
         now: Micros,
@@ -50,12 +189,23 @@ impl<const CELLS: usize, const QUEUE: usize> Mission<CELLS, QUEUE> {
         let (x, y) = (state.position_m[0], state.position_m[1]);
         let err = libm::hypotf(x - px, y - py);
         let slow = libm::hypotf(state.velocity_m_s[0], state.velocity_m_s[1]) < 0.05;
-        let settled_since = if err < self.config.settle_tolerance_m && slow {
+        let settled = err < self.config.settle_tolerance_m && slow;
+        let settled_since = if settled {
             Some(settled_since.unwrap_or(now))
         } else {
+            // Only readings taken over the target count.
+            self.touchdown.votes.clear();
             None
         };
+        let since = *self.touchdown.since.get_or_insert(now);
+        let age_s = now.saturating_sub(since) as f32 * 1e-6;
+        let rule_ok = self.touchdown.target == Target::Floor || self.clearance_allows(err, age_s);
+        let verdict = gate::verdict(self.touchdown.target, rule_ok, settled, &self.touchdown.votes);
+        if verdict == Verdict::Refuse || age_s > APPROACH_TIMEOUT_S {
+            return self.refuse_descent(state, (px, py));
+        }
         if let Some(t0) = settled_since
+            && verdict == Verdict::Descend
             && (now - t0) as f32 * 1e-6 >= self.config.settle_s
         {
             self.phase = Phase::Land { x: px, y: py };
@@ -113,6 +263,20 @@ impl<const CELLS: usize, const QUEUE: usize> Mission<CELLS, QUEUE> {
                 }
             };
         }
+        // The floor under a pad landing while still above the pad's height: the drone is beside the pad
+        // (drift during the descent, or a wrong lock); climb back and refine instead of touching its side.
+        let above_floor = state.position_m[2];
+        if self.touchdown.target == Target::PadTop
+            && self.touchdown.votes.floor_run() >= 2 * gate::DECIDING_READINGS
+            && above_floor > self.pad_height() + 0.08
+        {
+            self.touchdown.votes.clear();
+            return self.refuse_descent(state, (px, py));
+        }
+        self.land_setpoint(state, (px, py))
+    }
+
+    fn land_setpoint(&self, state: &StateEstimate, (px, py): (f32, f32)) -> Setpoint {
         Setpoint::Descend {
             x_m: px,
             y_m: py,

@@ -43,12 +43,14 @@
 //!   line ends as soon as it gave a crossing (its rest only costs time), and in the first round a stage
 //!   ends once its direction has two inlier crossings; later rounds fly all three lines of a stage.
 //!   If the pattern ends without a
-//!   lock the drone lands on the best estimate (or the nominal point) and the mission ends with
-//!   [`MissionState::PadNotFound`] after flying the rest of the round trip.
+//!   lock the search widens and re-centres on the best estimate once; if that fails too, the drone lands
+//!   on the estimate only where the descent gate allows it, else clear of the pad, and the mission ends
+//!   with [`MissionState::PadNotFound`] after flying the rest of the round trip (see `landing`).
 //! - **Take-off**: climb at [`MissionConfig::climb_speed_m_s`]; navigation takes over 0.1 m above the
 //!   minimum height, and the rest of the climb overlaps the first metres of travel.
 //! - **Land**: fly back over the pad centre (a velocity profile down to 6 cm from it, then position hold),
-//!   until within [`MissionConfig::settle_tolerance_m`] and slow, descend at
+//!   until within [`MissionConfig::settle_tolerance_m`] and slow and the
+//!   [descent gate](crate::landing::gate) agrees (clearance rule, the pad's level under the drone), descend at
 //!   [`MissionConfig::high_descent_speed_m_s`] down to 0.2 m above the surface and slower below it (the
 //!   flow-only position drifts ≈ 1 cm/√s, so the time from the last crossing to touchdown is landing
 //!   error); the supervisor detects the touchdown and stops the motors, which the mission sees as `landed`.
@@ -244,6 +246,8 @@ pub struct Mission<const CELLS: usize, const QUEUE: usize> {
     /// front ranger looks where it is going (four beams see nothing diagonal to them).
     heading: f32,
     stats: MissionStats,
+    /// The descent gate's state and the search's retries for this leg (`landing`).
+    touchdown: landing::Touchdown,
 }
 
 /// Counters for logs and the simulator's report.
@@ -284,6 +288,7 @@ impl<const CELLS: usize, const QUEUE: usize> Mission<CELLS, QUEUE> {
             planner_needs_reset: false,
             heading: 0.0,
             stats: MissionStats::default(),
+            touchdown: landing::Touchdown::new(),
         })
     }
 
@@ -366,6 +371,7 @@ impl<const CELLS: usize, const QUEUE: usize> Mission<CELLS, QUEUE> {
         self.last_tick = None;
         self.phase = Phase::Preflight;
         self.heading = 0.0;
+        self.touchdown = landing::Touchdown::new();
         Ok(())
     }
 
@@ -438,6 +444,9 @@ impl<const CELLS: usize, const QUEUE: usize> Mission<CELLS, QUEUE> {
             if sx.is_finite() && sy.is_finite() {
                 self.pad.update(r, sx, sy);
             }
+        }
+        if let (true, Some(r)) = (matches!(self.phase, Phase::Approach { .. } | Phase::Land { .. }), range) {
+            self.touchdown_reading(r, -body_to_arena([0.0, 0.0, -1.0], state.attitude_rad)[2], state);
         }
     }
 

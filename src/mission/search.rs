@@ -2,7 +2,9 @@
 //! first crossing until the detector locks, every line clipped to keep its clearance from mapped obstacles
 //! and the arena walls. The rules are in the [mission's documentation](super).
 
+use super::landing::{MAX_REFUSALS, Touchdown};
 use super::{Mission, Phase, Search};
+use crate::landing::gate::Target;
 use crate::landing::sweep::{ArenaBounds, LawnmowerSweep, SweepAxis};
 use crate::nav::map::{CELL_SIZE_M, Cell};
 use crate::types::{Setpoint, StateEstimate};
@@ -17,6 +19,22 @@ const CLEARANCE_HORIZON_M: f32 = 0.3;
 /// Sampling step along a search line for the clearance check, m.
 const CLEARANCE_STEP_M: f32 = 0.025;
 const REFINE_LINES: u8 = 3;
+/// Searches widened and re-centred per leg after the refinement found no lock.
+const MAX_WIDENINGS: u8 = 1;
+/// A widened coarse pattern is this much larger on each side, m.
+const WIDEN_M: f32 = 0.4;
+/// A landing clear of the pad keeps this far from the pad's nominal point, m: the pad's centre lies within
+/// 0.35 m of it, its corner 0.21 m further, the body 0.06 m, 0.05 m for the drift.
+const PAD_REACH_M: f32 = 0.67;
+/// Failing that, this far from the pad estimate's centre (half the pad's diagonal, the body, drift), m.
+const PAD_ESTIMATE_REACH_M: f32 = 0.33;
+/// ... and this far from each pad edge seen (the body and drift), m.
+const PAD_EDGE_REACH_M: f32 = 0.14;
+/// A floor spot keeps this far from mapped obstacles and the arena walls, m.
+const FLOOR_SPOT_CLEARANCE_M: f32 = 0.22;
+/// Rings of candidate floor spots around the drone, and their spacing, m.
+const FLOOR_SPOT_RINGS: u8 = 9;
+const FLOOR_SPOT_STEP_M: f32 = 0.15;
 const REFINE_STAGES: u8 = 8;
 
 impl<const CELLS: usize, const QUEUE: usize> Mission<CELLS, QUEUE> {
@@ -36,6 +54,7 @@ impl<const CELLS: usize, const QUEUE: usize> Mission<CELLS, QUEUE> {
             };
         }
         self.sweep = LawnmowerSweep::new(centre, here, &sweep, &arena).ok();
+        self.touchdown = Touchdown::new();
         // The detector keeps what it saw on the approach (it was reset when the leg began).
         let search = Search::Coarse {
             step: 0,
@@ -121,17 +140,7 @@ impl<const CELLS: usize, const QUEUE: usize> Mission<CELLS, QUEUE> {
     pub(super) fn search(&mut self, search: Search, state: &StateEstimate, _dt_s: f32) -> Setpoint {
         if let Some((px, py)) = self.pad.locked_centre() {
             self.stats.pad_centres[self.leg_index()] = Some((px, py));
-            self.phase = Phase::Approach {
-                x: px,
-                y: py,
-                settled_since: None,
-            };
-            return Setpoint::Position {
-                x_m: px,
-                y_m: py,
-                z_m: self.params.height_m,
-                yaw_rad: self.heading,
-            };
+            return self.begin_approach((px, py), Target::PadTop);
         }
         match search {
             Search::Coarse { step, reverse } => {
@@ -331,26 +340,92 @@ impl<const CELLS: usize, const QUEUE: usize> Mission<CELLS, QUEUE> {
         Some((a, b))
     }
 
-    /// No lock: land on the best estimate, or the nominal point, and remember it for the final code.
+    /// No lock. The first time on a leg the search widens and re-centres on the best estimate (a fresh
+    /// detector, a coarse pattern [`WIDEN_M`] larger); after that the pad is not found: land on the best
+    /// estimate only where the descent gate's clearance rule can hold (both coordinates measured), else land
+    /// clear of the pad ([`Self::land_clear_of_pad`]); the mission ends with the pad-not-found code.
     pub(super) fn give_up_search(&mut self, state: &StateEstimate) -> Setpoint {
+        if self.touchdown.widenings < MAX_WIDENINGS && self.touchdown.refusals <= MAX_REFUSALS {
+            self.touchdown.widenings += 1;
+            let centre = self
+                .pad
+                .estimate()
+                .map(|e| (e.x, e.y))
+                .unwrap_or_else(|| self.leg_target());
+            let arena = ArenaBounds::new(self.params.arena_m.0, self.params.arena_m.1, 0.15);
+            let here = (state.position_m[0], state.position_m[1]);
+            let grow = WIDEN_M * f32::from(self.touchdown.widenings);
+            let mut sweep = self.config.sweep;
+            sweep.size_x_m += grow;
+            sweep.size_y_m += grow;
+            sweep.axis = SweepAxis::Auto;
+            if let Ok(s) = LawnmowerSweep::new(centre, here, &sweep, &arena) {
+                self.sweep = Some(s);
+                self.pad.reset();
+                let search = Search::Coarse {
+                    step: 0,
+                    reverse: false,
+                };
+                self.phase = Phase::Search(search);
+                return self.search(search, state, 0.02);
+            }
+        }
         self.pad_not_found = true;
-        let (px, py) = self
+        self.stats.pad_centres[self.leg_index()] = None;
+        let measured = self
             .pad
             .estimate()
-            .map(|e| (e.x, e.y))
-            .unwrap_or_else(|| self.leg_target());
-        self.stats.pad_centres[self.leg_index()] = None;
-        let _ = state;
-        self.phase = Phase::Approach {
-            x: px,
-            y: py,
-            settled_since: None,
-        };
-        Setpoint::Position {
-            x_m: px,
-            y_m: py,
-            z_m: self.params.height_m,
-            yaw_rad: self.heading,
+            .filter(|e| e.min_direction_crossings >= 0.8 && e.rms_residual_m < 0.03);
+        match measured {
+            Some(e) if self.touchdown.refusals <= MAX_REFUSALS => {
+                // One more try on the estimate: the gate refuses it unless over the pad's interior.
+                self.touchdown.refusals = MAX_REFUSALS + 1;
+                self.begin_approach((e.x, e.y), Target::PadTop)
+            }
+            _ => self.land_clear_of_pad(state),
         }
+    }
+
+    /// The pad was not found: land where it cannot be, so that the body touches none of its sides. The
+    /// spot nearest the drone (rings [`FLOOR_SPOT_STEP_M`] apart, eight points each) that keeps
+    /// [`FLOOR_SPOT_CLEARANCE_M`] from what is mapped, is reachable in a straight line, lies at least
+    /// [`PAD_REACH_M`] from the pad's nominal point (the pad lies within 0.35 m of it) or, when even that
+    /// finds nothing, from the best estimate and away from every pad edge seen; the descent gate then
+    /// wants the floor under the drone. Without any such spot: where the drone is.
+    pub(super) fn land_clear_of_pad(&mut self, state: &StateEstimate) -> Setpoint {
+        let here = (state.position_m[0], state.position_m[1]);
+        let nominal = self.leg_target();
+        let estimate = self.pad.estimate().map(|e| (e.x, e.y));
+        let skip = usize::from(self.touchdown.floor_refusals);
+        let mut found = 0usize;
+        let far = |p: (f32, f32), q: (f32, f32), r: f32| libm::hypotf(p.0 - q.0, p.1 - q.1) >= r;
+        let mut spot = None;
+        'strict: for strict in [true, false] {
+            for ring in 0..FLOOR_SPOT_RINGS {
+                let radius = FLOOR_SPOT_STEP_M * f32::from(ring);
+                let points: u8 = if ring == 0 { 1 } else { 8 };
+                for k in 0..points {
+                    let a = core::f32::consts::FRAC_PI_4 * f32::from(k);
+                    let p = (here.0 + radius * libm::cosf(a), here.1 + radius * libm::sinf(a));
+                    let clear_of_pad = if strict {
+                        far(p, nominal, PAD_REACH_M)
+                    } else {
+                        estimate.is_none_or(|e| far(p, e, PAD_ESTIMATE_REACH_M))
+                            && self.pad.edges().iter().all(|e| far(p, (e.x, e.y), PAD_EDGE_REACH_M))
+                    };
+                    if clear_of_pad
+                        && self.clearance(p) >= FLOOR_SPOT_CLEARANCE_M
+                        && self.clip_to_clearance(here, p) == p
+                    {
+                        if found == skip {
+                            spot = Some(p);
+                            break 'strict;
+                        }
+                        found += 1;
+                    }
+                }
+            }
+        }
+        self.begin_approach(spot.unwrap_or(here), Target::Floor)
     }
 }

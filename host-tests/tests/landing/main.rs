@@ -1,4 +1,5 @@
-//! Landing (src/landing): the pad detector and the lawnmower sweep.
+//! Landing (src/landing): the pad detector, the lawnmower sweep and the descent gate.
 
+mod gate;
 mod pad;
 mod sweep;

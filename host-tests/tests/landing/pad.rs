@@ -718,3 +718,55 @@ mod props {
         }
     }
 }
+
+/// A beam grazing a cylinder (or sliding down an obstacle's foot) reads a surface that steps up and back
+/// down like a pad's, but keeps changing in between: here a dome 4 cm high at its rim and 20 cm at its
+/// middle, 0.3 m across, flown across in both directions through and beside its middle. No crossing may
+/// come of it (a pad's top is flat), so nothing locks; the same lines over a real pad still lock.
+#[test]
+fn a_grazed_cylinder_is_not_taken_for_a_pad() {
+    const CENTRE: (f32, f32) = (4.5, 1.5);
+    let dome = |x: f32, y: f32| {
+        let r = ((x - CENTRE.0).hypot(y - CENTRE.1) / 0.15).min(1.0);
+        if r < 1.0 { 0.04 + 0.16 * (1.0 - r * r) } else { 0.0 }
+    };
+    let pad = |x: f32, y: f32| {
+        if (x - CENTRE.0).abs() <= 0.15 && (y - CENTRE.1).abs() <= 0.15 {
+            PAD_HEIGHT_M
+        } else {
+            0.0
+        }
+    };
+    let mut lines = Vec::new();
+    for offset in [-0.05f32, 0.0, 0.05] {
+        lines.push(((CENTRE.0 - 0.5, CENTRE.1 + offset), (CENTRE.0 + 0.5, CENTRE.1 + offset)));
+        lines.push(((CENTRE.0 + offset, CENTRE.1 - 0.5), (CENTRE.0 + offset, CENTRE.1 + 0.5)));
+    }
+    let fly_lines = |surface: &dyn Fn(f32, f32) -> f32, seed: u64| {
+        let mut rng = SmallRng::seed_from_u64(seed);
+        let mut det = PadDetector::<EDGES>::new(PadConfig::default()).expect("valid");
+        let step = SPEED_MPS / RATE_HZ;
+        for &(a, b) in &lines {
+            let len = (b.0 - a.0).hypot(b.1 - a.1);
+            let mut s = 0.0;
+            while s <= len {
+                let (x, y) = (a.0 + (b.0 - a.0) * s / len, a.1 + (b.1 - a.1) * s / len);
+                det.update(0.5 - surface(x, y) + 0.003 * gauss(&mut rng), x, y);
+                s += step;
+            }
+            // Hover at the line's end: the last step settles.
+            for _ in 0..30 {
+                det.update(0.5 + 0.003 * gauss(&mut rng), b.0, b.1);
+            }
+        }
+        det
+    };
+    for seed in 0..20 {
+        let det = fly_lines(&dome, seed);
+        assert!(det.crossings().is_empty(), "seed {seed}: {:?}", det.crossings());
+        assert!(!det.locked(), "seed {seed}");
+        let det = fly_lines(&pad, seed);
+        let c = det.locked_centre().expect("the same lines lock on a pad");
+        assert!((c.0 - CENTRE.0).hypot(c.1 - CENTRE.1) < 0.02, "seed {seed}: {c:?}");
+    }
+}

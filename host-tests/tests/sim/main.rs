@@ -2,6 +2,7 @@
 
 mod commander;
 mod mission;
+mod modes;
 mod physics;
 mod stress;
 mod world;

@@ -64,6 +64,42 @@ impl MissionMode {
     pub const fn code(self) -> u8 {
         self as u8
     }
+
+    /// Every mode, in `mission.mode` order.
+    pub const ALL: [Self; 3] = [Self::RoundTrip, Self::HoverTest, Self::Explore];
+
+    /// The mode's name (as `cfnav sim --mode` spells it) and what it does, for the README's mode table.
+    pub const fn describe(self) -> (&'static str, &'static str) {
+        match self {
+            Self::RoundTrip => (
+                "round-trip",
+                "take off, map and plan to `mission.goalX/goalY`, find the goal pad, land, take off, fly home, \
+                 find the home pad, land (states 10–24)",
+            ),
+            Self::HoverTest => (
+                "hover",
+                "take off to `mission.height`, hold over the take-off point for `mission.hoverTime` s (state 50), \
+                 land there (51); the worst deviation is logged as `mission.hoverDevXY`, `mission.hoverDevZ`",
+            ),
+            Self::Explore => (
+                "explore",
+                "fly to the nearest reachable frontier (60), look around there and choose the next (61), until \
+                 `mission.coverage` of the arena's cells is known or no frontier is left; then fly home, find the \
+                 home pad, land (21–24); `mission.covered` logs the coverage",
+            ),
+        }
+    }
+}
+
+/// Writes the README's mode table: one Markdown row per [`MissionMode`].
+pub fn write_mode_table(out: &mut impl core::fmt::Write) -> core::fmt::Result {
+    writeln!(out, "| `mission.mode` | `cfnav sim --mode` | what the mission does |")?;
+    writeln!(out, "|---|---|---|")?;
+    for mode in MissionMode::ALL {
+        let (name, doc) = mode.describe();
+        writeln!(out, "| {} | `{name}` | {doc} |", mode.code())?;
+    }
+    Ok(())
 }
 
 /// Shortest and longest hover test accepted, s.

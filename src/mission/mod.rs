@@ -72,7 +72,7 @@ mod search;
 
 pub use config::{
     COVERAGE_RANGE, HOVER_TIME_RANGE_S, MAX_HEIGHT_M, MAX_SPEED_M_S, MIN_HEIGHT_M, MissionConfig, MissionConfigError,
-    MissionInputs, MissionMode, MissionParams, StartRefusal,
+    MissionInputs, MissionMode, MissionParams, StartRefusal, write_mode_table,
 };
 pub use explore::ExploreEnd;
 

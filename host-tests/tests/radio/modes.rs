@@ -71,7 +71,10 @@ fn each_mode_is_accepted_on_the_ground_and_reaches_the_start() {
     assert_eq!(send(&mut m, &req), Some(req));
     let req = write_f32(ID_COVERAGE, 0.6);
     assert_eq!(send(&mut m, &req), Some(req));
-    assert_eq!((m.store().params.hover_time_s, m.store().params.coverage_target), (12.5, 0.6));
+    assert_eq!(
+        (m.store().params.hover_time_s, m.store().params.coverage_target),
+        (12.5, 0.6)
+    );
     assert!(m.take_refusal().is_none());
 }
 

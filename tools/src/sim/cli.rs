@@ -111,7 +111,10 @@ fn apply_mode(args: &SimArgs, options: &mut RunOptions) -> Result<(), String> {
     if let Some(c) = args.coverage
         && !within(c, COVERAGE_RANGE)
     {
-        return Err(format!("--coverage {c}: expected {} to {}", COVERAGE_RANGE.0, COVERAGE_RANGE.1));
+        return Err(format!(
+            "--coverage {c}: expected {} to {}",
+            COVERAGE_RANGE.0, COVERAGE_RANGE.1
+        ));
     }
     options.mode = args.mode.mode();
     options.hover_time_s = args.hover_time;
@@ -333,7 +336,9 @@ fn run_serve(args: &SimArgs, stress: Option<&Stress>) -> ExitCode {
         return fail("--json, --plot, --flow-fails-at and --abort-at do not apply to --serve");
     }
     if args.mode != ModeArg::RoundTrip || args.hover_time.is_some() || args.coverage.is_some() {
-        return fail("--mode, --hover-time and --coverage do not apply to --serve: write mission.mode, mission.hoverTime, mission.coverage");
+        return fail(
+            "--mode, --hover-time and --coverage do not apply to --serve: write mission.mode, mission.hoverTime, mission.coverage",
+        );
     }
     let mut world = match (&args.world, args.random_world) {
         (Some(_), Some(_)) => return fail("--world and --random-world exclude each other"),

@@ -164,7 +164,7 @@ pub struct ExploreReport {
     pub coverage: f32,
     /// Fraction of the truly free cells (centre clear of every obstacle at cruise height) the grid knows.
     pub true_free_known: f32,
-    /// Fraction of the cells the grid holds as occupied that are truly within 0.1 m of an obstacle or wall.
+    /// Fraction of the cells the grid holds as occupied that are truly within 0.15 m of an obstacle or wall (the estimate drifts).
     pub occupied_correct: Option<f32>,
     /// `coverage`, `no_frontier`, or `None` when the exploration did not end (battery, abort, crash...).
     pub end: Option<&'static str>,
@@ -431,7 +431,9 @@ pub fn run(world: &World, options: &RunOptions) -> Result<RunResult, String> {
         }
         let state = core.mission_state();
         if state == MissionState::HoverHold {
-            hover_truth.0 = hover_truth.0.max((p[0] - take_off_truth[0]).hypot(p[1] - take_off_truth[1]));
+            hover_truth.0 = hover_truth
+                .0
+                .max((p[0] - take_off_truth[0]).hypot(p[1] - take_off_truth[1]));
             // The estimate's heights count from the surface it took off from (the home pad's top).
             hover_truth.1 = hover_truth.1.max((p[2] - take_off_truth[2] - params.height_m).abs());
             hover_truth.2 += 1;
@@ -652,7 +654,7 @@ pub fn run(world: &World, options: &RunOptions) -> Result<RunResult, String> {
 }
 
 /// The drone's map against the world: the fraction of truly free cells (centre clear of everything at
-/// `height_m`) it knows, and the fraction of its occupied cells that truly lie within 0.1 m of an obstacle
+/// `height_m`) it knows, and the fraction of its occupied cells that truly lie within 0.15 m of an obstacle
 /// or a wall (`None` when it marked none).
 fn map_truth<const N: usize>(
     world: &World,
@@ -671,7 +673,7 @@ fn map_truth<const N: usize>(
         }
         if grid.is_occupied(c) {
             occupied += 1;
-            occupied_ok += u32::from(clearance < 0.1);
+            occupied_ok += u32::from(clearance < 0.15);
         }
     }
     (

@@ -25,13 +25,13 @@
 //!
 //! Units: arena frame, metres, seconds; cells of [`CELL_SIZE_M`].
 //!
-//! Memory: [`Explorer`] is about 220 B (a list of [`DROPPED_CAPACITY`] cells and the scan's cursor); no
+//! Memory: [`Explorer`] is about 230 B (a list of [`DROPPED_CAPACITY`] cells and the scan's cursor); no
 //! queue, no second grid. Cost: the scan runs in slices of [`SCAN_ROWS_PER_TICK`] grid rows per 50 Hz tick
 //! (4 ticks for the 128 × 64 grid). Per cell: one byte read (unknown? for the coverage count), and for a
 //! known-free, unblocked cell up to four [`is_unobserved_region`] tests (one byte each unless the
 //! neighbour is unknown, then nine); the dropped list is searched only for a candidate nearer than the best
-//! so far. Worst case per slice 16 × 128 × (1 + 4 × 9) ≈ 76 k byte reads, typically ≈ 10 k; host-measured
-//! in the tests, not yet counted under QEMU.
+//! so far. Worst case per slice 16 × 128 × (1 + 4 × 9) ≈ 76 k byte reads, typically ≈ 10 k (most cells
+//! fail the first test); not yet counted under QEMU (tools/qemu-bench has no figure for it).
 //!
 //! [`is_unobserved_region`]: crate::nav::grid::OccupancyGrid::is_unobserved_region
 

@@ -138,7 +138,12 @@ pub async fn mission_task(nav: &'static mut FwNavigator) {
             info!("mission ended: state {}", state.code());
         }
         was_running = running;
-        update_log(|s| s.flight.mission_state = state.code());
+        let stats = nav.mission().stats();
+        update_log(|s| {
+            s.flight.mission_state = state.code();
+            s.flight.hover_dev_m = [stats.hover_dev_xy_m, stats.hover_dev_z_m];
+            s.flight.coverage = stats.coverage;
+        });
         // Let the other thread-mode tasks (LEDs, watchdog) run before the next slice.
         yield_now().await;
     }

@@ -31,7 +31,81 @@ pub enum StartRefusal {
     BadHeight,
     /// Cruise speed not in (0, 1] m/s.
     BadSpeed,
+    /// The hover time or the coverage target of the mission modes is outside its range.
+    BadModeSetting,
 }
+
+/// What the mission does (`mission.mode`, see the README's mode table).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+#[repr(u8)]
+pub enum MissionMode {
+    /// 0: the round trip (take off, goal pad, home pad), the default.
+    #[default]
+    RoundTrip = 0,
+    /// 1: take off, hold `mission.hoverTime` s over the take-off point, land there; the worst deviation is
+    /// logged.
+    HoverTest = 1,
+    /// 2: frontier exploration until the coverage target or no reachable frontier, then home to its pad.
+    Explore = 2,
+}
+
+impl MissionMode {
+    /// The mode of a `mission.mode` value; `None` for values no mode has.
+    pub const fn from_code(code: u8) -> Option<Self> {
+        match code {
+            0 => Some(Self::RoundTrip),
+            1 => Some(Self::HoverTest),
+            2 => Some(Self::Explore),
+            _ => None,
+        }
+    }
+
+    /// The `mission.mode` value.
+    pub const fn code(self) -> u8 {
+        self as u8
+    }
+
+    /// Every mode, in `mission.mode` order.
+    pub const ALL: [Self; 3] = [Self::RoundTrip, Self::HoverTest, Self::Explore];
+
+    /// The mode's name (as `cfnav sim --mode` spells it) and what it does, for the README's mode table.
+    pub const fn describe(self) -> (&'static str, &'static str) {
+        match self {
+            Self::RoundTrip => (
+                "round-trip",
+                "take off, map and plan to `mission.goalX/goalY`, find the goal pad, land, take off, fly home, \
+                 find the home pad, land (states 10–24)",
+            ),
+            Self::HoverTest => (
+                "hover",
+                "take off to `mission.height`, hold over the take-off point for `mission.hoverTime` s (state 50), \
+                 land there (51); the worst deviation is logged as `mission.hoverDevXY`, `mission.hoverDevZ`",
+            ),
+            Self::Explore => (
+                "explore",
+                "fly to the nearest reachable frontier (60), look around there and choose the next (61), until \
+                 `mission.coverage` of the arena's cells is known or no frontier is left; then fly home, find the \
+                 home pad, land (21–24); `mission.covered` logs the coverage",
+            ),
+        }
+    }
+}
+
+/// Writes the README's mode table: one Markdown row per [`MissionMode`].
+pub fn write_mode_table(out: &mut impl core::fmt::Write) -> core::fmt::Result {
+    writeln!(out, "| `mission.mode` | `cfnav sim --mode` | what the mission does |")?;
+    writeln!(out, "|---|---|---|")?;
+    for mode in MissionMode::ALL {
+        let (name, doc) = mode.describe();
+        writeln!(out, "| {} | `{name}` | {doc} |", mode.code())?;
+    }
+    Ok(())
+}
+
+/// Shortest and longest hover test accepted, s.
+pub const HOVER_TIME_RANGE_S: (f32, f32) = (1.0, 60.0);
+/// Smallest and largest exploration coverage target accepted (fraction of the arena's cells known).
+pub const COVERAGE_RANGE: (f32, f32) = (0.05, 1.0);
 
 /// The mission's parameters (the `mission.*` radio parameters and the arena).
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -46,6 +120,13 @@ pub struct MissionParams {
     pub height_m: f32,
     /// Cruise speed, m/s.
     pub speed_m_s: f32,
+    /// What the mission does (`mission.mode`).
+    pub mode: MissionMode,
+    /// The hover test's hold time, s (`mission.hoverTime`, [`HOVER_TIME_RANGE_S`]).
+    pub hover_time_s: f32,
+    /// Exploration ends once this fraction of the arena's cells is known (`mission.coverage`,
+    /// [`COVERAGE_RANGE`]).
+    pub coverage_target: f32,
 }
 
 /// Minimum height in flight phases (interfaces.md §5, the supervisor's floor too).
@@ -63,6 +144,9 @@ impl MissionParams {
         goal_m: (5.0, 1.5),
         height_m: 0.5,
         speed_m_s: 0.5,
+        mode: MissionMode::RoundTrip,
+        hover_time_s: 5.0,
+        coverage_target: 0.8,
     };
 
     /// Check the parameters against each other and a grid capacity.
@@ -85,6 +169,10 @@ impl MissionParams {
         }
         if !(self.speed_m_s > 0.0 && self.speed_m_s <= MAX_SPEED_M_S) {
             return Err(StartRefusal::BadSpeed);
+        }
+        let within = |v: f32, (lo, hi): (f32, f32)| v >= lo && v <= hi;
+        if !within(self.hover_time_s, HOVER_TIME_RANGE_S) || !within(self.coverage_target, COVERAGE_RANGE) {
+            return Err(StartRefusal::BadModeSetting);
         }
         Ok(shape)
     }

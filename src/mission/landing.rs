@@ -252,7 +252,12 @@ impl<const CELLS: usize, const QUEUE: usize> Mission<CELLS, QUEUE> {
                     self.phase = Phase::OnPad { since: now };
                     Setpoint::Stop
                 }
-                Leg::Return => {
+                Leg::Hover => {
+                    self.phase = Phase::Ended(MissionState::Completed);
+                    Setpoint::Stop
+                }
+                // The exploration always ends on the return leg; a landing in it is the home landing.
+                Leg::Return | Leg::Explore => {
                     let end = if self.pad_not_found {
                         MissionState::PadNotFound
                     } else {

@@ -66,14 +66,17 @@
 use heapless::Vec;
 
 pub mod config;
+mod explore;
+mod hover;
 mod landing;
 mod navigate;
 mod search;
 
 pub use config::{
-    MAX_HEIGHT_M, MAX_SPEED_M_S, MIN_HEIGHT_M, MissionConfig, MissionConfigError, MissionInputs, MissionParams,
-    StartRefusal,
+    COVERAGE_RANGE, HOVER_TIME_RANGE_S, MAX_HEIGHT_M, MAX_SPEED_M_S, MIN_HEIGHT_M, MissionConfig, MissionConfigError,
+    MissionInputs, MissionMode, MissionParams, StartRefusal, write_mode_table,
 };
+pub use explore::ExploreEnd;
 
 use crate::landing::pad::PadDetector;
 use crate::landing::sweep::LawnmowerSweep;
@@ -117,6 +120,14 @@ pub enum MissionState {
     LandOnHomePad = 24,
     /// No path: hovering while the map may still change.
     NoPathHover = 30,
+    /// Hover test: holding over the take-off point for `mission.hoverTime` s.
+    HoverHold = 50,
+    /// Hover test: descending onto the take-off point.
+    HoverLand = 51,
+    /// Exploring: flying to the nearest reachable frontier.
+    Explore = 60,
+    /// Exploring: at a frontier, turning a quarter turn to look around, then choosing the next frontier.
+    ExploreLook = 61,
     /// Landing where it is, because the mission cannot go on (the final code follows on touchdown).
     EmergencyLanding = 40,
     /// Landed on both pads, motors off.
@@ -149,11 +160,15 @@ impl MissionState {
     }
 }
 
-/// Which way the round trip is going.
+/// Which way the round trip is going (or which mode's flight this is).
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 enum Leg {
     Outbound,
     Return,
+    /// The hover test (take-off, hold, landing at the take-off point).
+    Hover,
+    /// Exploring frontiers (then [`Leg::Return`] flies home).
+    Explore,
 }
 
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -190,6 +205,21 @@ enum Phase {
         then: MissionState,
     },
     Ended(MissionState),
+    /// Hover test: holding position over the take-off point since `since`.
+    HoverHold {
+        x: f32,
+        y: f32,
+        since: Micros,
+    },
+    /// Exploring: holding at `(x, y)`, turning from `heading_start` by a quarter turn since `since`, then
+    /// scanning the grid for the next frontier (`scanning`).
+    ExploreLook {
+        x: f32,
+        y: f32,
+        since: Micros,
+        heading_start: f32,
+        scanning: bool,
+    },
 }
 
 /// Where the pad search is.
@@ -222,6 +252,9 @@ const NO_PATH_TURN_RATE_RAD_S: f32 = 0.8;
 const TAKEOFF_HANDOVER_MARGIN_M: f32 = 0.1;
 /// Within this distance of the leg's target the navigating drone already feeds the pad detector, m.
 const PAD_LOOKOUT_RADIUS_M: f32 = 0.8;
+/// The hover test's hold and the exploration's first look begin once the climb is this close below the
+/// cruise height, m.
+const MODE_HANDOVER_BELOW_M: f32 = 0.03;
 
 /// See the module documentation.
 pub struct Mission<const CELLS: usize, const QUEUE: usize> {
@@ -248,6 +281,7 @@ pub struct Mission<const CELLS: usize, const QUEUE: usize> {
     stats: MissionStats,
     /// The descent gate's state and the search's retries for this leg (`landing`).
     touchdown: landing::Touchdown,
+    explorer: explore::Explorer,
 }
 
 /// Counters for logs and the simulator's report.
@@ -261,6 +295,19 @@ pub struct MissionStats {
     pub last_expansions: u32,
     /// Pad locks: the centre the drone aimed at, per leg (outbound, return).
     pub pad_centres: [Option<(f32, f32)>; 2],
+    /// Hover test: the worst horizontal distance of the position estimate from the take-off point during
+    /// the hold, m (`mission.hoverDevXY`).
+    pub hover_dev_xy_m: f32,
+    /// Hover test: the worst |estimated height − `mission.height`| during the hold, m (`mission.hoverDevZ`).
+    pub hover_dev_z_m: f32,
+    /// Explore: the fraction of the arena's cells known at the latest frontier scan (`mission.covered`).
+    pub coverage: f32,
+    /// Explore: frontiers reached.
+    pub frontiers_reached: u32,
+    /// Explore: frontiers given up (no path, or not reached in time).
+    pub frontiers_dropped: u32,
+    /// Explore: why the exploration ended (then the drone flew home).
+    pub explore_end: Option<ExploreEnd>,
 }
 
 impl<const CELLS: usize, const QUEUE: usize> Mission<CELLS, QUEUE> {
@@ -289,6 +336,7 @@ impl<const CELLS: usize, const QUEUE: usize> Mission<CELLS, QUEUE> {
             heading: 0.0,
             stats: MissionStats::default(),
             touchdown: landing::Touchdown::new(),
+            explorer: explore::Explorer::new(),
         })
     }
 
@@ -297,6 +345,10 @@ impl<const CELLS: usize, const QUEUE: usize> Mission<CELLS, QUEUE> {
         match self.phase {
             Phase::Idle => MissionState::Idle,
             Phase::Preflight => MissionState::Preflight,
+            Phase::HoverHold { .. } => MissionState::HoverHold,
+            Phase::Land { .. } if self.leg == Leg::Hover => MissionState::HoverLand,
+            Phase::ExploreLook { .. } => MissionState::ExploreLook,
+            Phase::Navigate if self.leg == Leg::Explore => MissionState::Explore,
             Phase::TakeOff { .. } => self.by_leg(MissionState::TakeOffOutbound, MissionState::TakeOffReturn),
             Phase::Navigate => self.by_leg(MissionState::NavigateToGoal, MissionState::NavigateHome),
             Phase::NoPath { .. } => MissionState::NoPathHover,
@@ -368,6 +420,7 @@ impl<const CELLS: usize, const QUEUE: usize> Mission<CELLS, QUEUE> {
         self.pad_not_found = false;
         self.planner_needs_reset = true;
         self.stats = MissionStats::default();
+        self.explorer = explore::Explorer::new();
         self.last_tick = None;
         self.phase = Phase::Preflight;
         self.heading = 0.0;
@@ -396,7 +449,13 @@ impl<const CELLS: usize, const QUEUE: usize> Mission<CELLS, QUEUE> {
         self.last_ranges = RangerReadings::new(ranges.front_m, ranges.back_m, ranges.left_m, ranges.right_m);
         let airborne = matches!(
             self.phase,
-            Phase::TakeOff { .. } | Phase::Navigate | Phase::NoPath { .. } | Phase::Search(_) | Phase::Approach { .. }
+            Phase::TakeOff { .. }
+                | Phase::Navigate
+                | Phase::NoPath { .. }
+                | Phase::Search(_)
+                | Phase::Approach { .. }
+                | Phase::HoverHold { .. }
+                | Phase::ExploreLook { .. }
         );
         // Beams only map the arena once the drone flies above pads and low clutter.
         if !airborne || state.position_m[2] < 0.8 * self.params.height_m || !state.valid {
@@ -436,6 +495,7 @@ impl<const CELLS: usize, const QUEUE: usize> Mission<CELLS, QUEUE> {
         // it: feeding the detector from there on can give the first crossing before the search begins.
         let (tx, ty) = self.leg_target();
         let near_target = matches!(self.phase, Phase::Navigate)
+            && matches!(self.leg, Leg::Outbound | Leg::Return)
             && libm::hypotf(state.position_m[0] - tx, state.position_m[1] - ty) < PAD_LOOKOUT_RADIUS_M;
         let searching = near_target || matches!(self.phase, Phase::Search(_) | Phase::Approach { .. });
         if let (true, Some(r)) = (searching, range) {
@@ -492,12 +552,27 @@ impl<const CELLS: usize, const QUEUE: usize> Mission<CELLS, QUEUE> {
                 if !state.valid || !inputs.armed {
                     return Setpoint::Stop;
                 }
-                self.begin_leg(now, state, Leg::Outbound)
+                let first = match self.params.mode {
+                    MissionMode::RoundTrip => Leg::Outbound,
+                    MissionMode::HoverTest => Leg::Hover,
+                    MissionMode::Explore => Leg::Explore,
+                };
+                self.begin_leg(now, state, first)
             }
             Phase::TakeOff { x: tx, y: ty, z_target } => {
+                // The hover test and the exploration start at the cruise height: the hold is measured there,
+                // and the first look around must map (beams map only near the cruise height).
+                if matches!(self.leg, Leg::Hover | Leg::Explore) && z >= self.params.height_m - MODE_HANDOVER_BELOW_M {
+                    return match self.leg {
+                        Leg::Hover => self.begin_hover_hold(now, (tx, ty)),
+                        _ => self.begin_explore_look(now, state),
+                    };
+                }
                 // Navigation takes over once the drone is safely above the minimum height: its setpoints
                 // carry the cruise height, so the last part of the climb overlaps the first metres of travel.
-                if z >= (self.params.height_m - 0.05).min(MIN_HEIGHT_M + TAKEOFF_HANDOVER_MARGIN_M) {
+                if !matches!(self.leg, Leg::Hover | Leg::Explore)
+                    && z >= (self.params.height_m - 0.05).min(MIN_HEIGHT_M + TAKEOFF_HANDOVER_MARGIN_M)
+                {
                     self.phase = Phase::Navigate;
                     self.avoidance.reset();
                     return self.navigate(now, state, dt_s);
@@ -544,6 +619,14 @@ impl<const CELLS: usize, const QUEUE: usize> Mission<CELLS, QUEUE> {
                 }
             }
             Phase::Search(search) => self.search(search, state, dt_s),
+            Phase::HoverHold { x: hx, y: hy, since } => self.hover_hold(now, state, (hx, hy), since),
+            Phase::ExploreLook {
+                x: hx,
+                y: hy,
+                since,
+                heading_start,
+                scanning,
+            } => self.explore_look(now, state, (hx, hy), since, heading_start, scanning),
             Phase::Approach {
                 x: px,
                 y: py,
@@ -584,14 +667,14 @@ impl<const CELLS: usize, const QUEUE: usize> Mission<CELLS, QUEUE> {
 
     fn by_leg(&self, outbound: MissionState, back: MissionState) -> MissionState {
         match self.leg {
-            Leg::Outbound => outbound,
+            Leg::Outbound | Leg::Hover | Leg::Explore => outbound,
             Leg::Return => back,
         }
     }
 
     fn leg_index(&self) -> usize {
         match self.leg {
-            Leg::Outbound => 0,
+            Leg::Outbound | Leg::Hover | Leg::Explore => 0,
             Leg::Return => 1,
         }
     }

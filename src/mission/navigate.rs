@@ -54,7 +54,8 @@ impl<const CELLS: usize, const QUEUE: usize> Mission<CELLS, QUEUE> {
     pub(super) fn leg_target(&self) -> (f32, f32) {
         match self.leg {
             Leg::Outbound => self.params.goal_m,
-            Leg::Return => self.params.start_m,
+            Leg::Return | Leg::Hover => self.params.start_m,
+            Leg::Explore => self.explore_target(),
         }
     }
 
@@ -203,6 +204,12 @@ impl<const CELLS: usize, const QUEUE: usize> Mission<CELLS, QUEUE> {
     }
 
     pub(super) fn navigate(&mut self, now: Micros, state: &StateEstimate, dt_s: f32) -> Setpoint {
+        // Exploring: a frontier reached, gone stale or not reached in time ends this flight (see `explore`).
+        if self.leg == Leg::Explore
+            && let Some(setpoint) = self.explore_progress(now, state)
+        {
+            return setpoint;
+        }
         let (x, y) = (state.position_m[0], state.position_m[1]);
         let target_leg = self.leg_target();
         let to_goal = libm::hypotf(target_leg.0 - x, target_leg.1 - y);
@@ -211,11 +218,15 @@ impl<const CELLS: usize, const QUEUE: usize> Mission<CELLS, QUEUE> {
             let (gx, gy) = self.shape.center_of(planned_goal);
             libm::hypotf(gx - x, gy - y) < self.config.goal_tolerance_m
         };
-        if to_goal < self.config.goal_tolerance_m || (at_substitute_goal && !self.planner_needs_reset) {
+        if self.leg != Leg::Explore
+            && (to_goal < self.config.goal_tolerance_m || (at_substitute_goal && !self.planner_needs_reset))
+        {
             return self.begin_search(state);
         }
         let target = match self.plan(state) {
             Ok(Some(t)) => Some(t),
+            // No path to a frontier: drop it and choose another (the no-path rules are for the way home).
+            Ok(None) if self.leg == Leg::Explore => return self.drop_frontier(now, state),
             Ok(None) if !self.narrow() && self.narrow_inflation_cells() < self.full_inflation_cells() => {
                 // The full margin closes every way: try the narrow one (next tick plans with it), holding
                 // position meanwhile.

@@ -443,6 +443,28 @@ pub const LOG_TABLE: &[LogEntry] = &[
     ),
     LogEntry::declare("posCtl", "targetY", F, "m", "position target y"),
     LogEntry::declare("posCtl", "targetZ", F, "m", "position target z"),
+    // Mission modes (issue 13 part 3)
+    LogEntry::declare(
+        "mission",
+        "hoverDevXY",
+        F,
+        "m",
+        "hover test: worst horizontal distance of the estimate from the take-off point while holding",
+    ),
+    LogEntry::declare(
+        "mission",
+        "hoverDevZ",
+        F,
+        "m",
+        "hover test: worst |estimated height - mission.height| while holding",
+    ),
+    LogEntry::declare(
+        "mission",
+        "covered",
+        F,
+        "",
+        "explore: fraction of the arena's cells known at the latest frontier scan",
+    ),
 ];
 
 /// Id of `mission.state` (uint8).
@@ -497,6 +519,12 @@ pub const ID_CTRL_ROLL_RATE: u16 = log_id(LOG_TABLE, "controller", "rollRate");
 pub const ID_TARGET_VX: u16 = log_id(LOG_TABLE, "posCtl", "targetVX");
 /// Id of `posCtl.targetX` (float, m); `Y`, `Z` follow.
 pub const ID_TARGET_X: u16 = log_id(LOG_TABLE, "posCtl", "targetX");
+/// Id of `mission.hoverDevXY` (float, m).
+pub const ID_HOVER_DEV_XY: u16 = log_id(LOG_TABLE, "mission", "hoverDevXY");
+/// Id of `mission.hoverDevZ` (float, m).
+pub const ID_HOVER_DEV_Z: u16 = log_id(LOG_TABLE, "mission", "hoverDevZ");
+/// Id of `mission.covered` (float, fraction).
+pub const ID_COVERED: u16 = log_id(LOG_TABLE, "mission", "covered");
 
 /// `supervisor.info` bit 3: can fly (stock `supervisor.c`).
 const INFO_CAN_FLY: u16 = 1 << 3;
@@ -555,6 +583,10 @@ pub struct FlightLogState {
     pub velocity_target_m_s: [f32; 3],
     /// `posCtl.targetX/Y/Z`, m.
     pub position_target_m: [f32; 3],
+    /// `mission.hoverDevXY`, `mission.hoverDevZ`, m (the hover test's worst deviations).
+    pub hover_dev_m: [f32; 2],
+    /// `mission.covered`: the exploration's known fraction of the arena.
+    pub coverage: f32,
 }
 
 impl FlightLogState {
@@ -621,6 +653,9 @@ impl LogSource for FlightLogState {
             }
             _ if (ID_TARGET_VX..ID_TARGET_VX + 3).contains(&id) => f(self.velocity_target_m_s, ID_TARGET_VX),
             _ if (ID_TARGET_X..ID_TARGET_X + 3).contains(&id) => f(self.position_target_m, ID_TARGET_X),
+            ID_HOVER_DEV_XY => Some(LogValue::F32(self.hover_dev_m[0])),
+            ID_HOVER_DEV_Z => Some(LogValue::F32(self.hover_dev_m[1])),
+            ID_COVERED => Some(LogValue::F32(self.coverage)),
             _ => None,
         }
     }

@@ -32,7 +32,10 @@
 //!
 //! Memory: the table is `'static`; [`MissionParamState`] is a few dozen bytes.
 
-use crate::mission::{MAX_HEIGHT_M, MAX_SPEED_M_S, MIN_HEIGHT_M, MissionParams, StartRefusal};
+use crate::mission::{
+    COVERAGE_RANGE, HOVER_TIME_RANGE_S, MAX_HEIGHT_M, MAX_SPEED_M_S, MIN_HEIGHT_M, MissionMode, MissionParams,
+    StartRefusal,
+};
 
 use super::crtp::MAX_DATA;
 
@@ -709,6 +712,34 @@ pub const PARAM_TABLE: &[ParamEntry] = &[
         "",
         "stock's high-level-commander switch, kept for clients that write it",
     ),
+    // Mission modes (issue 13 part 3)
+    ParamEntry::declare(
+        "mission",
+        "mode",
+        ParamType::U8,
+        0,
+        Range::Closed(0.0, 2.0),
+        "",
+        "0 round trip, 1 hover test, 2 explore (README mode table); refused while a mission runs",
+    ),
+    ParamEntry::declare(
+        "mission",
+        "hoverTime",
+        ParamType::F32,
+        0,
+        Range::Closed(HOVER_TIME_RANGE_S.0, HOVER_TIME_RANGE_S.1),
+        "s",
+        "hover test: how long to hold over the take-off point; refused while a mission runs",
+    ),
+    ParamEntry::declare(
+        "mission",
+        "coverage",
+        ParamType::F32,
+        0,
+        Range::Closed(COVERAGE_RANGE.0, COVERAGE_RANGE.1),
+        "",
+        "explore: fly home once this fraction of the arena's cells is known; refused while a mission runs",
+    ),
 ];
 
 /// Id of `mission.start` (uint8).
@@ -735,6 +766,12 @@ pub const ID_RESET_ESTIMATION: u16 = param_id(PARAM_TABLE, "kalman", "resetEstim
 pub const ID_CONTROLLER: u16 = param_id(PARAM_TABLE, "stabilizer", "controller");
 /// Id of `commander.enHighLevel` (uint8).
 pub const ID_EN_HIGH_LEVEL: u16 = param_id(PARAM_TABLE, "commander", "enHighLevel");
+/// Id of `mission.mode` (uint8: 0 round trip, 1 hover test, 2 explore).
+pub const ID_MODE: u16 = param_id(PARAM_TABLE, "mission", "mode");
+/// Id of `mission.hoverTime` (float, s).
+pub const ID_HOVER_TIME: u16 = param_id(PARAM_TABLE, "mission", "hoverTime");
+/// Id of `mission.coverage` (float, fraction).
+pub const ID_COVERAGE: u16 = param_id(PARAM_TABLE, "mission", "coverage");
 
 /// Writes the README's parameter table for `table`: one Markdown row per declaration.
 pub fn write_param_table(out: &mut impl core::fmt::Write, table: &[ParamEntry]) -> core::fmt::Result {
@@ -843,6 +880,7 @@ impl MissionParamState {
             StartRefusal::OutsideArena => Refusal::StartOutsideArena,
             StartRefusal::BadHeight => Refusal::BadHeight,
             StartRefusal::BadSpeed => Refusal::BadSpeed,
+            StartRefusal::BadModeSetting => Refusal::OutOfRange,
         })?;
         self.start = 1;
         Ok(())
@@ -876,12 +914,17 @@ impl MissionParamState {
             }
             ID_HEIGHT => self.params.height_m = v,
             ID_SPEED => self.params.speed_m_s = v,
+            // The mission modes' settings: what a running mission does cannot change under it.
+            ID_HOVER_TIME | ID_COVERAGE if self.start != 0 => return Err(Refusal::AlreadyRunning),
+            ID_HOVER_TIME => self.params.hover_time_s = v,
+            ID_COVERAGE => self.params.coverage_target = v,
             _ => return Err(Refusal::UnknownId),
         }
         Ok(())
     }
 
-    /// A uint8 write that passed the declaration's checks (0 or 1 for every writable uint8 here).
+    /// A uint8 write that passed the declaration's checks (0 or 1 for every writable uint8 here but
+    /// `mission.mode`, 0..2).
     fn write_u8(&mut self, id: u16, v: u8) -> Result<(), Refusal> {
         match id {
             ID_START => return self.write_start(v),
@@ -891,6 +934,8 @@ impl MissionParamState {
             ID_RESET_ESTIMATION => self.reset_estimation = v,
             ID_CONTROLLER => self.controller = v,
             ID_EN_HIGH_LEVEL => self.en_high_level = v,
+            ID_MODE if self.start != 0 => return Err(Refusal::AlreadyRunning),
+            ID_MODE => self.params.mode = MissionMode::from_code(v).ok_or(Refusal::OutOfRange)?,
             _ => return Err(Refusal::UnknownId),
         }
         Ok(())
@@ -916,6 +961,9 @@ impl ParamStore for MissionParamState {
             ID_RESET_ESTIMATION => Value::U8(self.reset_estimation),
             ID_CONTROLLER => Value::U8(self.controller),
             ID_EN_HIGH_LEVEL => Value::U8(self.en_high_level),
+            ID_MODE => Value::U8(p.mode.code()),
+            ID_HOVER_TIME => Value::F32(p.hover_time_s),
+            ID_COVERAGE => Value::F32(p.coverage_target),
             // The other deck.* entries: decks cfnav never drives.
             _ if PARAM_TABLE.get(usize::from(id))?.group == "deck" => flag(false),
             _ => return None,

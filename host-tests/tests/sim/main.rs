@@ -3,6 +3,7 @@
 mod commander;
 mod mission;
 mod pads;
+mod modes;
 mod physics;
 mod stress;
 mod world;

@@ -51,6 +51,9 @@ fn sim_args() -> SimArgs {
         serve: false,
         port: 19850,
         speed: 1.0,
+        mode: cfnav_tools::sim::cli::ModeArg::RoundTrip,
+        hover_time: None,
+        coverage: None,
     }
 }
 

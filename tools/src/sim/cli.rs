@@ -5,6 +5,7 @@ use std::process::ExitCode;
 use std::sync::Mutex;
 use std::sync::atomic::{AtomicUsize, Ordering};
 
+use cfnav::mission::{COVERAGE_RANGE, HOVER_TIME_RANGE_S, MissionMode};
 use clap::Args;
 use serde::Serialize;
 
@@ -61,6 +62,64 @@ pub struct SimArgs {
     /// Speed factor for --serve (1 = real time).
     #[arg(long, default_value_t = 1.0)]
     pub speed: f64,
+    /// The mission to fly (`mission.mode`): `round-trip` (0, the default), `hover` (1, the hover test) or
+    /// `explore` (2, frontier exploration, then home). With --serve, write `mission.mode` instead.
+    #[arg(long, value_enum, default_value_t = ModeArg::RoundTrip)]
+    pub mode: ModeArg,
+    /// `mission.hoverTime` for --mode hover, s (1..60; default 5).
+    #[arg(long, value_name = "S")]
+    pub hover_time: Option<f32>,
+    /// `mission.coverage` for --mode explore: the known fraction of the arena's cells that ends the
+    /// exploration (0.05..1; default 0.8).
+    #[arg(long, value_name = "FRACTION")]
+    pub coverage: Option<f32>,
+}
+
+/// `--mode`: the values of `mission.mode`.
+#[derive(clap::ValueEnum, Clone, Copy, Debug, PartialEq, Eq)]
+pub enum ModeArg {
+    /// 0: the round trip.
+    RoundTrip,
+    /// 1: the hover test.
+    Hover,
+    /// 2: frontier exploration.
+    Explore,
+}
+
+impl ModeArg {
+    fn mode(self) -> MissionMode {
+        match self {
+            Self::RoundTrip => MissionMode::RoundTrip,
+            Self::Hover => MissionMode::HoverTest,
+            Self::Explore => MissionMode::Explore,
+        }
+    }
+}
+
+/// Copies `--mode`, `--hover-time` and `--coverage` into `options`, refusing values outside the parameters'
+/// ranges (bad input).
+fn apply_mode(args: &SimArgs, options: &mut RunOptions) -> Result<(), String> {
+    let within = |v: f32, (lo, hi): (f32, f32)| v >= lo && v <= hi;
+    if let Some(t) = args.hover_time
+        && !within(t, HOVER_TIME_RANGE_S)
+    {
+        return Err(format!(
+            "--hover-time {t}: expected {} to {} s",
+            HOVER_TIME_RANGE_S.0, HOVER_TIME_RANGE_S.1
+        ));
+    }
+    if let Some(c) = args.coverage
+        && !within(c, COVERAGE_RANGE)
+    {
+        return Err(format!(
+            "--coverage {c}: expected {} to {}",
+            COVERAGE_RANGE.0, COVERAGE_RANGE.1
+        ));
+    }
+    options.mode = args.mode.mode();
+    options.hover_time_s = args.hover_time;
+    options.coverage = args.coverage;
+    Ok(())
 }
 
 /// The `--random` report's summary (interfaces.md §4).
@@ -177,7 +236,33 @@ fn one_line(r: &RunReport) -> String {
         r.min_clearance_m.map_or("-".into(), |c| format!("{:.2} m", c)),
         r.replans,
         r.max_estimate_error_m * 100.0,
-    )
+    ) + &mode_line(r)
+}
+
+/// The mode's figures for the one-line summary (empty for the round trip).
+fn mode_line(r: &RunReport) -> String {
+    if let Some(h) = &r.hover {
+        return format!(
+            ", hover {:.1} s: deviation xy {:.1} cm, z {:.1} cm (truth {:.1} cm, {:.1} cm)",
+            h.held_s,
+            h.dev_xy_m * 100.0,
+            h.dev_z_m * 100.0,
+            h.true_dev_xy_m * 100.0,
+            h.true_dev_z_m * 100.0
+        );
+    }
+    if let Some(e) = &r.explore {
+        return format!(
+            ", explored {:.0} % of the cells ({:.0} % of the free ones) in {} s, end {}, frontiers {} reached, {} dropped",
+            e.coverage * 100.0,
+            e.true_free_known * 100.0,
+            e.explore_time_s.map_or("-".into(), |t| format!("{t:.1}")),
+            e.end.unwrap_or("-"),
+            e.frontiers_reached,
+            e.frontiers_dropped
+        );
+    }
+    String::new()
 }
 
 /// `cfnav sim`.
@@ -221,6 +306,9 @@ pub fn run_cli(args: &SimArgs) -> ExitCode {
     options.verbose = args.verbose;
     options.faults.flow_fails_at_s = args.flow_fails_at;
     options.faults.abort_at_s = args.abort_at;
+    if let Err(e) = apply_mode(args, &mut options) {
+        return fail(e);
+    }
     let result = match run(&world, &options) {
         Ok(r) => r,
         Err(e) => return fail(e),
@@ -247,6 +335,11 @@ fn run_serve(args: &SimArgs, stress: Option<&Stress>) -> ExitCode {
     if args.json.is_some() || args.plot.is_some() || args.flow_fails_at.is_some() || args.abort_at.is_some() {
         return fail("--json, --plot, --flow-fails-at and --abort-at do not apply to --serve");
     }
+    if args.mode != ModeArg::RoundTrip || args.hover_time.is_some() || args.coverage.is_some() {
+        return fail(
+            "--mode, --hover-time and --coverage do not apply to --serve: write mission.mode, mission.hoverTime, mission.coverage",
+        );
+    }
     let mut world = match (&args.world, args.random_world) {
         (Some(_), Some(_)) => return fail("--world and --random-world exclude each other"),
         (Some(path), None) => match World::load(path) {
@@ -266,6 +359,10 @@ fn run_serve(args: &SimArgs, stress: Option<&Stress>) -> ExitCode {
 }
 
 fn run_random(n: usize, seed: u64, args: &SimArgs, stress: Option<&Stress>) -> ExitCode {
+    let mut mode_options = RunOptions::for_world(&World::default_world());
+    if let Err(e) = apply_mode(args, &mut mode_options) {
+        return fail(e);
+    }
     let started = std::time::Instant::now();
     let bar = indicatif::ProgressBar::new(n as u64);
     bar.set_style(
@@ -293,6 +390,9 @@ fn run_random(n: usize, seed: u64, args: &SimArgs, stress: Option<&Stress>) -> E
                     }
                     let mut options = RunOptions::for_world(&world);
                     options.seed = world_seed;
+                    options.mode = mode_options.mode;
+                    options.hover_time_s = mode_options.hover_time_s;
+                    options.coverage = mode_options.coverage;
                     match run(&world, &options) {
                         Ok(RunResult { report, .. }) => {
                             if let Ok(mut r) = results.lock() {

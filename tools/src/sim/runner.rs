@@ -8,7 +8,7 @@
 
 use std::time::Instant;
 
-use cfnav::mission::{MissionParams, MissionState};
+use cfnav::mission::{ExploreEnd, MissionMode, MissionParams, MissionState};
 use cfnav::stack::{FlightConfig, FlightCore};
 use cfnav::types::{MotorDuty, MultiRangerSample, RangeReading};
 use rand::rngs::SmallRng;
@@ -57,6 +57,12 @@ pub struct RunOptions {
     pub faults: Faults,
     /// Print every mission state change (time, truth, estimate) to stderr.
     pub verbose: bool,
+    /// `mission.mode` (`--mode`): the round trip unless asked.
+    pub mode: MissionMode,
+    /// `mission.hoverTime`, s (`--hover-time`); the firmware's default when `None`.
+    pub hover_time_s: Option<f32>,
+    /// `mission.coverage` (`--coverage`); the firmware's default when `None`.
+    pub coverage: Option<f32>,
 }
 
 impl RunOptions {
@@ -69,6 +75,9 @@ impl RunOptions {
             record: false,
             faults: Faults::default(),
             verbose: false,
+            mode: MissionMode::RoundTrip,
+            hover_time_s: None,
+            coverage: None,
         }
     }
 }
@@ -116,6 +125,55 @@ pub struct RunReport {
     /// The arena has more cells than the default firmware build maps (120 × 60): the run flew the
     /// `large-arena` build's grid, as the simulator always does.
     pub needs_large_arena: bool,
+    /// `mission.mode`: `round_trip`, `hover` or `explore`.
+    pub mode: &'static str,
+    /// The hover test's figures (mode `hover`).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub hover: Option<HoverReport>,
+    /// The exploration's figures (mode `explore`).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub explore: Option<ExploreReport>,
+}
+
+/// The hover test in the report: the firmware's figures (`mission.hoverDevXY`, `.hoverDevZ`: the estimate's
+/// view) beside the truth's.
+#[derive(Clone, Debug, Serialize, PartialEq)]
+pub struct HoverReport {
+    /// `mission.hoverTime`, s.
+    pub hover_time_s: f32,
+    /// How long the hold lasted (state 50), simulated s.
+    pub held_s: f64,
+    /// The firmware's worst horizontal deviation of the estimate from the take-off point, m.
+    pub dev_xy_m: f32,
+    /// The firmware's worst |estimated height − mission.height|, m.
+    pub dev_z_m: f32,
+    /// The truth's worst horizontal distance from the true take-off point during the hold, m.
+    pub true_dev_xy_m: f32,
+    /// The truth's worst |height above the take-off surface − mission.height| during the hold, m.
+    pub true_dev_z_m: f32,
+    /// Where the drone came to rest, from the true take-off point, m.
+    pub landing_offset_m: Option<f32>,
+}
+
+/// The exploration in the report.
+#[derive(Clone, Debug, Serialize, PartialEq)]
+pub struct ExploreReport {
+    /// `mission.coverage`, the target.
+    pub coverage_target: f32,
+    /// `mission.covered` at the end: the fraction of the arena's cells the drone's grid knows.
+    pub coverage: f32,
+    /// Fraction of the truly free cells (centre clear of every obstacle at cruise height) the grid knows.
+    pub true_free_known: f32,
+    /// Fraction of the cells the grid holds as occupied that are truly within 0.15 m of an obstacle or wall (the estimate drifts).
+    pub occupied_correct: Option<f32>,
+    /// `coverage`, `no_frontier`, or `None` when the exploration did not end (battery, abort, crash...).
+    pub end: Option<&'static str>,
+    /// From the trigger to the end of the exploration (the way home begins), s.
+    pub explore_time_s: Option<f64>,
+    pub frontiers_reached: u32,
+    pub frontiers_dropped: u32,
+    /// (time since the trigger s, coverage) at every frontier scan: coverage against time.
+    pub coverage_curve: Vec<(f64, f32)>,
 }
 
 /// One traced instant.
@@ -277,6 +335,7 @@ pub fn mission_params(world: &World) -> MissionParams {
         goal_m: (world.mission.goal[0], world.mission.goal[1]),
         height_m: world.mission.height,
         speed_m_s: world.mission.speed,
+        ..MissionParams::SEED
     }
 }
 
@@ -285,7 +344,18 @@ pub fn run(world: &World, options: &RunOptions) -> Result<RunResult, String> {
     let wall = Instant::now();
     let seed = options.seed;
     let mut drone = SimDrone::new(world, seed, &options.faults)?;
-    let params = mission_params(world);
+    let mut params = mission_params(world);
+    params.mode = options.mode;
+    if let Some(t) = options.hover_time_s {
+        params.hover_time_s = t;
+    }
+    if let Some(c) = options.coverage {
+        params.coverage_target = c;
+    }
+    let take_off_truth = drone.quad.position();
+    let mut hover_truth = (0.0f32, 0.0f32, 0u64);
+    let mut coverage_curve: Vec<(f64, f32)> = Vec::new();
+    let mut explore_ended_at: Option<u64> = None;
     let take_off_surface = drone.quad.position()[2];
 
     let total_ticks = (options.time_limit_s * 1000.0).max(0.0) as u64;
@@ -360,6 +430,23 @@ pub fn run(world: &World, options: &RunOptions) -> Result<RunResult, String> {
             });
         }
         let state = core.mission_state();
+        if state == MissionState::HoverHold {
+            hover_truth.0 = hover_truth
+                .0
+                .max((p[0] - take_off_truth[0]).hypot(p[1] - take_off_truth[1]));
+            // The estimate's heights count from the surface it took off from (the home pad's top).
+            hover_truth.1 = hover_truth.1.max((p[2] - take_off_truth[2] - params.height_m).abs());
+            hover_truth.2 += 1;
+        }
+        if options.mode == MissionMode::Explore && tick.is_multiple_of(20) {
+            let c = core.mission().stats().coverage;
+            if c > 0.0 && coverage_curve.last().is_none_or(|l| l.1 != c) {
+                coverage_curve.push((tick.saturating_sub(trigger_tick) as f64 * 1e-3, c));
+            }
+            if explore_ended_at.is_none() && core.mission().stats().explore_end.is_some() {
+                explore_ended_at = Some(tick);
+            }
+        }
         if options.verbose && state != last_state {
             let e = core.estimate();
             eprintln!(
@@ -448,11 +535,17 @@ pub fn run(world: &World, options: &RunOptions) -> Result<RunResult, String> {
     let sim_time_s = tick as f64 * 1e-3;
     let core = &drone.core;
     let state = core.mission_state();
-    let completed_on_pads = score.landings.len() >= 2
-        && score.landings[0].on_pad
-        && score.landings[0].pad == world.goal_pad_index()
-        && score.landings[score.landings.len() - 1].on_pad
-        && score.landings[score.landings.len() - 1].pad == 0;
+    let home_landing = score.landings.last().is_some_and(|l| l.on_pad && l.pad == 0);
+    let completed_on_pads = match options.mode {
+        MissionMode::RoundTrip => {
+            score.landings.len() >= 2
+                && score.landings[0].on_pad
+                && score.landings[0].pad == world.goal_pad_index()
+                && home_landing
+        }
+        // Both modes take off from the home pad and end on it (one landing).
+        MissionMode::HoverTest | MissionMode::Explore => score.landings.len() == 1 && home_landing,
+    };
     let (outcome, reason) = if score.collisions > 0 {
         ("crashed", Some("collision"))
     } else if start_refused {
@@ -513,6 +606,43 @@ pub fn run(world: &World, options: &RunOptions) -> Result<RunResult, String> {
         collision_states: score.collision_states.clone(),
         collision_points: score.collision_points.clone(),
         needs_large_arena: world.needs_large_arena(),
+        mode: match options.mode {
+            MissionMode::RoundTrip => "round_trip",
+            MissionMode::HoverTest => "hover",
+            MissionMode::Explore => "explore",
+        },
+        hover: (options.mode == MissionMode::HoverTest).then(|| {
+            let stats = mission.stats();
+            let rest = drone.quad.position();
+            HoverReport {
+                hover_time_s: params.hover_time_s,
+                held_s: hover_truth.2 as f64 * 1e-3,
+                dev_xy_m: stats.hover_dev_xy_m,
+                dev_z_m: stats.hover_dev_z_m,
+                true_dev_xy_m: hover_truth.0,
+                true_dev_z_m: hover_truth.1,
+                landing_offset_m: (!score.landings.is_empty())
+                    .then(|| (rest[0] - take_off_truth[0]).hypot(rest[1] - take_off_truth[1])),
+            }
+        }),
+        explore: (options.mode == MissionMode::Explore).then(|| {
+            let stats = mission.stats();
+            let (free_known, occupied_correct) = map_truth(world, grid, params.height_m);
+            ExploreReport {
+                coverage_target: params.coverage_target,
+                coverage: stats.coverage,
+                true_free_known: free_known,
+                occupied_correct,
+                end: stats.explore_end.map(|e| match e {
+                    ExploreEnd::Coverage => "coverage",
+                    ExploreEnd::NoFrontier => "no_frontier",
+                }),
+                explore_time_s: explore_ended_at.map(|t| t.saturating_sub(trigger_tick) as f64 * 1e-3),
+                frontiers_reached: stats.frontiers_reached,
+                frontiers_dropped: stats.frontiers_dropped,
+                coverage_curve,
+            }
+        }),
     };
     Ok(RunResult {
         report,
@@ -521,6 +651,35 @@ pub fn run(world: &World, options: &RunOptions) -> Result<RunResult, String> {
         believed,
         pad_locks,
     })
+}
+
+/// The drone's map against the world: the fraction of truly free cells (centre clear of everything at
+/// `height_m`) it knows, and the fraction of its occupied cells that truly lie within 0.15 m of an obstacle
+/// or a wall (`None` when it marked none).
+fn map_truth<const N: usize>(
+    world: &World,
+    grid: &cfnav::nav::grid::OccupancyGrid<N>,
+    height_m: f32,
+) -> (f32, Option<f32>) {
+    let shape = grid.shape();
+    let (mut free, mut free_known, mut occupied, mut occupied_ok) = (0u32, 0u32, 0u32, 0u32);
+    for i in 0..shape.cells() {
+        let c = shape.cell(i);
+        let (x, y) = shape.center_of(c);
+        let clearance = world.clearance(x, y, height_m);
+        if clearance > 0.0 {
+            free += 1;
+            free_known += u32::from(!grid.is_unknown(c));
+        }
+        if grid.is_occupied(c) {
+            occupied += 1;
+            occupied_ok += u32::from(clearance < 0.15);
+        }
+    }
+    (
+        if free > 0 { free_known as f32 / free as f32 } else { 0.0 },
+        (occupied > 0).then(|| occupied_ok as f32 / occupied as f32),
+    )
 }
 
 fn path_snapshot(core: &SimCore) -> Option<Vec<(f32, f32)>> {

@@ -84,6 +84,11 @@ fn log_state(drone: &SimDrone, supervisor_info: u16) -> FlightLogState {
         vbat_v: drone.last_vbat,
         supervisor_info,
         battery_low: drone.core.supervisor().battery_low,
+        hover_dev_m: {
+            let stats = drone.core.mission().stats();
+            [stats.hover_dev_xy_m, stats.hover_dev_z_m]
+        },
+        coverage: drone.core.mission().stats().coverage,
         ..FlightLogState::default()
     };
     s.record_flight(&drone.core.estimate(), drone.core.control(), &drone.core.setpoint());

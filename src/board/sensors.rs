@@ -11,7 +11,8 @@
 //! Bring-up order on the deck bus (`cfnav::drivers::multiranger`): the expander holds the five Multi-ranger
 //! sensors in reset first, so only the Flow deck's ranger answers at 0x29; it moves to 0x6A; then the
 //! Multi-ranger sensors come up one by one. One task owns I2C1 afterwards and reads both decks.
-//! * EEPROM at 0x50 on I2C1: the config block (radio settings), read once at boot.
+//! * EEPROM at 0x50 on I2C1: the config block (radio settings), read once at boot; persistent-parameter
+//!   writes (`super::eeprom`) between readings.
 //!
 //! Deck presence is decided by probing at boot (the PMW3901's identity, the expander answering); the
 //! mission may only start when every sensor it needs is present *and* has a reader running
@@ -323,6 +324,8 @@ pub async fn deck_task(mut i2c: DeckI2c, mut rangers: DeckRangers) {
     loop {
         ticker.next().await;
         tick = tick.wrapping_add(1);
+        // A persistent-parameter write, if the radio queued one (never in flight: the store refuses it).
+        super::eeprom::service(&mut i2c).await;
         if let Some(z) = rangers.z.as_mut() {
             match z.data_ready(&mut i2c).await {
                 Ok(true) => match z.read_range(&mut i2c).await {

@@ -11,6 +11,7 @@ mod log;
 mod param;
 mod stock;
 mod supervisor_port;
+mod tuning;
 
 use cfnav::radio::crtp::{CrtpPacket, Service};
 

@@ -51,6 +51,7 @@ fn sim_args() -> SimArgs {
         serve: false,
         port: 19850,
         speed: 1.0,
+        param_store: None,
     }
 }
 

@@ -10,3 +10,4 @@ mod mission_start;
 mod status_led;
 mod step_pacing;
 mod watchdog;
+mod persistent_params;

@@ -61,6 +61,10 @@ pub struct SimArgs {
     /// Speed factor for --serve (1 = real time).
     #[arg(long, default_value_t = 1.0)]
     pub speed: f64,
+    /// For --serve: the drone's 8 KB EEPROM as a file, where persistent parameters are kept across runs
+    /// (created when missing). Default: an EEPROM in memory, blank at every start.
+    #[arg(long, value_name = "FILE")]
+    pub param_store: Option<std::path::PathBuf>,
 }
 
 /// The `--random` report's summary (interfaces.md §4).
@@ -189,6 +193,9 @@ pub fn run_cli(args: &SimArgs) -> ExitCode {
         },
         None => None,
     };
+    if args.param_store.is_some() && !args.serve {
+        return fail("--param-store applies to --serve only");
+    }
     if args.serve {
         return run_serve(args, stress.as_ref());
     }
@@ -239,7 +246,8 @@ pub fn run_cli(args: &SimArgs) -> ExitCode {
     ExitCode::from(if result.report.outcome == "completed" { 0 } else { 1 })
 }
 
-/// `cfnav sim --serve [--port P] [--world FILE | --random-world SEED] [--speed X] [--stress FILE]`.
+/// `cfnav sim --serve [--port P] [--world FILE | --random-world SEED] [--speed X] [--stress FILE]
+/// [--param-store FILE]`.
 fn run_serve(args: &SimArgs, stress: Option<&Stress>) -> ExitCode {
     if args.random.is_some() {
         return fail("--serve flies one world; drop --random");
@@ -259,7 +267,7 @@ fn run_serve(args: &SimArgs, stress: Option<&Stress>) -> ExitCode {
     if let Some(s) = stress {
         world.stress = world.stress.overlaid(s);
     }
-    match crate::sim::serve::serve(&world, args.port, args.speed) {
+    match crate::sim::serve::serve(&world, args.port, args.speed, args.param_store.as_deref()) {
         Ok(()) => ExitCode::SUCCESS,
         Err(e) => fail(e),
     }

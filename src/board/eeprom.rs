@@ -37,12 +37,7 @@ const WRITE_CYCLE: Duration = Duration::from_millis(6);
 pub async fn read_persistent(i2c: &mut DeckI2c) -> PersistentParams {
     let mut region = [0u8; REGION_LEN];
     let addr = REGION_START.to_be_bytes();
-    match with_timeout(
-        TRANSFER_TIMEOUT,
-        i2c.write_read(EEPROM_I2C_ADDRESS, &addr, &mut region),
-    )
-    .await
-    {
+    match with_timeout(TRANSFER_TIMEOUT, i2c.write_read(EEPROM_I2C_ADDRESS, &addr, &mut region)).await {
         Ok(Ok(())) => {
             let (stored, report) = PersistentParams::load(&region);
             info!(
@@ -54,7 +49,10 @@ pub async fn read_persistent(i2c: &mut DeckI2c) -> PersistentParams {
             stored
         }
         Ok(Err(e)) => {
-            warn!("EEPROM read failed ({}): no persistent parameters", defmt::Debug2Format(&e));
+            warn!(
+                "EEPROM read failed ({}): no persistent parameters",
+                defmt::Debug2Format(&e)
+            );
             PersistentParams::empty()
         }
         Err(_) => {

@@ -194,11 +194,11 @@ impl<S: ParamStore> ParamService<S> {
     pub fn load_persistent(&mut self, stored: PersistentParams) -> LoadSummary {
         let mut summary = LoadSummary::default();
         for record in stored.records() {
-            let found = S::TABLE.iter().enumerate().find(|(_, e)| {
-                crate::system::persistent_params::param_key(e.group, e.name) == record.key
-            });
-            let Some((i, e)) = found.filter(|(_, e)| e.is_persistent() && e.ty.code() == record.type_code)
-            else {
+            let found = S::TABLE
+                .iter()
+                .enumerate()
+                .find(|(_, e)| crate::system::persistent_params::param_key(e.group, e.name) == record.key);
+            let Some((i, e)) = found.filter(|(_, e)| e.is_persistent() && e.ty.code() == record.type_code) else {
                 summary.unknown += 1;
                 continue;
             };

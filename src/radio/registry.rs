@@ -517,7 +517,7 @@ impl Refusal {
             Self::Inconsistent => "inconsistent with others",
             Self::StoreFull => "persistent store full",
             Self::NotPersistent => "not persistent",
-            Self::StoreWhileFlying => "no EEPROM write while flying",
+            Self::StoreWhileFlying => "not while flying",
         }
     }
 }
@@ -1043,7 +1043,11 @@ fn tune_write(t: &Tuning, e: &ParamEntry, value: Value) -> Result<Tuning, Refusa
         }
         _ => return Err(Refusal::WrongType),
     }
-    if t.consistent() { Ok(t) } else { Err(Refusal::Inconsistent) }
+    if t.consistent() {
+        Ok(t)
+    } else {
+        Err(Refusal::Inconsistent)
+    }
 }
 
 /// The parameters' values in effect plus what validation needs.
@@ -1302,9 +1306,7 @@ impl ParamStore for MissionParamState {
     fn aliases(&self, id: u16) -> impl Iterator<Item = u16> {
         // Two names of one field: the same address in a scratch copy of the tuning.
         let mut probe = self.tuning;
-        let target = PARAM_TABLE
-            .get(usize::from(id))
-            .and_then(|e| field_addr(&mut probe, e));
+        let target = PARAM_TABLE.get(usize::from(id)).and_then(|e| field_addr(&mut probe, e));
         (0..PARAM_TABLE.len() as u16).filter(move |&other| {
             let mut probe = probe;
             other != id && target.is_some() && field_addr(&mut probe, &PARAM_TABLE[usize::from(other)]) == target

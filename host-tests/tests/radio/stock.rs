@@ -267,7 +267,8 @@ fn every_refusal_line_fits_the_console_untruncated() {
         let possible = all.iter().copied().filter(|r| match r {
             Refusal::UnknownId | Refusal::WrongType | Refusal::ReadOnly | Refusal::OutOfRange => true,
             Refusal::ResetWhileFlying => e.group == "kalman",
-            Refusal::Inconsistent | Refusal::StoreFull | Refusal::NotPersistent | Refusal::StoreWhileFlying => true,
+            Refusal::Inconsistent | Refusal::StoreFull | Refusal::StoreWhileFlying => e.is_persistent(),
+            Refusal::NotPersistent => true,
             _ if *r == e.out_of_range => true,
             _ => e.group == "mission",
         });

@@ -5,8 +5,8 @@
 use std::collections::BTreeMap;
 
 use cfnav::system::persistent_params::{
-    FORMAT_VERSION, LoadReport, MAGIC, MAX_RECORDS, PAGE_LEN, PendingWrite, PersistentParams, REGION_LEN,
-    REGION_START, Record, SLOT_LEN, SlotStatus, StoreError, param_key, slot_address,
+    FORMAT_VERSION, LoadReport, MAGIC, MAX_RECORDS, PAGE_LEN, PendingWrite, PersistentParams, REGION_LEN, REGION_START,
+    Record, SLOT_LEN, SlotStatus, StoreError, param_key, slot_address,
 };
 
 /// What a power cut does to the page being written.
@@ -42,7 +42,11 @@ impl MockEeprom {
         for (addr, page) in w.pages() {
             assert!(page.len() <= PAGE_LEN);
             let a = usize::from(addr);
-            assert_eq!(a / PAGE_LEN, (a + page.len() - 1) / PAGE_LEN, "a page write crosses a page");
+            assert_eq!(
+                a / PAGE_LEN,
+                (a + page.len() - 1) / PAGE_LEN,
+                "a page write crosses a page"
+            );
             for (i, &b) in page.iter().enumerate() {
                 if self.budget == Some(0) {
                     match self.tear {
@@ -121,7 +125,9 @@ fn changes() -> [(&'static str, Change); 3] {
             let (k, t, v) = f32_rec("flow", "stdCounts", 3.0);
             p.prepare_store(k, t, v).unwrap()
         }),
-        ("clear a value", |p| p.prepare_clear(param_key("posCtlPid", "zKp")).unwrap()),
+        ("clear a value", |p| {
+            p.prepare_clear(param_key("posCtlPid", "zKp")).unwrap()
+        }),
     ]
 }
 
@@ -167,14 +173,25 @@ fn a_power_cut_at_every_byte_of_a_write_leaves_the_old_or_the_new_set() {
                 let got2 = set(&e2.boot().0);
                 let mut expect2 = got.clone();
                 expect2.insert(k, (t, v));
-                assert!(got2 == got || got2 == expect2, "{what} {tear:?} cuts {cut}, {}", cut / 2);
+                assert!(
+                    got2 == got || got2 == expect2,
+                    "{what} {tear:?} cuts {cut}, {}",
+                    cut / 2
+                );
                 e.budget = None;
                 e.write(&w2).unwrap();
                 assert!(next.commit(w2));
-                assert_eq!(set(&e.boot().0), expect2, "{what} {tear:?} cut {cut}: the write after reboot");
+                assert_eq!(
+                    set(&e.boot().0),
+                    expect2,
+                    "{what} {tear:?} cut {cut}: the write after reboot"
+                );
                 assert_eq!(set(&next), expect2);
             }
-            assert!(outcomes[0] >= SLOT_LEN - 4 && outcomes[1] >= 1, "{what} {tear:?}: {outcomes:?}");
+            assert!(
+                outcomes[0] >= SLOT_LEN - 4 && outcomes[1] >= 1,
+                "{what} {tear:?}: {outcomes:?}"
+            );
         }
     }
 }
@@ -240,7 +257,10 @@ fn a_slot_of_another_format_version_is_not_read() {
     let mut future = raw_slot(FORMAT_VERSION + 1, 9, &[r]);
     future.extend(vec![0xFF; SLOT_LEN]);
     let (p, report) = PersistentParams::load(&future);
-    assert_eq!(report.slots, [SlotStatus::Version(FORMAT_VERSION + 1), SlotStatus::Blank]);
+    assert_eq!(
+        report.slots,
+        [SlotStatus::Version(FORMAT_VERSION + 1), SlotStatus::Blank]
+    );
     assert!(p.is_empty());
     // An impossible record count with a valid CRC is not trusted either.
     let mut bad = raw_slot(FORMAT_VERSION, 1, &[]);
@@ -305,7 +325,10 @@ fn the_newer_slot_wins_across_sequence_wrap_around() {
         type_code: 0x08,
         value: [1, 0, 0, 0],
     };
-    let b = Record { value: [2, 0, 0, 0], ..a };
+    let b = Record {
+        value: [2, 0, 0, 0],
+        ..a
+    };
     let mut region = raw_slot(FORMAT_VERSION, u32::MAX, &[a]);
     region.extend(raw_slot(FORMAT_VERSION, 0, &[b]));
     let (p, report) = PersistentParams::load(&region);

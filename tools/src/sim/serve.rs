@@ -48,10 +48,10 @@ use cfnav::radio::endpoint::Endpoint;
 use cfnav::radio::log_registry::FlightLogState;
 use cfnav::radio::param::ParamService;
 use cfnav::radio::registry::{ID_RESET_ESTIMATION, ID_START, MissionParamState, Tuning};
-use cfnav::stack::FlightConfig;
-use cfnav::system::persistent_params::{PersistentParams, REGION_LEN, REGION_START};
 use cfnav::radio::supervisor_port::{SupervisorPortConfig, SupervisorStatus};
+use cfnav::stack::FlightConfig;
 use cfnav::stack::HighLevelError;
+use cfnav::system::persistent_params::{PersistentParams, REGION_LEN, REGION_START};
 use cfnav::types::{RangeReading, Setpoint};
 
 use super::runner::{Faults, SIM_CELLS, SimDrone, mission_params};

@@ -8,7 +8,18 @@
 //! cannot say (a goal inside the arena, the start rules). Ids are the table's indices, and the `ID_*`
 //! constants are looked up in the table at compile time ([`param_id`]), so they cannot drift from it.
 //!
-//! Non-goals: no wire protocol (that is [`super::param`]), no persistence, no 64-bit or FP16 types.
+//! Non-goals: no wire protocol (that is [`super::param`]), no EEPROM layout (that is
+//! [`crate::system::persistent_params`]; the store here only keeps the records and prepares writes), no
+//! 64-bit or FP16 types.
+//!
+//! Tuning parameters (issue 13 part 4): the block so marked in [`PARAM_TABLE`], each persistent, each
+//! mapped to one field of [`Tuning`] by [`tune_field`]; a write is checked against its declaration, then
+//! the whole tuning against itself ([`Tuning::consistent`]: the controller's validation, the avoidance's,
+//! narrow inflation ≤ inflation, low landing speed ≤ high), and bumps [`MissionParamState::tuning_generation`]
+//! so the endpoint hands it to the flight stack. `posCtlPid.x*`/`y*` and `velCtlPid.vx*`/`vy*` name one
+//! horizontal gain each (cfnav's loops are symmetric): [`ParamStore::aliases`] finds the other name.
+//! Persistent records are keyed by `group.name` ([`param_key`]), so they survive a table with other ids;
+//! `persistent_store`/`persistent_clear` are refused while flying (the EEPROM write holds the deck bus).
 //!
 //! Sources: `crazyflie-hardware.md` §4.5 (type byte: bits 1..0 size, bit 2 float, bit 3 unsigned, 0x10
 //! EXTENDED, 0x40 READ-ONLY; `strlen(group) + strlen(name) + 2 ≤ 26`; CRC-32 reflected 0xEDB88320,
@@ -30,7 +41,8 @@
 //! the endpoint to re-anchor the estimator's horizontal position at `mission.startX/startY` (refused while
 //! flying), and the endpoint writes it back to 0 when done, as stock clears it.
 //!
-//! Memory: the table is `'static`; [`MissionParamState`] is a few dozen bytes.
+//! Memory: the table is `'static`; [`MissionParamState`] is about 2 KB (two [`Tuning`]s, the values in
+//! effect and the power-on defaults, and the stored records' 640-byte slot image).
 
 use crate::flight::control::ControllerConfig;
 use crate::flight::estimator::EstimatorConfig;

@@ -340,3 +340,59 @@ fn stored_values_are_applied_at_boot_through_the_radio_checks() {
     // The records stay stored (a client can see and clear them).
     assert_eq!(s.store().persistent.len(), records.len());
 }
+
+#[test]
+fn a_position_gain_written_by_radio_changes_the_controller_output_by_the_p_law() {
+    use cfnav::types::{Setpoint, StateEstimate};
+    // Hovering at (1, 1, 0.5), target 0.1 m ahead in x: the position loop's output (the velocity target) is
+    // Kp · 0.1 m (no I or D by default), so doubling xKp by radio doubles it.
+    let state = StateEstimate {
+        position_m: [1.0, 1.0, 0.5],
+        valid: true,
+        ..StateEstimate::default()
+    };
+    let target = Setpoint::Position {
+        x_m: 1.1,
+        y_m: 1.0,
+        z_m: 0.5,
+        yaw_rad: 0.0,
+    };
+    let mut s = service();
+    let mut c = Controller::new(s.store().tuning.controller).unwrap();
+    let before = c.update(&target, &state, [0.0; 3], 4.0, 1_000).velocity_target_m_s[0];
+    assert!((before - 2.0 * 0.1).abs() < 1e-4, "{before}");
+    write_f32(&mut s, id("posCtlPid", "xKp"), 4.0).unwrap();
+    c.set_config(s.store().tuning.controller).unwrap();
+    // The position loop runs on every 10th call (100 Hz): ten more steps at 1 kHz.
+    let mut after = f32::NAN;
+    for k in 1..=10u64 {
+        after = c.update(&target, &state, [0.0; 3], 4.0, 1_000 + k * 1_000).velocity_target_m_s[0];
+    }
+    assert!((after - 4.0 * 0.1).abs() < 1e-4, "{after}");
+}
+
+#[test]
+fn the_flight_core_takes_gains_and_flow_std_now_and_mission_tuning_at_the_next_start() {
+    use cfnav::stack::{FlightConfig, FlightCore};
+    let config = FlightConfig::default();
+    let mut core: Box<FlightCore<{ 128 * 64 }, 1024>> =
+        Box::new(FlightCore::new(&config, (0.6, 1.3), 0.0).unwrap());
+    let mut s = service();
+    write_f32(&mut s, id("pid_attitude", "roll_kp"), 5.0).unwrap();
+    write_f32(&mut s, id("motion", "flowStdFixed"), 4.0).unwrap();
+    write_f32(&mut s, id("plan", "inflation"), 0.3).unwrap();
+    write_u8(&mut s, id("avoid", "mode"), 1).unwrap();
+    let t = s.store().tuning;
+    core.set_tuning(t.controller, t.flow_std_counts, t.mission).unwrap();
+    assert_eq!(core.estimator().config().flow_std_counts, 4.0);
+    // Mission tuning waits for the next start.
+    assert_eq!(core.mission().config().inflation_radius_m, config.mission.inflation_radius_m);
+    core.start_mission(MissionParams::SEED).unwrap();
+    assert_eq!(core.mission().config().inflation_radius_m, 0.3);
+    assert_eq!(core.mission().config().avoidance.method, AvoidanceMethod::VirtualForceField);
+    // An invalid controller configuration (bypassing the registry's checks) is refused whole.
+    let mut bad = t.controller;
+    bad.roll.kp = f32::NAN;
+    assert!(core.set_tuning(bad, 2.0, t.mission).is_err());
+    assert_eq!(core.estimator().config().flow_std_counts, 4.0);
+}

@@ -366,7 +366,9 @@ fn a_position_gain_written_by_radio_changes_the_controller_output_by_the_p_law()
     // The position loop runs on every 10th call (100 Hz): ten more steps at 1 kHz.
     let mut after = f32::NAN;
     for k in 1..=10u64 {
-        after = c.update(&target, &state, [0.0; 3], 4.0, 1_000 + k * 1_000).velocity_target_m_s[0];
+        after = c
+            .update(&target, &state, [0.0; 3], 4.0, 1_000 + k * 1_000)
+            .velocity_target_m_s[0];
     }
     assert!((after - 4.0 * 0.1).abs() < 1e-4, "{after}");
 }
@@ -375,8 +377,7 @@ fn a_position_gain_written_by_radio_changes_the_controller_output_by_the_p_law()
 fn the_flight_core_takes_gains_and_flow_std_now_and_mission_tuning_at_the_next_start() {
     use cfnav::stack::{FlightConfig, FlightCore};
     let config = FlightConfig::default();
-    let mut core: Box<FlightCore<{ 128 * 64 }, 1024>> =
-        Box::new(FlightCore::new(&config, (0.6, 1.3), 0.0).unwrap());
+    let mut core: Box<FlightCore<{ 128 * 64 }, 1024>> = Box::new(FlightCore::new(&config, (0.6, 1.3), 0.0).unwrap());
     let mut s = service();
     write_f32(&mut s, id("pid_attitude", "roll_kp"), 5.0).unwrap();
     write_f32(&mut s, id("motion", "flowStdFixed"), 4.0).unwrap();
@@ -386,10 +387,16 @@ fn the_flight_core_takes_gains_and_flow_std_now_and_mission_tuning_at_the_next_s
     core.set_tuning(t.controller, t.flow_std_counts, t.mission).unwrap();
     assert_eq!(core.estimator().config().flow_std_counts, 4.0);
     // Mission tuning waits for the next start.
-    assert_eq!(core.mission().config().inflation_radius_m, config.mission.inflation_radius_m);
+    assert_eq!(
+        core.mission().config().inflation_radius_m,
+        config.mission.inflation_radius_m
+    );
     core.start_mission(MissionParams::SEED).unwrap();
     assert_eq!(core.mission().config().inflation_radius_m, 0.3);
-    assert_eq!(core.mission().config().avoidance.method, AvoidanceMethod::VirtualForceField);
+    assert_eq!(
+        core.mission().config().avoidance.method,
+        AvoidanceMethod::VirtualForceField
+    );
     // An invalid controller configuration (bypassing the registry's checks) is refused whole.
     let mut bad = t.controller;
     bad.roll.kp = f32::NAN;

@@ -39,7 +39,12 @@ impl MockEeprom {
 
     /// Writes `w` page by page; `Err` if power was lost on the way.
     fn write(&mut self, w: &PendingWrite) -> Result<(), ()> {
-        for (addr, page) in w.pages() {
+        self.write_pages(w.pages())
+    }
+
+    /// Writes `pages` in order; `Err` if power was lost on the way.
+    fn write_pages<'a>(&mut self, pages: impl Iterator<Item = (u16, &'a [u8])>) -> Result<(), ()> {
+        for (addr, page) in pages {
             assert!(page.len() <= PAGE_LEN);
             let a = usize::from(addr);
             assert_eq!(
@@ -137,8 +142,8 @@ fn a_power_cut_at_every_byte_of_a_write_leaves_the_old_or_the_new_set() {
     let old = set(&base);
     for (what, change) in changes() {
         let w = change(&base);
-        let mut after = base.clone();
-        assert!(after.commit(w.clone()));
+        let mut after = base;
+        assert!(after.commit(w));
         let new = set(&after);
         assert_ne!(old, new, "{what}");
         for tear in [Tear::Clean, Tear::GarbledByte, Tear::GarbledPage] {
@@ -163,7 +168,7 @@ fn a_power_cut_at_every_byte_of_a_write_leaves_the_old_or_the_new_set() {
                 }
                 // Life goes on after the reboot: the next store lands on top of what was read, and a cut in
                 // *that* write still keeps everything read at this boot.
-                let mut next = booted.clone();
+                let mut next = booted;
                 let (k, t, v) = f32_rec("pid_attitude", "yaw_kp", 7.0);
                 let w2 = next.prepare_store(k, t, v).unwrap();
                 let mut e2 = e.clone();
@@ -281,7 +286,7 @@ fn a_full_store_refuses_a_new_key_and_still_replaces_a_stored_one() {
         store(&mut e, &mut p, (0x1000 + i, 0x0A, i.to_le_bytes()));
     }
     assert_eq!(p.len(), MAX_RECORDS);
-    let before = p.clone();
+    let before = p;
     assert_eq!(p.prepare_store(0xDEAD, 0x0A, [1, 2, 3, 4]), Err(StoreError::Full));
     assert_eq!(p, before, "a refused store changes nothing");
     store(&mut e, &mut p, (0x1000, 0x0A, 99u32.to_le_bytes()));
@@ -349,8 +354,41 @@ fn a_write_prepared_before_another_commit_is_not_committed() {
     let p0 = PersistentParams::empty();
     let w1 = p0.prepare_store(1, 0x08, [1, 0, 0, 0]).unwrap();
     let w2 = p0.prepare_store(2, 0x08, [2, 0, 0, 0]).unwrap();
-    let mut p = p0.clone();
+    let mut p = p0;
     assert!(p.commit(w1));
     assert!(!p.commit(w2), "a stale write would drop record 1");
     assert_eq!(p.len(), 1);
+}
+
+#[test]
+fn the_mock_catches_an_in_place_rewrite_that_a_cut_would_break() {
+    // Negative control of the power-cut test: the same new image written over the slot in use (instead of
+    // the other one) loses the latest set for most cut points, so the cut model does detect the hazard the
+    // two-slot layout exists for.
+    let (base_eeprom, base) = populated();
+    let old = set(&base);
+    let (k, t, v) = f32_rec("pid_rate", "pitch_kp", 300.0);
+    let w = base.prepare_store(k, t, v).unwrap();
+    let in_use = slot_address(base.slot().unwrap());
+    let mut lost = 0;
+    for cut in 0..SLOT_LEN {
+        let mut e = base_eeprom.clone();
+        e.budget = Some(cut);
+        let pages = w
+            .bytes()
+            .chunks(PAGE_LEN)
+            .enumerate()
+            .map(|(i, c)| (in_use + (i * PAGE_LEN) as u16, c));
+        assert!(e.write_pages(pages).is_err());
+        let got = set(&e.boot().0);
+        let mut new = old.clone();
+        new.insert(k, (t, v));
+        if got != old && got != new {
+            lost += 1;
+        }
+    }
+    assert!(
+        lost > SLOT_LEN / 2,
+        "an in-place rewrite lost the latest set at {lost} cut points"
+    );
 }

@@ -10,7 +10,8 @@
 //! 2. LEDs ("booting"), motors (TIM2/TIM4 PWM, all off), the independent watchdog (fed from the I/O
 //!    executor once it runs);
 //! 3. the navigator (map + planner) built in CCM;
-//! 4. deck I2C1 (guarded: deadlines and bus recovery): the EEPROM config block (radio settings); syslink on
+//! 4. deck I2C1 (guarded: deadlines and bus recovery): the EEPROM config block (radio settings) and the
+//!    persistent parameters; syslink on
 //!    USART6 with the radio task (settings, battery auto-update; RADIO_READY once booted); then the deck
 //!    rangers (so a stuck deck bus cannot delay the radio) and SPI1: the Flow deck's PMW3901;
 //! 5. at 1 s after power-on (stock waits as long before touching the IMU) the BMI088 on I2C3, then the
@@ -195,6 +196,7 @@ mod fw {
         let deck_bus = I2c::new(p.I2C1, p.PB6, p.PB7, p.DMA1_CH6, p.DMA1_CH0, Irqs, i2c_config);
         let mut deck_i2c = sensors::guard(deck_bus, sensors::I2cRecoveryPins::deck(), sensors::DECK_GUARD);
         let settings = sensors::read_radio_settings(&mut deck_i2c).await;
+        let stored_params = board::eeprom::read_persistent(&mut deck_i2c).await;
 
         // Syslink.
         let mut uart_config = usart::Config::default();
@@ -220,6 +222,7 @@ mod fw {
                             frame_tx: cfnav::radio::syslink_tx::FlowTx::new(),
                         },
                         settings,
+                        stored_params,
                     ),
                 );
             }

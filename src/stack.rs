@@ -177,6 +177,16 @@ impl Stabilizer {
         })
     }
 
+    /// Controller gains and the flow measurement std (tuning parameters), in effect from the next step,
+    /// integrators kept. An invalid controller configuration is refused and changes nothing.
+    pub fn set_tuning(&mut self, controller: ControllerConfig, flow_std_counts: f32) -> Result<(), FlightConfigError> {
+        self.controller
+            .set_config(controller)
+            .map_err(|_| FlightConfigError::Controller)?;
+        self.estimator.set_flow_std(flow_std_counts);
+        Ok(())
+    }
+
     /// 1 kHz: a gyro/accelerometer sample. Returns the motor duties to write now (all zero unless the
     /// supervisor allows the motors and a setpoint other than [`Setpoint::Stop`] is in force).
     pub fn on_imu(&mut self, sample: &ImuSample, now: Micros) -> MotorDuty {
@@ -394,6 +404,8 @@ pub struct Navigator<const CELLS: usize, const QUEUE: usize> {
     decks_ok: bool,
     /// The obstacle surfaces the map fixes measure against (module `estimator::map_fix`), per mission.
     landmarks: Landmarks,
+    /// Mission tuning written by the radio (issue 13 part 4), in force from the next start.
+    next_config: Option<MissionConfig>,
 }
 
 impl<const CELLS: usize, const QUEUE: usize> Navigator<CELLS, QUEUE> {
@@ -403,7 +415,14 @@ impl<const CELLS: usize, const QUEUE: usize> Navigator<CELLS, QUEUE> {
             mission: Mission::new(config.mission).map_err(|_| FlightConfigError::Mission)?,
             decks_ok: true,
             landmarks: Landmarks::new(),
+            next_config: None,
         })
+    }
+
+    /// New mission tuning (the tuning parameters): in force from the next start (a running mission keeps
+    /// the map inflation and speeds it started with). The latest call before a start wins.
+    pub fn set_mission_config(&mut self, config: MissionConfig) {
+        self.next_config = Some(config);
     }
 
     /// Whether both decks (Flow v2, Multi-ranger) are present and working.
@@ -425,6 +444,10 @@ impl<const CELLS: usize, const QUEUE: usize> Navigator<CELLS, QUEUE> {
         }
         if !self.decks_ok {
             return Err(StartError::DeckMissing);
+        }
+        if let Some(config) = self.next_config.take() {
+            // Validated by the parameter store; an invalid one keeps the configuration in force.
+            let _ = self.mission.set_config(config);
         }
         self.mission.start(params).map_err(StartError::Params)?;
         self.landmarks.clear();
@@ -567,6 +590,20 @@ impl<const CELLS: usize, const QUEUE: usize> FlightCore<CELLS, QUEUE> {
         if !self.navigator.is_running() {
             self.stabilizer.apply(MissionCommand::Started { start_m: xy_m });
         }
+    }
+
+    /// The tuning parameters (issue 13 part 4): controller gains and the flow std from the next step (in
+    /// flight too, as stock), the mission's tuning from the next start. An invalid controller configuration
+    /// is refused and changes nothing.
+    pub fn set_tuning(
+        &mut self,
+        controller: ControllerConfig,
+        flow_std_counts: f32,
+        mission: MissionConfig,
+    ) -> Result<(), FlightConfigError> {
+        self.stabilizer.set_tuning(controller, flow_std_counts)?;
+        self.navigator.set_mission_config(mission);
+        Ok(())
     }
 
     /// Abort (`mission.start = 0` during a mission): land where it is.

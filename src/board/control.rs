@@ -121,6 +121,7 @@ pub async fn control_task(
     let mut window_start = cycles();
     let mut errors = 0u32;
     let mut gate = HeavyInputGate::new();
+    let mut tuning_seen = 0u32;
     loop {
         let edge = with_timeout(DRDY_TIMEOUT, drdy.wait_for_rising_edge()).await;
         let wake = cycles();
@@ -150,6 +151,12 @@ pub async fn control_task(
 
         let section = LOAD.begin(Level::Control, cycles());
         drain_inputs(&mut stab, &mut gate);
+        // The tuning parameters (radio writes), from this step on; the radio validated them.
+        if let Some(t) = super::tuning_since(&mut tuning_seen)
+            && stab.set_tuning(t.controller, t.flow_std_counts).is_err()
+        {
+            warn!("tuning parameters refused by the controller");
+        }
         let duty = stab.on_imu(&sample, now_us());
         if BOOTED.load(Ordering::Acquire) && !FAULT.load(Ordering::Acquire) {
             motors.set(duty);

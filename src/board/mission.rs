@@ -73,11 +73,16 @@ async fn send_to_control(command: MissionCommand) {
 pub async fn mission_task(nav: &'static mut FwNavigator) {
     let mut ticker = Ticker::every(TICK);
     let mut was_running = false;
+    let mut tuning_seen = 0u32;
     loop {
         ticker.next().await;
         // Thread mode's heartbeat for the watchdog feeder (`system::watchdog_task`).
         THREAD_BEATS.fetch_add(1, Ordering::Relaxed);
         nav.set_decks_ok(DECKS_OK.load(Ordering::Acquire));
+        // The tuning parameters: in force from the next mission start.
+        if let Some(t) = super::tuning_since(&mut tuning_seen) {
+            nav.set_mission_config(t.mission);
+        }
 
         let section = LOAD.begin(Level::Mission, cycles());
         let mut started = None;

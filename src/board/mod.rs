@@ -18,12 +18,16 @@
 //! * [`NAV_INPUTS`]: control and sensor tasks → mission task (height + estimate, Multi-ranger + estimate).
 //! * [`MISSION_REQUESTS`] / [`START_OUTCOME`]: radio ⇄ mission task (`mission.start` writes).
 //! * [`LOG_STATE`]: what the log service samples; each task writes its own fields.
+//! * [`TUNING`] / [`TUNING_GENERATION`]: radio → control and mission tasks (the tuning parameters; each task
+//!   copies them when the generation changes). [`eeprom::EEPROM_JOB`] / [`eeprom::EEPROM_DONE`]: radio ⇄
+//!   deck task (persistent-parameter writes on the deck bus).
 //!
 //! Non-goals here: any flight logic (see `cfnav::stack`), any protocol logic (see `cfnav::radio`).
 //! Memory: the navigator (map + planner, ≈ 47 KB) sits in CCM; everything else is static SRAM (see the
 //! `cfnav firmware` report).
 
 pub mod control;
+pub mod eeprom;
 pub mod leds;
 pub mod mission;
 pub mod motors;
@@ -39,6 +43,7 @@ use core::task::Poll;
 use cfnav::flight::high_level::HlCommand;
 use cfnav::mission::MissionParams;
 use cfnav::radio::log_registry::FirmwareLogState;
+use cfnav::radio::registry::Tuning;
 use cfnav::stack::{FastStatus, MissionCommand, StartError};
 use cfnav::system::cpu_load::LoadMeter;
 use cfnav::system::status_led::{BoardStatus, StatusInputs};
@@ -107,6 +112,26 @@ pub static START_OUTCOME: Signal<CriticalSectionRawMutex, Result<(), StartError>
 pub static LOG_STATE: Mutex<CriticalSectionRawMutex, Cell<Option<FirmwareLogState>>> = Mutex::new(Cell::new(None));
 /// Busy cycles per priority level.
 pub static LOAD: LoadMeter = LoadMeter::new();
+/// The tuning parameters in effect (radio → control and mission tasks); `None` until the radio's first.
+pub static TUNING: Mutex<CriticalSectionRawMutex, Cell<Option<Tuning>>> = Mutex::new(Cell::new(None));
+/// Bumped after each change of [`TUNING`].
+pub static TUNING_GENERATION: AtomicU32 = AtomicU32::new(0);
+
+/// Publishes new tuning parameters to the control and mission tasks.
+pub fn publish_tuning(tuning: Tuning) {
+    TUNING.lock(|c| c.set(Some(tuning)));
+    TUNING_GENERATION.fetch_add(1, Ordering::Release);
+}
+
+/// The tuning parameters if they changed since generation `seen` (which is updated).
+pub fn tuning_since(seen: &mut u32) -> Option<Tuning> {
+    let now = TUNING_GENERATION.load(Ordering::Acquire);
+    if now == *seen {
+        return None;
+    }
+    *seen = now;
+    TUNING.lock(Cell::get)
+}
 
 /// Range logged when a ranger has no valid reading (stock multiranger.c reports 32767 mm).
 pub const NO_RANGE_MM: u16 = 32767;

@@ -25,6 +25,10 @@
 //! the stock Crazyflie 2.1); an emergency stop (command or its watchdog) cuts the motors at once and is
 //! latched until reset like a fault (stock: Locked, reboot required); a running mission is aborted.
 //!
+//! Tuning parameters go to the control and mission tasks (`super::publish_tuning`); a persistent store or
+//! clear is written by the deck task (`super::eeprom`) and answered when it is done. The records read at
+//! boot are applied through the same checks as a radio write before the first packet.
+//!
 //! `mission.start` writes become [`MissionRequest`]s for the mission task; a refusal by the flight core
 //! comes back on [`START_OUTCOME`] and is reverted (`mission.start` back to 0, VALUE_UPDATED, console line),
 //! and the end of a mission sets it back to 0 the same way (interfaces.md §5).
@@ -39,14 +43,15 @@ use cfnav::radio::crtp::CrtpPacket;
 use cfnav::radio::endpoint::Endpoint;
 use cfnav::radio::log_registry::FirmwareLogState;
 use cfnav::radio::param::ParamService;
-use cfnav::radio::registry::{ID_RESET_ESTIMATION, ID_START, MissionParamState};
+use cfnav::radio::registry::{ID_RESET_ESTIMATION, ID_START, MissionParamState, Tuning};
 use cfnav::radio::supervisor_port::{SupervisorPortConfig, SupervisorStatus};
 use cfnav::radio::syslink::{BatteryState, SyslinkDecoder, SyslinkPacket, kind};
 use cfnav::radio::syslink_tx::{BootSettings, FlowTx, TxStep, nrf_version, nrf_version_request};
-use cfnav::stack::MissionCommand;
+use cfnav::stack::{FlightConfig, MissionCommand};
 use cfnav::system::config_block::RadioSettings;
 use cfnav::system::cpu_load::Level;
 use cfnav::system::mission_start::{StartDecision, StartTracker};
+use cfnav::system::persistent_params::PersistentParams;
 use defmt::{info, warn};
 use embassy_stm32::exti::ExtiInput;
 use embassy_stm32::mode::Async;
@@ -54,6 +59,7 @@ use embassy_stm32::usart::{RingBufferedUartRx, UartTx};
 use embassy_time::{Duration, Instant, with_deadline, with_timeout};
 use heapless::String;
 
+use super::eeprom::{EEPROM_DONE, EEPROM_JOB};
 use super::{
     BOOTED, DECK_FLOW2, DECK_MULTIRANGER, DECKS_OK, FAST_INPUTS, FAULT, FastInput, LOAD, MISSION_REQUESTS,
     MISSION_RUNNING, MissionRequest, START_OUTCOME, cycles, fast_status, fault, log_state, update_log,
@@ -141,14 +147,21 @@ struct Crtp {
     start: StartTracker,
     last_uplink: Option<Instant>,
     dropped_downlinks: u32,
+    /// The tuning generation last handed to the control and mission tasks.
+    tuning_published: u32,
+    /// A persistent write is with the deck task.
+    eeprom_busy: bool,
 }
 
 impl Crtp {
-    fn new() -> Self {
-        Self {
+    /// The services, with the persistent parameters read at boot applied through the radio's checks.
+    fn new(stored: PersistentParams) -> Self {
+        let config = FlightConfig::default();
+        let tuning = Tuning::new(config.controller, &config.estimator, config.mission);
+        let mut crtp = Self {
             ep: Endpoint::new(
                 FIRMWARE_TAG,
-                MissionParamState::new(MissionParams::SEED, ARENA_CELLS),
+                MissionParamState::new(MissionParams::SEED, ARENA_CELLS).with_tuning(tuning),
                 SupervisorPortConfig {
                     auto_arm: true,
                     can_recover: false,
@@ -159,6 +172,45 @@ impl Crtp {
             start: StartTracker::new(),
             last_uplink: None,
             dropped_downlinks: 0,
+            tuning_published: 0,
+            eeprom_busy: false,
+        };
+        let summary = crtp.ep.param.load_persistent(stored);
+        if summary.applied + summary.unknown + summary.refused > 0 {
+            info!(
+                "persistent parameters: {} applied, {} unknown, {} refused",
+                summary.applied, summary.unknown, summary.refused
+            );
+        }
+        crtp
+    }
+
+    /// Tuning writes to the control and mission tasks; persistent writes to the deck task and their
+    /// answers back.
+    fn tuning_and_eeprom(&mut self) {
+        let generation = self.ep.param.store().tuning_generation;
+        if generation != self.tuning_published {
+            self.tuning_published = generation;
+            super::publish_tuning(self.ep.param.store().tuning);
+        }
+        if !self.eeprom_busy
+            && let Some(write) = self.ep.param.eeprom_write()
+        {
+            EEPROM_JOB.signal(*write);
+            self.eeprom_busy = true;
+        }
+        if self.eeprom_busy
+            && let Some(ok) = EEPROM_DONE.try_take()
+        {
+            self.eeprom_busy = false;
+            if !ok {
+                self.console("persistent store: EEPROM write failed\n");
+            }
+            if let Some(reply) = self.ep.param.eeprom_write_done(ok)
+                && self.ep.router.enqueue(reply).is_err()
+            {
+                self.dropped_downlinks = self.dropped_downlinks.saturating_add(1);
+            }
         }
     }
 
@@ -270,6 +322,7 @@ impl Crtp {
     /// Everything that is not a reply: start outcomes, the end of a mission, parameter updates and refusal
     /// lines, due log data.
     fn housekeeping(&mut self, now: Instant) {
+        self.tuning_and_eeprom();
         let fired = self.ep.supervisor.poll(now.as_micros());
         if fired || self.ep.supervisor.take_requests().emergency_stop {
             self.emergency_stop();
@@ -363,7 +416,7 @@ fn on_syslink(crtp: &mut Crtp, packet: &SyslinkPacket, now: Instant) -> Option<S
 
 /// The radio task: boot sequence, then receive, dispatch and answer forever.
 #[embassy_executor::task]
-pub async fn radio_task(mut uart: SyslinkUart, settings: RadioSettings) {
+pub async fn radio_task(mut uart: SyslinkUart, settings: RadioSettings, stored: PersistentParams) {
     let mut boot = match settings.boot_packets() {
         Ok(packets) => BootSettings::new(&packets),
         Err(_) => {
@@ -379,7 +432,7 @@ pub async fn radio_task(mut uart: SyslinkUart, settings: RadioSettings) {
         warn!("SYS_NRF_VERSION not sent: {}", e);
     }
     let mut boot_reported = false;
-    let mut crtp = Crtp::new();
+    let mut crtp = Crtp::new(stored);
     let mut decoder = SyslinkDecoder::new();
     let mut chunk = [0u8; 64];
     let mut ready_sent = false;

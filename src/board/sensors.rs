@@ -12,7 +12,8 @@
 //! sensors in reset first, so only the Flow deck's ranger answers at 0x29; it moves to 0x6A; then the
 //! Multi-ranger sensors come up one by one. One task owns I2C1 afterwards and reads both decks without
 //! waiting on any sensor ([`deck_task`]).
-//! * EEPROM at 0x50 on I2C1: the config block (radio settings), read once at boot.
+//! * EEPROM at 0x50 on I2C1: the config block (radio settings), read once at boot; persistent-parameter
+//!   writes (`super::eeprom`) between readings.
 //!
 //! Deck presence is decided by probing at boot (the PMW3901's identity, the expander answering); the
 //! mission may only start when every sensor it needs is present *and* has a reader running
@@ -328,11 +329,14 @@ pub async fn deck_task(mut i2c: DeckI2c, rangers: DeckRangers) {
     let mut restarts = 0u32;
     loop {
         let Some(due_us) = reader.next_due_us() else {
-            // No ranger came up: nothing to read, ever.
-            core::future::pending::<()>().await;
+            // No ranger came up: only the EEPROM's persistent-parameter writes are left to serve.
+            Timer::after_millis(100).await;
+            super::eeprom::service(&mut i2c).await;
             continue;
         };
         Timer::at(Instant::from_micros(due_us)).await;
+        // A persistent-parameter write, if the radio queued one (never in flight: the store refuses it).
+        super::eeprom::service(&mut i2c).await;
         let events = reader.service(&mut i2c, &mut now_us).await;
         if let Some(range) = events.z {
             let _ = FAST_INPUTS.try_send(FastInput::ZRange(range));

@@ -340,6 +340,23 @@ impl<const CELLS: usize, const QUEUE: usize> Mission<CELLS, QUEUE> {
         })
     }
 
+    /// New tuning (the tuning parameters), for the next [`Self::start`]; call it while idle (the
+    /// navigator does, just before a start: a running mission's grid is inflated with the margins it
+    /// started with). Refused if the avoidance or pad-detector config is invalid; nothing changes then.
+    pub fn set_config(&mut self, config: MissionConfig) -> Result<(), MissionConfigError> {
+        let avoidance = ReactiveAvoidance::new(config.avoidance).map_err(|_| MissionConfigError::Avoidance)?;
+        let pad = PadDetector::new(config.pad).map_err(|_| MissionConfigError::PadDetector)?;
+        self.config = config;
+        self.avoidance = avoidance;
+        self.pad = pad;
+        Ok(())
+    }
+
+    /// The tuning in force.
+    pub fn config(&self) -> &MissionConfig {
+        &self.config
+    }
+
     /// The `mission.state` code right now.
     pub fn state(&self) -> MissionState {
         match self.phase {

@@ -4,7 +4,8 @@
 //! extended type v2) with the stock firmware's byte layouts, and build the unsolicited VALUE_UPDATED packets
 //! the firmware queues when it changes a parameter itself.
 //!
-//! Non-goals: no V1 (8-bit id) commands, no persistent storage (misc 3/4/5).
+//! Non-goals: no V1 (8-bit id) commands, no EEPROM access (the persistent commands hand the caller the
+//! bytes to write, [`ParamService::eeprom_write`], and answer when it reports back).
 //!
 //! Sources (`crazyflie-hardware.md` §4.5, `crtp-over-udp.md` §2 steps 7, 8, 10 and the probe trace):
 //! * ch0 `[3]` → `[3, count u16, crc u32]` (7 bytes); `[2, id u16]` → `[2, id u16, type, group\0, name\0]`,
@@ -28,8 +29,21 @@
 //!   ([`ParamStore::default_value`]) → `[cmd, id u16, ENOENT]`. cfclient asks for it whenever a parameter is
 //!   selected, and cflib's parameter queue waits for the answer: without one, every later write stalls.
 //! * Unknown TOC/misc commands: no reply.
+//! * Persistent parameters (stock `param_logic.c` `paramPersistentStore/GetState/Clear`, cflib
+//!   `param.py` `persistent_store/get_state/clear`): misc 3 STORE `[3, id u16]` → `[3, id u16, status]`,
+//!   misc 5 CLEAR `[5, id u16]` → `[5, id u16, status]`, status 0 on success; misc 4 GET_STATE `[4, id u16]`
+//!   → `[4, id u16, 0 (not stored), default]` or `[4, id u16, 1 (stored), default, stored]`, unknown id →
+//!   `[4, id u16, ENOENT]`. A store or a clear that changes the EEPROM is answered only once the caller
+//!   reports the write done ([`ParamService::eeprom_write_done`]: status 0, or EIO if it failed), as stock
+//!   answers after `storageStore`; while one waits, another gets EBUSY. Refusals: unknown id ENOENT, a
+//!   parameter that is not persistent ENOENT (as stock), a full store ENOSPC, a store or clear while flying
+//!   EBUSY (each of the last two with a console line: the EEPROM shares the deck bus with the height
+//!   ranger). Clearing a value that is not stored succeeds without a write.
+//! * Aliases ([`ParamStore::aliases`], one gain behind two stock names): a write queues a VALUE_UPDATED
+//!   for each other name, so clients' caches follow.
 //!
-//! Memory: the store, a queue of 8 pending VALUE_UPDATED ids and 4 pending refusals.
+//! Memory: the store, a queue of 8 pending VALUE_UPDATED ids, 4 pending refusals and one EEPROM write
+//! (a slot image, 640 bytes).
 
 use core::fmt::Write as _;
 
@@ -37,6 +51,7 @@ use heapless::{Deque, String, Vec};
 
 use super::crtp::{CrtpPacket, MAX_DATA, Service};
 use super::registry::{FLAG_EXTENDED, ParamEntry, ParamStore, ParamType, Refusal, Value, toc_crc, toc_item};
+use crate::system::persistent_params::{PendingWrite, PersistentParams};
 
 /// Parameter port (§4.2).
 pub const PORT_PARAM: u8 = 2;
@@ -56,6 +71,12 @@ pub const TOC_GET_INFO_V2: u8 = 0x03;
 pub const MISC_SET_BY_NAME: u8 = 0;
 /// Misc command: value updated (downlink only).
 pub const MISC_VALUE_UPDATED: u8 = 1;
+/// Misc command: store the value in effect in the EEPROM.
+pub const MISC_PERSISTENT_STORE: u8 = 3;
+/// Misc command: whether a value is stored, with the default and the stored value.
+pub const MISC_PERSISTENT_GET_STATE: u8 = 4;
+/// Misc command: forget the stored value.
+pub const MISC_PERSISTENT_CLEAR: u8 = 5;
 /// Misc command: default value (v1: no status byte).
 pub const MISC_GET_DEFAULT_VALUE: u8 = 6;
 /// Misc command: extended type (v2).
@@ -68,6 +89,16 @@ pub const ENOENT: u8 = 2;
 pub const EACCES: u8 = 13;
 /// `EINVAL`: wrong type or size, or a refused value.
 pub const EINVAL: u8 = 22;
+/// `EIO`: the EEPROM write failed.
+pub const EIO: u8 = 5;
+/// `EBUSY`: another EEPROM write is still under way.
+pub const EBUSY: u8 = 16;
+/// `ENOSPC`: every EEPROM record is taken.
+pub const ENOSPC: u8 = 28;
+/// GET_STATE status: no value stored.
+pub const PERSISTENT_NOT_STORED: u8 = 0;
+/// GET_STATE status: a value is stored.
+pub const PERSISTENT_STORED: u8 = 1;
 
 /// Pending VALUE_UPDATED ids.
 const NOTIFY_DEPTH: usize = 8;
@@ -90,6 +121,26 @@ pub struct ParamService<S: ParamStore> {
     notify: Deque<u16, NOTIFY_DEPTH>,
     refusals: Deque<RefusalNote, REFUSAL_DEPTH>,
     dropped_refusals: u32,
+    eeprom: Option<EepromJob>,
+}
+
+/// A persistent store or clear waiting for its EEPROM write.
+#[derive(Debug, Clone)]
+struct EepromJob {
+    cmd: u8,
+    id: u16,
+    write: PendingWrite,
+}
+
+/// What [`ParamService::load_persistent`] did with the stored records.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub struct LoadSummary {
+    /// Values applied.
+    pub applied: u16,
+    /// Records of no parameter of this firmware, of another type, or not persistent: ignored.
+    pub unknown: u16,
+    /// Values the parameter's checks refused (out of today's bounds): ignored, each with a refusal note.
+    pub refused: u16,
 }
 
 fn packet(channel: u8, data: &[u8]) -> Option<CrtpPacket> {
@@ -117,7 +168,51 @@ impl<S: ParamStore> ParamService<S> {
             notify: Deque::new(),
             refusals: Deque::new(),
             dropped_refusals: 0,
+            eeprom: None,
         }
+    }
+
+    /// The EEPROM write a `persistent_store` or `persistent_clear` waits for: write [`PendingWrite::pages`]
+    /// in order, then call [`Self::eeprom_write_done`].
+    pub fn eeprom_write(&self) -> Option<&PendingWrite> {
+        self.eeprom.as_ref().map(|j| &j.write)
+    }
+
+    /// The caller finished (`ok`) or failed the write of [`Self::eeprom_write`]: the records are committed
+    /// (if ok) and the reply to the waiting command is returned (hand it to the router); `None` if no write
+    /// was waiting.
+    pub fn eeprom_write_done(&mut self, ok: bool) -> Option<CrtpPacket> {
+        let job = self.eeprom.take()?;
+        let committed = ok && self.store.commit_persistent(job.write);
+        let b = job.id.to_le_bytes();
+        packet(CH_MISC, &[job.cmd, b[0], b[1], if committed { 0 } else { EIO }])
+    }
+
+    /// Boot: the records read from the EEPROM become the stored ones, and each value is applied through
+    /// the same checks as a radio write; one of no parameter here, of another type, not persistent, or
+    /// refused by the checks (a refusal note, for the console) is ignored. Call before any client connects.
+    pub fn load_persistent(&mut self, stored: PersistentParams) -> LoadSummary {
+        let mut summary = LoadSummary::default();
+        for record in stored.records() {
+            let found = S::TABLE
+                .iter()
+                .enumerate()
+                .find(|(_, e)| crate::system::persistent_params::param_key(e.group, e.name) == record.key);
+            let Some((i, e)) = found.filter(|(_, e)| e.is_persistent() && e.ty.code() == record.type_code) else {
+                summary.unknown += 1;
+                continue;
+            };
+            let Ok(id) = u16::try_from(i) else {
+                summary.unknown += 1;
+                continue;
+            };
+            match self.apply(id, e.ty, &record.value[..e.ty.size()]) {
+                Some(Ok(())) => summary.applied += 1,
+                _ => summary.refused += 1,
+            }
+        }
+        self.store.set_persistent(stored);
+        summary
     }
 
     /// The state.
@@ -254,8 +349,14 @@ impl<S: ParamStore> ParamService<S> {
         let value = Value::from_le(ty, bytes)?;
         let entry = Self::entry(id)?;
         let result = entry.check(value).and_then(|()| self.store.write(id, value));
-        if let Err(refusal) = result {
-            self.refuse(id, refusal);
+        match result {
+            Err(refusal) => self.refuse(id, refusal),
+            Ok(()) => {
+                let aliases: Vec<u16, NOTIFY_DEPTH> = self.store.aliases(id).take(NOTIFY_DEPTH).collect();
+                for alias in aliases {
+                    self.notify(alias);
+                }
+            }
         }
         Some(result)
     }
@@ -328,6 +429,62 @@ impl<S: ParamStore> ParamService<S> {
                         out.extend_from_slice(&bytes[..n]).ok()?;
                     }
                     None => out.push(ENOENT).ok()?,
+                }
+                packet(CH_MISC, &out)
+            }
+            cmd @ (MISC_PERSISTENT_STORE | MISC_PERSISTENT_CLEAR) => {
+                let id = u16::from_le_bytes([*data.get(1)?, *data.get(2)?]);
+                let b = id.to_le_bytes();
+                let status = if self.eeprom.is_some() {
+                    EBUSY
+                } else {
+                    let prepared = if cmd == MISC_PERSISTENT_STORE {
+                        self.store.prepare_persistent_store(id).map(Some)
+                    } else {
+                        self.store.prepare_persistent_clear(id)
+                    };
+                    match prepared {
+                        Ok(Some(write)) => {
+                            self.eeprom = Some(EepromJob { cmd, id, write });
+                            return None;
+                        }
+                        Ok(None) => 0,
+                        Err(Refusal::StoreFull) => {
+                            self.refuse(id, Refusal::StoreFull);
+                            ENOSPC
+                        }
+                        Err(Refusal::StoreWhileFlying) => {
+                            self.refuse(id, Refusal::StoreWhileFlying);
+                            EBUSY
+                        }
+                        Err(_) => ENOENT,
+                    }
+                };
+                packet(CH_MISC, &[cmd, b[0], b[1], status])
+            }
+            MISC_PERSISTENT_GET_STATE => {
+                let id = u16::from_le_bytes([*data.get(1)?, *data.get(2)?]);
+                let b = id.to_le_bytes();
+                let mut out: Vec<u8, MAX_DATA> = Vec::new();
+                out.extend_from_slice(&[MISC_PERSISTENT_GET_STATE, b[0], b[1]]).ok()?;
+                let default = Self::entry(id)
+                    .filter(|e| !e.read_only())
+                    .and_then(|_| self.store.default_value(id));
+                match default {
+                    None => out.push(ENOENT).ok()?,
+                    Some(default) => {
+                        let stored = self.store.stored_value(id);
+                        out.push(if stored.is_some() {
+                            PERSISTENT_STORED
+                        } else {
+                            PERSISTENT_NOT_STORED
+                        })
+                        .ok()?;
+                        for v in core::iter::once(default).chain(stored) {
+                            let (bytes, n) = v.to_le();
+                            out.extend_from_slice(&bytes[..n]).ok()?;
+                        }
+                    }
                 }
                 packet(CH_MISC, &out)
             }

@@ -8,7 +8,18 @@
 //! cannot say (a goal inside the arena, the start rules). Ids are the table's indices, and the `ID_*`
 //! constants are looked up in the table at compile time ([`param_id`]), so they cannot drift from it.
 //!
-//! Non-goals: no wire protocol (that is [`super::param`]), no persistence, no 64-bit or FP16 types.
+//! Non-goals: no wire protocol (that is [`super::param`]), no EEPROM layout (that is
+//! [`crate::system::persistent_params`]; the store here only keeps the records and prepares writes), no
+//! 64-bit or FP16 types.
+//!
+//! Tuning parameters (issue 13 part 4): the block so marked in [`PARAM_TABLE`], each persistent, each
+//! mapped to one field of [`Tuning`] by [`tune_field`]; a write is checked against its declaration, then
+//! the whole tuning against itself ([`Tuning::consistent`]: the controller's validation, the avoidance's,
+//! narrow inflation ≤ inflation, low landing speed ≤ high), and bumps [`MissionParamState::tuning_generation`]
+//! so the endpoint hands it to the flight stack. `posCtlPid.x*`/`y*` and `velCtlPid.vx*`/`vy*` name one
+//! horizontal gain each (cfnav's loops are symmetric): [`ParamStore::aliases`] finds the other name.
+//! Persistent records are keyed by `group.name` ([`param_key`]), so they survive a table with other ids;
+//! `persistent_store`/`persistent_clear` are refused while flying (the EEPROM write holds the deck bus).
 //!
 //! Sources: `crazyflie-hardware.md` §4.5 (type byte: bits 1..0 size, bit 2 float, bit 3 unsigned, 0x10
 //! EXTENDED, 0x40 READ-ONLY; `strlen(group) + strlen(name) + 2 ≤ 26`; CRC-32 reflected 0xEDB88320,
@@ -30,12 +41,17 @@
 //! the endpoint to re-anchor the estimator's horizontal position at `mission.startX/startY` (refused while
 //! flying), and the endpoint writes it back to 0 when done, as stock clears it.
 //!
-//! Memory: the table is `'static`; [`MissionParamState`] is a few dozen bytes.
+//! Memory: the table is `'static`; [`MissionParamState`] is about 2 KB (two [`Tuning`]s, the values in
+//! effect and the power-on defaults, and the stored records' 640-byte slot image).
 
+use crate::flight::control::ControllerConfig;
+use crate::flight::estimator::EstimatorConfig;
 use crate::mission::{
-    COVERAGE_RANGE, HOVER_TIME_RANGE_S, MAX_HEIGHT_M, MAX_SPEED_M_S, MIN_HEIGHT_M, MissionMode, MissionParams,
-    StartRefusal,
+    COVERAGE_RANGE, HOVER_TIME_RANGE_S, MAX_HEIGHT_M, MAX_SPEED_M_S, MIN_HEIGHT_M, MissionConfig, MissionMode,
+    MissionParams, StartRefusal,
 };
+use crate::nav::avoidance::{AvoidanceMethod, SpeedClamp};
+use crate::system::persistent_params::{PendingWrite, PersistentParams, param_key};
 
 use super::crtp::MAX_DATA;
 
@@ -366,6 +382,18 @@ impl ParamEntry {
         self
     }
 
+    /// The same declaration, marked persistent (extended type 1: cflib's `persistent_store` and friends
+    /// accept it).
+    pub const fn persistent(mut self) -> Self {
+        self.flags |= FLAG_EXTENDED;
+        self
+    }
+
+    /// True if the value can be stored in the EEPROM (`persistent_store`).
+    pub const fn is_persistent(&self) -> bool {
+        self.flags & FLAG_EXTENDED != 0
+    }
+
     /// The wire type byte: type code | flags.
     pub const fn type_byte(&self) -> u8 {
         self.ty.code() | self.flags
@@ -471,6 +499,15 @@ pub enum Refusal {
     UnsupportedController,
     /// `kalman.resetEstimation = 1` while flying or while a mission runs.
     ResetWhileFlying,
+    /// A tuning value in range that conflicts with a related one (e.g. `avoid.slowDist < avoid.dangerDist`).
+    Inconsistent,
+    /// `persistent_store` of a new parameter with every EEPROM record taken.
+    StoreFull,
+    /// A persistent command for a parameter that is not persistent.
+    NotPersistent,
+    /// `persistent_store`/`persistent_clear` while flying: the EEPROM shares the deck bus with the height
+    /// ranger, and a write holds the bus for ~100 ms.
+    StoreWhileFlying,
 }
 
 impl Refusal {
@@ -492,6 +529,10 @@ impl Refusal {
             Self::OutOfRange => "out of range",
             Self::UnsupportedController => "only 0 (auto) or 1 (PID)",
             Self::ResetWhileFlying => "reset while flying",
+            Self::Inconsistent => "inconsistent with others",
+            Self::StoreFull => "persistent store full",
+            Self::NotPersistent => "not persistent",
+            Self::StoreWhileFlying => "not while flying",
         }
     }
 }
@@ -508,6 +549,38 @@ pub trait ParamStore {
     fn default_value(&self, id: u16) -> Option<Value> {
         let _ = id;
         None
+    }
+    /// The value stored in the EEPROM for persistent parameter `id` (`persistent_get_state`).
+    fn stored_value(&self, id: u16) -> Option<Value> {
+        let _ = id;
+        None
+    }
+    /// The EEPROM write that stores the value in effect of persistent parameter `id`
+    /// (`persistent_store`); the caller writes it and hands it to [`Self::commit_persistent`].
+    fn prepare_persistent_store(&self, id: u16) -> Result<PendingWrite, Refusal> {
+        let _ = id;
+        Err(Refusal::NotPersistent)
+    }
+    /// The EEPROM write that forgets the stored value of `id` (`persistent_clear`); `Ok(None)` when none is
+    /// stored (nothing to write).
+    fn prepare_persistent_clear(&self, id: u16) -> Result<Option<PendingWrite>, Refusal> {
+        let _ = id;
+        Err(Refusal::NotPersistent)
+    }
+    /// A prepared write is in the EEPROM: its records are the stored ones now. False if it was stale.
+    fn commit_persistent(&mut self, write: PendingWrite) -> bool {
+        let _ = write;
+        false
+    }
+    /// The records read from the EEPROM at boot become the stored ones (not yet applied: see
+    /// [`super::param::ParamService::load_persistent`]).
+    fn set_persistent(&mut self, stored: PersistentParams) {
+        let _ = stored;
+    }
+    /// Ids that show the same value as `id` (one gain behind two stock names): notified after a write.
+    fn aliases(&self, id: u16) -> impl Iterator<Item = u16> {
+        let _ = id;
+        core::iter::empty()
     }
 }
 
@@ -740,6 +813,69 @@ pub const PARAM_TABLE: &[ParamEntry] = &[
         "",
         "explore: fly home once this fraction of the arena's cells is known; refused while a mission runs",
     ),
+    // Tuning parameters (issue 13 part 4): stock names and types where stock has the parameter
+    // (`attitude_pid_controller.c`, `position_controller_pid.c`, `flowdeck_v1v2.c`), cfnav's own groups
+    // `avoid`, `plan` and `mission` otherwise. Each is persistent and maps to one field of [`Tuning`]
+    // ([`tune_field`]). Bounds are sanity limits (no negative gain, no NaN), not a stability guarantee.
+    ParamEntry::declare("pid_rate", "roll_kp", ParamType::F32, 0, Range::Closed(0.0, 1000.0), "", "roll-rate loop, torque counts per deg/s; P gain (stock 250)").persistent(),
+    ParamEntry::declare("pid_rate", "roll_ki", ParamType::F32, 0, Range::Closed(0.0, 2000.0), "", "roll-rate loop, torque counts per deg/s; I gain (stock 500)").persistent(),
+    ParamEntry::declare("pid_rate", "roll_kd", ParamType::F32, 0, Range::Closed(0.0, 50.0), "", "roll-rate loop, torque counts per deg/s; D gain (stock 2.5)").persistent(),
+    ParamEntry::declare("pid_rate", "pitch_kp", ParamType::F32, 0, Range::Closed(0.0, 1000.0), "", "pitch-rate loop, torque counts per deg/s; P gain (stock 250)").persistent(),
+    ParamEntry::declare("pid_rate", "pitch_ki", ParamType::F32, 0, Range::Closed(0.0, 2000.0), "", "pitch-rate loop, torque counts per deg/s; I gain (stock 500)").persistent(),
+    ParamEntry::declare("pid_rate", "pitch_kd", ParamType::F32, 0, Range::Closed(0.0, 50.0), "", "pitch-rate loop, torque counts per deg/s; D gain (stock 2.5)").persistent(),
+    ParamEntry::declare("pid_rate", "yaw_kp", ParamType::F32, 0, Range::Closed(0.0, 1000.0), "", "yaw-rate loop, torque counts per deg/s; P gain (stock 120)").persistent(),
+    ParamEntry::declare("pid_rate", "yaw_ki", ParamType::F32, 0, Range::Closed(0.0, 2000.0), "", "yaw-rate loop, torque counts per deg/s; I gain (stock 16.7)").persistent(),
+    ParamEntry::declare("pid_rate", "yaw_kd", ParamType::F32, 0, Range::Closed(0.0, 50.0), "", "yaw-rate loop, torque counts per deg/s; D gain (stock 0)").persistent(),
+    ParamEntry::declare("pid_attitude", "roll_kp", ParamType::F32, 0, Range::Closed(0.0, 50.0), "", "roll-angle loop, deg/s per deg; P gain (stock 6)").persistent(),
+    ParamEntry::declare("pid_attitude", "roll_ki", ParamType::F32, 0, Range::Closed(0.0, 50.0), "", "roll-angle loop, deg/s per deg; I gain (stock 3)").persistent(),
+    ParamEntry::declare("pid_attitude", "roll_kd", ParamType::F32, 0, Range::Closed(0.0, 10.0), "", "roll-angle loop, deg/s per deg; D gain (stock 0)").persistent(),
+    ParamEntry::declare("pid_attitude", "pitch_kp", ParamType::F32, 0, Range::Closed(0.0, 50.0), "", "pitch-angle loop, deg/s per deg; P gain (stock 6)").persistent(),
+    ParamEntry::declare("pid_attitude", "pitch_ki", ParamType::F32, 0, Range::Closed(0.0, 50.0), "", "pitch-angle loop, deg/s per deg; I gain (stock 3)").persistent(),
+    ParamEntry::declare("pid_attitude", "pitch_kd", ParamType::F32, 0, Range::Closed(0.0, 10.0), "", "pitch-angle loop, deg/s per deg; D gain (stock 0)").persistent(),
+    ParamEntry::declare("pid_attitude", "yaw_kp", ParamType::F32, 0, Range::Closed(0.0, 50.0), "", "yaw-angle loop, deg/s per deg; P gain (stock 6)").persistent(),
+    ParamEntry::declare("pid_attitude", "yaw_ki", ParamType::F32, 0, Range::Closed(0.0, 50.0), "", "yaw-angle loop, deg/s per deg; I gain (stock 1)").persistent(),
+    ParamEntry::declare("pid_attitude", "yaw_kd", ParamType::F32, 0, Range::Closed(0.0, 10.0), "", "yaw-angle loop, deg/s per deg; D gain (stock 0.35)").persistent(),
+    ParamEntry::declare("velCtlPid", "vxKp", ParamType::F32, 0, Range::Closed(0.0, 100.0), "", "velocity loop, deg of tilt per m/s; P gain (stock 25) (x and y share one horizontal gain in cfnav: writing either sets both)").persistent(),
+    ParamEntry::declare("velCtlPid", "vxKi", ParamType::F32, 0, Range::Closed(0.0, 100.0), "", "velocity loop, deg of tilt per m/s; I gain (stock 1) (x and y share one horizontal gain in cfnav: writing either sets both)").persistent(),
+    ParamEntry::declare("velCtlPid", "vxKd", ParamType::F32, 0, Range::Closed(0.0, 20.0), "", "velocity loop, deg of tilt per m/s; D gain (stock 0) (x and y share one horizontal gain in cfnav: writing either sets both)").persistent(),
+    ParamEntry::declare("velCtlPid", "vyKp", ParamType::F32, 0, Range::Closed(0.0, 100.0), "", "velocity loop, deg of tilt per m/s; P gain (stock 25) (x and y share one horizontal gain in cfnav: writing either sets both)").persistent(),
+    ParamEntry::declare("velCtlPid", "vyKi", ParamType::F32, 0, Range::Closed(0.0, 100.0), "", "velocity loop, deg of tilt per m/s; I gain (stock 1) (x and y share one horizontal gain in cfnav: writing either sets both)").persistent(),
+    ParamEntry::declare("velCtlPid", "vyKd", ParamType::F32, 0, Range::Closed(0.0, 20.0), "", "velocity loop, deg of tilt per m/s; D gain (stock 0) (x and y share one horizontal gain in cfnav: writing either sets both)").persistent(),
+    ParamEntry::declare("velCtlPid", "vzKp", ParamType::F32, 0, Range::Closed(0.0, 100.0), "", "vertical-speed loop, thrust/1000 per m/s; P gain (stock 25)").persistent(),
+    ParamEntry::declare("velCtlPid", "vzKi", ParamType::F32, 0, Range::Closed(0.0, 100.0), "", "vertical-speed loop, thrust/1000 per m/s; I gain (stock 15)").persistent(),
+    ParamEntry::declare("velCtlPid", "vzKd", ParamType::F32, 0, Range::Closed(0.0, 20.0), "", "vertical-speed loop, thrust/1000 per m/s; D gain (stock 0)").persistent(),
+    ParamEntry::declare("posCtlPid", "xKp", ParamType::F32, 0, Range::Closed(0.0, 20.0), "", "position loop, m/s per m; P gain (stock 2) (x and y share one horizontal gain in cfnav: writing either sets both)").persistent(),
+    ParamEntry::declare("posCtlPid", "xKi", ParamType::F32, 0, Range::Closed(0.0, 20.0), "", "position loop, m/s per m; I gain (stock 0) (x and y share one horizontal gain in cfnav: writing either sets both)").persistent(),
+    ParamEntry::declare("posCtlPid", "xKd", ParamType::F32, 0, Range::Closed(0.0, 10.0), "", "position loop, m/s per m; D gain (stock 0) (x and y share one horizontal gain in cfnav: writing either sets both)").persistent(),
+    ParamEntry::declare("posCtlPid", "yKp", ParamType::F32, 0, Range::Closed(0.0, 20.0), "", "position loop, m/s per m; P gain (stock 2) (x and y share one horizontal gain in cfnav: writing either sets both)").persistent(),
+    ParamEntry::declare("posCtlPid", "yKi", ParamType::F32, 0, Range::Closed(0.0, 20.0), "", "position loop, m/s per m; I gain (stock 0) (x and y share one horizontal gain in cfnav: writing either sets both)").persistent(),
+    ParamEntry::declare("posCtlPid", "yKd", ParamType::F32, 0, Range::Closed(0.0, 10.0), "", "position loop, m/s per m; D gain (stock 0) (x and y share one horizontal gain in cfnav: writing either sets both)").persistent(),
+    ParamEntry::declare("posCtlPid", "zKp", ParamType::F32, 0, Range::Closed(0.0, 20.0), "", "height loop, m/s per m (cfnav default 2/0/0.5, D on the measured vertical speed); P gain (stock 2)").persistent(),
+    ParamEntry::declare("posCtlPid", "zKi", ParamType::F32, 0, Range::Closed(0.0, 20.0), "", "height loop, m/s per m (cfnav default 2/0/0.5, D on the measured vertical speed); I gain (stock 0.5)").persistent(),
+    ParamEntry::declare("posCtlPid", "zKd", ParamType::F32, 0, Range::Closed(0.0, 10.0), "", "height loop, m/s per m (cfnav default 2/0/0.5, D on the measured vertical speed); D gain (stock 0)").persistent(),
+    ParamEntry::declare("posCtlPid", "xVelMax", ParamType::F32, 0, Range::LeftOpen(0.0, 2.0), "m/s", "largest horizontal speed target (stock 1; cfnav: one limit for x and y)").persistent(),
+    ParamEntry::declare("posCtlPid", "yVelMax", ParamType::F32, 0, Range::LeftOpen(0.0, 2.0), "m/s", "same value as xVelMax (one horizontal limit in cfnav)").persistent(),
+    ParamEntry::declare("posCtlPid", "zVelMax", ParamType::F32, 0, Range::LeftOpen(0.0, 2.0), "m/s", "largest vertical speed target (stock 1)").persistent(),
+    ParamEntry::declare("posCtlPid", "thrustBase", ParamType::U16, 0, Range::Closed(10000.0, 65000.0), "", "hover thrust feed-forward, counts (cfnav: the hover of 33 g, ~44200; stock 36000)").persistent(),
+    ParamEntry::declare("posCtlPid", "thrustMin", ParamType::U16, 0, Range::Closed(0.0, 40000.0), "", "smallest collective thrust while flying, counts (stock 20000)").persistent(),
+    ParamEntry::declare("motion", "flowStdFixed", ParamType::F32, 0, Range::Closed(0.1, 20.0), "", "flow measurement std, sensor counts (stock name and default 2.0)").persistent(),
+    ParamEntry::declare("avoid", "mode", ParamType::U8, 0, SWITCH, "", "reactive avoidance law: 0 potential field, 1 virtual force field").persistent(),
+    ParamEntry::declare("avoid", "clamp", ParamType::U8, 0, SWITCH, "", "speed clamp: 0 by the nearest range, 1 the speed towards each range").persistent(),
+    ParamEntry::declare("avoid", "gain", ParamType::F32, 0, Range::Closed(0.0, 2.0), "m/s", "push-back speed per unit repulsion").persistent(),
+    ParamEntry::declare("avoid", "dangerDist", ParamType::F32, 0, Range::Closed(0.05, 1.0), "m", "ranges closer than this repel (below slowDist)").persistent(),
+    ParamEntry::declare("avoid", "slowDist", ParamType::F32, 0, Range::Closed(0.05, 2.0), "m", "ranges closer than this slow the drone (at least dangerDist)").persistent(),
+    ParamEntry::declare("avoid", "minSpeed", ParamType::F32, 0, Range::Closed(0.0, 1.0), "m/s", "speed allowed at the danger distance (at most the avoidance cruise cap, 0.4)").persistent(),
+    ParamEntry::declare("plan", "inflation", ParamType::F32, 0, Range::Closed(0.06, 0.5), "m", "obstacles grow by this for planning (drone radius 0.06 + margin)").persistent(),
+    ParamEntry::declare("plan", "narrowInfl", ParamType::F32, 0, Range::Closed(0.06, 0.5), "m", "fallback inflation when no path exists (at most plan.inflation)").persistent(),
+    ParamEntry::declare("plan", "narrowSpeed", ParamType::F32, 0, Range::LeftOpen(0.0, 1.0), "m/s", "speed cap while the narrow inflation is in use").persistent(),
+    ParamEntry::declare("mission", "searchSpeed", ParamType::F32, 0, Range::LeftOpen(0.0, 1.0), "m/s", "speed along the pad search's sweep lines").persistent(),
+    ParamEntry::declare("mission", "climbSpeed", ParamType::F32, 0, Range::LeftOpen(0.0, 1.0), "m/s", "take-off climb rate").persistent(),
+    ParamEntry::declare("mission", "landSpeed", ParamType::F32, 0, Range::LeftOpen(0.0, 0.5), "m/s", "descent rate in the last 0.2 m of a landing (at most landSpeedHigh)").persistent(),
+    ParamEntry::declare("mission", "landSpeedHigh", ParamType::F32, 0, Range::LeftOpen(0.0, 1.0), "m/s", "descent rate above 0.2 m").persistent(),
+    ParamEntry::declare("mission", "goalTol", ParamType::F32, 0, Range::Closed(0.05, 1.0), "m", "distance to the goal at which the pad search begins").persistent(),
+    ParamEntry::declare("mission", "padTol", ParamType::F32, 0, Range::Closed(0.01, 0.3), "m", "horizontal error to the pad centre accepted before descending").persistent(),
+    ParamEntry::declare("mission", "padPause", ParamType::F32, 0, Range::Closed(0.0, 30.0), "s", "pause on the goal pad, motors off").persistent(),
+    ParamEntry::declare("mission", "sweepSpacing", ParamType::F32, 0, Range::Closed(0.05, 0.5), "m", "spacing of the pad search's sweep lines").persistent(),
 ];
 
 /// Id of `mission.start` (uint8).
@@ -779,7 +915,11 @@ pub fn write_param_table(out: &mut impl core::fmt::Write, table: &[ParamEntry]) 
     writeln!(out, "|---|---|---|---|---|---|")?;
     for e in table {
         let unit = if e.unit.is_empty() { "" } else { e.unit };
-        let access = if e.read_only() { "read-only" } else { "read/write" };
+        let access = match (e.read_only(), e.is_persistent()) {
+            (true, _) => "read-only",
+            (false, true) => "read/write, persistent",
+            (false, false) => "read/write",
+        };
         writeln!(
             out,
             "| `{}.{}` | {} | {} | {} | {} | {} |",
@@ -793,6 +933,170 @@ pub fn write_param_table(out: &mut impl core::fmt::Write, table: &[ParamEntry]) 
         )?;
     }
     Ok(())
+}
+
+/// The tuning parameters' values: the parts of the flight configuration users tune without reflashing
+/// (issue 13 part 4). The endpoint hands them to the flight stack (`FlightCore::set_tuning`) whenever
+/// [`MissionParamState::tuning_generation`] changes: controller gains and the flow std from the next step
+/// (in flight too, as stock), the mission's tuning from the next mission start.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Tuning {
+    /// Controller gains and limits.
+    pub controller: ControllerConfig,
+    /// The estimator's flow measurement std, counts.
+    pub flow_std_counts: f32,
+    /// Mission, planner and avoidance tuning.
+    pub mission: MissionConfig,
+}
+
+impl Default for Tuning {
+    fn default() -> Self {
+        Self::new(
+            ControllerConfig::default(),
+            &EstimatorConfig::default(),
+            MissionConfig::default(),
+        )
+    }
+}
+
+impl Tuning {
+    /// The tuning of a flight stack built with these configurations.
+    pub fn new(controller: ControllerConfig, estimator: &EstimatorConfig, mission: MissionConfig) -> Self {
+        Self {
+            controller,
+            flow_std_counts: estimator.flow_std_counts,
+            mission,
+        }
+    }
+
+    /// Whether the values work together: the controller's own validation, the avoidance's, the narrow
+    /// inflation at most the full one, the low landing speed at most the high one.
+    pub fn consistent(&self) -> bool {
+        let m = &self.mission;
+        self.controller.validate().is_ok()
+            && m.avoidance.validate().is_ok()
+            && m.narrow_inflation_radius_m <= m.inflation_radius_m
+            && m.descent_speed_m_s <= m.high_descent_speed_m_s
+    }
+}
+
+/// Where a tuning parameter's value lives in [`Tuning`].
+pub enum TuneField<'a> {
+    /// A float, as is.
+    F32(&'a mut f32),
+    /// A thrust in counts, a uint16 on the wire (rounded when read).
+    Thrust(&'a mut f32),
+    /// The avoidance law: 0 potential field, 1 virtual force field.
+    Method(&'a mut AvoidanceMethod),
+    /// The avoidance speed clamp: 0 nearest, 1 towards each range.
+    Clamp(&'a mut SpeedClamp),
+}
+
+/// The field of `t` that tuning parameter `group.name` sets; `None` for the other parameters. The
+/// `PARAM_TABLE` block "Tuning parameters" declares each; this says only where its value goes.
+pub fn tune_field<'a>(t: &'a mut Tuning, group: &str, name: &str) -> Option<TuneField<'a>> {
+    Some(match (group, name) {
+        ("pid_rate", "roll_kp") => TuneField::F32(&mut t.controller.roll_rate.kp),
+        ("pid_rate", "roll_ki") => TuneField::F32(&mut t.controller.roll_rate.ki),
+        ("pid_rate", "roll_kd") => TuneField::F32(&mut t.controller.roll_rate.kd),
+        ("pid_rate", "pitch_kp") => TuneField::F32(&mut t.controller.pitch_rate.kp),
+        ("pid_rate", "pitch_ki") => TuneField::F32(&mut t.controller.pitch_rate.ki),
+        ("pid_rate", "pitch_kd") => TuneField::F32(&mut t.controller.pitch_rate.kd),
+        ("pid_rate", "yaw_kp") => TuneField::F32(&mut t.controller.yaw_rate.kp),
+        ("pid_rate", "yaw_ki") => TuneField::F32(&mut t.controller.yaw_rate.ki),
+        ("pid_rate", "yaw_kd") => TuneField::F32(&mut t.controller.yaw_rate.kd),
+        ("pid_attitude", "roll_kp") => TuneField::F32(&mut t.controller.roll.kp),
+        ("pid_attitude", "roll_ki") => TuneField::F32(&mut t.controller.roll.ki),
+        ("pid_attitude", "roll_kd") => TuneField::F32(&mut t.controller.roll.kd),
+        ("pid_attitude", "pitch_kp") => TuneField::F32(&mut t.controller.pitch.kp),
+        ("pid_attitude", "pitch_ki") => TuneField::F32(&mut t.controller.pitch.ki),
+        ("pid_attitude", "pitch_kd") => TuneField::F32(&mut t.controller.pitch.kd),
+        ("pid_attitude", "yaw_kp") => TuneField::F32(&mut t.controller.yaw.kp),
+        ("pid_attitude", "yaw_ki") => TuneField::F32(&mut t.controller.yaw.ki),
+        ("pid_attitude", "yaw_kd") => TuneField::F32(&mut t.controller.yaw.kd),
+        ("velCtlPid", "vxKp") => TuneField::F32(&mut t.controller.vel_xy.kp),
+        ("velCtlPid", "vxKi") => TuneField::F32(&mut t.controller.vel_xy.ki),
+        ("velCtlPid", "vxKd") => TuneField::F32(&mut t.controller.vel_xy.kd),
+        ("velCtlPid", "vyKp") => TuneField::F32(&mut t.controller.vel_xy.kp),
+        ("velCtlPid", "vyKi") => TuneField::F32(&mut t.controller.vel_xy.ki),
+        ("velCtlPid", "vyKd") => TuneField::F32(&mut t.controller.vel_xy.kd),
+        ("velCtlPid", "vzKp") => TuneField::F32(&mut t.controller.vel_z.kp),
+        ("velCtlPid", "vzKi") => TuneField::F32(&mut t.controller.vel_z.ki),
+        ("velCtlPid", "vzKd") => TuneField::F32(&mut t.controller.vel_z.kd),
+        ("posCtlPid", "xKp") => TuneField::F32(&mut t.controller.pos_xy.kp),
+        ("posCtlPid", "xKi") => TuneField::F32(&mut t.controller.pos_xy.ki),
+        ("posCtlPid", "xKd") => TuneField::F32(&mut t.controller.pos_xy.kd),
+        ("posCtlPid", "yKp") => TuneField::F32(&mut t.controller.pos_xy.kp),
+        ("posCtlPid", "yKi") => TuneField::F32(&mut t.controller.pos_xy.ki),
+        ("posCtlPid", "yKd") => TuneField::F32(&mut t.controller.pos_xy.kd),
+        ("posCtlPid", "zKp") => TuneField::F32(&mut t.controller.pos_z.kp),
+        ("posCtlPid", "zKi") => TuneField::F32(&mut t.controller.pos_z.ki),
+        ("posCtlPid", "zKd") => TuneField::F32(&mut t.controller.pos_z.kd),
+        ("posCtlPid", "xVelMax") => TuneField::F32(&mut t.controller.max_xy_speed_m_s),
+        ("posCtlPid", "yVelMax") => TuneField::F32(&mut t.controller.max_xy_speed_m_s),
+        ("posCtlPid", "zVelMax") => TuneField::F32(&mut t.controller.max_vz_m_s),
+        ("posCtlPid", "thrustBase") => TuneField::Thrust(&mut t.controller.thrust_base),
+        ("posCtlPid", "thrustMin") => TuneField::Thrust(&mut t.controller.thrust_min),
+        ("motion", "flowStdFixed") => TuneField::F32(&mut t.flow_std_counts),
+        ("avoid", "mode") => TuneField::Method(&mut t.mission.avoidance.method),
+        ("avoid", "clamp") => TuneField::Clamp(&mut t.mission.avoidance.clamp),
+        ("avoid", "gain") => TuneField::F32(&mut t.mission.avoidance.gain_mps),
+        ("avoid", "dangerDist") => TuneField::F32(&mut t.mission.avoidance.danger_distance_m),
+        ("avoid", "slowDist") => TuneField::F32(&mut t.mission.avoidance.slow_down_distance_m),
+        ("avoid", "minSpeed") => TuneField::F32(&mut t.mission.avoidance.min_speed_mps),
+        ("plan", "inflation") => TuneField::F32(&mut t.mission.inflation_radius_m),
+        ("plan", "narrowInfl") => TuneField::F32(&mut t.mission.narrow_inflation_radius_m),
+        ("plan", "narrowSpeed") => TuneField::F32(&mut t.mission.narrow_speed_m_s),
+        ("mission", "searchSpeed") => TuneField::F32(&mut t.mission.search_speed_m_s),
+        ("mission", "climbSpeed") => TuneField::F32(&mut t.mission.climb_speed_m_s),
+        ("mission", "landSpeed") => TuneField::F32(&mut t.mission.descent_speed_m_s),
+        ("mission", "landSpeedHigh") => TuneField::F32(&mut t.mission.high_descent_speed_m_s),
+        ("mission", "goalTol") => TuneField::F32(&mut t.mission.goal_tolerance_m),
+        ("mission", "padTol") => TuneField::F32(&mut t.mission.settle_tolerance_m),
+        ("mission", "padPause") => TuneField::F32(&mut t.mission.pause_s),
+        ("mission", "sweepSpacing") => TuneField::F32(&mut t.mission.sweep.spacing_m),
+        _ => return None,
+    })
+}
+
+/// The value of tuning parameter `e` in `t`.
+fn tune_read(t: &Tuning, e: &ParamEntry) -> Option<Value> {
+    let mut t = *t;
+    Some(match tune_field(&mut t, e.group, e.name)? {
+        TuneField::F32(v) => Value::F32(*v),
+        TuneField::Thrust(v) => Value::U16(libm::roundf(v.clamp(0.0, 65535.0)) as u16),
+        TuneField::Method(m) => Value::U8(u8::from(*m == AvoidanceMethod::VirtualForceField)),
+        TuneField::Clamp(c) => Value::U8(u8::from(*c == SpeedClamp::TowardsEachRange)),
+    })
+}
+
+/// `t` with tuning parameter `e` set to `value` (already checked against the declaration).
+fn tune_write(t: &Tuning, e: &ParamEntry, value: Value) -> Result<Tuning, Refusal> {
+    let mut t = *t;
+    match (tune_field(&mut t, e.group, e.name).ok_or(Refusal::UnknownId)?, value) {
+        (TuneField::F32(f), Value::F32(v)) => *f = v,
+        (TuneField::Thrust(f), Value::U16(v)) => *f = f32::from(v),
+        (TuneField::Method(m), Value::U8(v)) => {
+            *m = if v == 0 {
+                AvoidanceMethod::PotentialField
+            } else {
+                AvoidanceMethod::VirtualForceField
+            }
+        }
+        (TuneField::Clamp(c), Value::U8(v)) => {
+            *c = if v == 0 {
+                SpeedClamp::Nearest
+            } else {
+                SpeedClamp::TowardsEachRange
+            }
+        }
+        _ => return Err(Refusal::WrongType),
+    }
+    if t.consistent() {
+        Ok(t)
+    } else {
+        Err(Refusal::Inconsistent)
+    }
 }
 
 /// The parameters' values in effect plus what validation needs.
@@ -821,11 +1125,19 @@ pub struct MissionParamState {
     pub capacity_cells: usize,
     /// The mission parameters at power-on (the defaults cfclient shows).
     pub default_params: MissionParams,
+    /// The tuning parameters in effect.
+    pub tuning: Tuning,
+    /// The tuning the flight stack was built with (the defaults cfclient shows).
+    pub default_tuning: Tuning,
+    /// Counts accepted tuning writes: the endpoint pushes [`Self::tuning`] to the stack when it changes.
+    pub tuning_generation: u32,
+    /// The values stored in the EEPROM (`persistent_store`).
+    pub persistent: PersistentParams,
 }
 
 impl MissionParamState {
-    /// Idle state with `params`, on the ground, decks present.
-    pub const fn new(params: MissionParams, capacity_cells: usize) -> Self {
+    /// Idle state with `params`, on the ground, decks present, the default tuning, nothing stored.
+    pub fn new(params: MissionParams, capacity_cells: usize) -> Self {
         Self {
             start: 0,
             params,
@@ -838,7 +1150,18 @@ impl MissionParamState {
             en_high_level: 0,
             capacity_cells,
             default_params: params,
+            tuning: Tuning::default(),
+            default_tuning: Tuning::default(),
+            tuning_generation: 0,
+            persistent: PersistentParams::empty(),
         }
+    }
+
+    /// The same state with the tuning the flight stack was built with (its defaults and values in effect).
+    pub fn with_tuning(mut self, tuning: Tuning) -> Self {
+        self.tuning = tuning;
+        self.default_tuning = tuning;
+        self
     }
 
     /// Records which decks answered at boot (`decks_ok` is both).
@@ -946,6 +1269,9 @@ impl ParamStore for MissionParamState {
     const TABLE: &'static [ParamEntry] = PARAM_TABLE;
 
     fn read(&self, id: u16) -> Option<Value> {
+        if let Some(v) = tune_read(&self.tuning, PARAM_TABLE.get(usize::from(id))?) {
+            return Some(v);
+        }
         let p = &self.params;
         let flag = |b: bool| Value::U8(u8::from(b));
         Some(match id {
@@ -971,20 +1297,90 @@ impl ParamStore for MissionParamState {
     }
 
     fn default_value(&self, id: u16) -> Option<Value> {
+        let e = PARAM_TABLE.get(usize::from(id))?;
+        if let Some(v) = tune_read(&self.default_tuning, e) {
+            return Some(v);
+        }
         let mut power_on = Self::new(self.default_params, self.capacity_cells);
         power_on.set_decks(self.flow2_deck, self.multiranger_deck);
         power_on.read(id)
     }
 
     fn write(&mut self, id: u16, value: Value) -> Result<(), Refusal> {
-        PARAM_TABLE
-            .get(usize::from(id))
-            .ok_or(Refusal::UnknownId)?
-            .check(value)?;
+        let e = PARAM_TABLE.get(usize::from(id)).ok_or(Refusal::UnknownId)?;
+        e.check(value)?;
+        if tune_read(&self.tuning, e).is_some() {
+            self.tuning = tune_write(&self.tuning, e, value)?;
+            self.tuning_generation = self.tuning_generation.wrapping_add(1);
+            return Ok(());
+        }
         match value {
             Value::U8(v) => self.write_u8(id, v),
             Value::F32(v) => self.write_f32(id, v),
             _ => Err(Refusal::WrongType),
         }
     }
+
+    fn stored_value(&self, id: u16) -> Option<Value> {
+        let e = PARAM_TABLE.get(usize::from(id)).filter(|e| e.is_persistent())?;
+        let r = self.persistent.get(param_key(e.group, e.name))?;
+        if r.type_code != e.ty.code() {
+            return None;
+        }
+        Value::from_le(e.ty, &r.value[..e.ty.size()])
+    }
+
+    fn prepare_persistent_store(&self, id: u16) -> Result<PendingWrite, Refusal> {
+        let e = PARAM_TABLE.get(usize::from(id)).ok_or(Refusal::UnknownId)?;
+        if !e.is_persistent() {
+            return Err(Refusal::NotPersistent);
+        }
+        if self.flying {
+            return Err(Refusal::StoreWhileFlying);
+        }
+        let (bytes, _) = self.read(id).ok_or(Refusal::UnknownId)?.to_le();
+        self.persistent
+            .prepare_store(param_key(e.group, e.name), e.ty.code(), bytes)
+            .map_err(|_| Refusal::StoreFull)
+    }
+
+    fn prepare_persistent_clear(&self, id: u16) -> Result<Option<PendingWrite>, Refusal> {
+        let e = PARAM_TABLE.get(usize::from(id)).ok_or(Refusal::UnknownId)?;
+        if !e.is_persistent() {
+            return Err(Refusal::NotPersistent);
+        }
+        if self.flying {
+            return Err(Refusal::StoreWhileFlying);
+        }
+        Ok(self.persistent.prepare_clear(param_key(e.group, e.name)))
+    }
+
+    fn commit_persistent(&mut self, write: PendingWrite) -> bool {
+        self.persistent.commit(write)
+    }
+
+    fn set_persistent(&mut self, stored: PersistentParams) {
+        self.persistent = stored;
+    }
+
+    fn aliases(&self, id: u16) -> impl Iterator<Item = u16> {
+        // Two names of one field: the same address in a scratch copy of the tuning.
+        let mut probe = self.tuning;
+        let target = PARAM_TABLE.get(usize::from(id)).and_then(|e| field_addr(&mut probe, e));
+        (0..PARAM_TABLE.len() as u16).filter(move |&other| {
+            let mut probe = probe;
+            other != id && target.is_some() && field_addr(&mut probe, &PARAM_TABLE[usize::from(other)]) == target
+        })
+    }
+}
+
+/// The address of tuning parameter `e`'s field inside `t` (as an offset), to find two names of one field.
+fn field_addr(t: &mut Tuning, e: &ParamEntry) -> Option<usize> {
+    let base = t as *const Tuning as usize;
+    let addr = match tune_field(t, e.group, e.name)? {
+        TuneField::F32(f) | TuneField::Thrust(f) => f as *const f32 as usize,
+        TuneField::Method(m) => m as *const AvoidanceMethod as usize,
+        TuneField::Clamp(c) => c as *const SpeedClamp as usize,
+    };
+    Some(addr - base)
 }

@@ -12,6 +12,7 @@ mod modes;
 mod param;
 mod stock;
 mod supervisor_port;
+mod tuning;
 
 use cfnav::radio::crtp::{CrtpPacket, Service};
 

@@ -284,7 +284,8 @@ fn connect_sequence_param_steps_through_the_router() {
         let item = up(&[0x2C, 0x02, b[0], b[1]], &mut m).unwrap();
         assert_eq!(item[..4], [0x2C, 0x02, b[0], b[1]]);
         let ty = item[4];
-        assert_eq!(ty & 0x10, 0, "no extended type: cflib asks nothing more (step 8b)");
+        // Extended type (cflib then asks misc 7, step 8b) exactly for the persistent parameters.
+        assert_eq!(ty & 0x10 != 0, PARAM_TABLE[usize::from(id)].is_persistent(), "id {id}");
         let strings: Vec<&[u8]> = item[5..].split(|&c| c == 0).collect();
         assert_eq!(strings.len(), 3, "group\\0name\\0");
         assert!(strings[2].is_empty());
@@ -546,7 +547,8 @@ fn extended_type_v2() {
     assert_eq!(send(&mut s, &hex("2F 07 00")), None);
     // Unknown misc commands, VALUE_UPDATED sent uplink: no reply.
     assert_eq!(send(&mut s, &hex("2F 01 00 00 05")), None);
-    assert_eq!(send(&mut s, &hex("2F 05 00 00")), None);
+    // Misc 5 is persistent_clear: a store without persistence answers ENOENT, as stock for a non-persistent id.
+    assert_eq!(send(&mut s, &hex("2F 05 00 00")), Some(hex("2F 05 00 00 02")));
     // Default value: the test store declares none (ENOENT, v1 and v2 layouts).
     assert_eq!(send(&mut s, &hex("2F 08 00 00")), Some(hex("2F 08 00 00 02")));
     assert_eq!(send(&mut s, &hex("2F 06 00 00")), Some(hex("2F 06 00 00 02")));

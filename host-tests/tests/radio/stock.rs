@@ -257,14 +257,21 @@ fn every_refusal_line_fits_the_console_untruncated() {
         Refusal::OutOfRange,
         Refusal::UnsupportedController,
         Refusal::ResetWhileFlying,
+        Refusal::Inconsistent,
+        Refusal::StoreFull,
+        Refusal::NotPersistent,
+        Refusal::StoreWhileFlying,
     ];
     // The refusals each parameter can get: the declaration's for all, the store's for the groups it checks.
     for (i, e) in PARAM_TABLE.iter().enumerate() {
         let possible = all.iter().copied().filter(|r| match r {
             Refusal::UnknownId | Refusal::WrongType | Refusal::ReadOnly | Refusal::OutOfRange => true,
             Refusal::ResetWhileFlying => e.group == "kalman",
+            Refusal::Inconsistent | Refusal::StoreFull | Refusal::StoreWhileFlying => e.is_persistent(),
+            Refusal::NotPersistent => true,
             _ if *r == e.out_of_range => true,
-            _ => e.group == "mission",
+            // The start and arena rules concern the mission's own parameters, not its tuning ones.
+            _ => e.group == "mission" && !e.is_persistent(),
         });
         for refusal in possible {
             let line = Params::console_line(&RefusalNote { id: i as u16, refusal });

@@ -54,6 +54,7 @@ fn sim_args() -> SimArgs {
         mode: cfnav_tools::sim::cli::ModeArg::RoundTrip,
         hover_time: None,
         coverage: None,
+        param_store: None,
     }
 }
 

@@ -7,6 +7,7 @@ mod cpu_load;
 mod firmware_log;
 mod flash_acr;
 mod mission_start;
+mod persistent_params;
 mod status_led;
 mod step_pacing;
 mod watchdog;

@@ -454,13 +454,7 @@ fn clamp_norm(a: &mut f32, b: &mut f32, max: f32) -> bool {
 impl Controller {
     /// A controller with this configuration, or why the configuration is unusable.
     pub fn new(config: ControllerConfig) -> Result<Self, ControlConfigError> {
-        config.validate()?;
-        let mut cfg = config;
-        let max_tilt_deg = cfg.max_tilt_rad * RAD2DEG;
-        cfg.vel_xy.output_limit = max_tilt_deg;
-        cfg.pos_xy.output_limit = cfg.max_xy_speed_m_s;
-        cfg.pos_z.output_limit = cfg.max_vz_m_s;
-        cfg.yaw.output_limit = cfg.max_yaw_rate_rad_s * RAD2DEG;
+        let cfg = Self::derived(config)?;
         Ok(Self {
             cfg,
             roll_rate: Pid::new(cfg.roll_rate),
@@ -502,6 +496,45 @@ impl Controller {
     /// The configuration in effect (with the output limits derived from the `max_*` fields).
     pub fn config(&self) -> &ControllerConfig {
         &self.cfg
+    }
+
+    /// `config`, validated, with the output limits derived from its `max_*` fields.
+    fn derived(config: ControllerConfig) -> Result<ControllerConfig, ControlConfigError> {
+        config.validate()?;
+        let mut cfg = config;
+        let max_tilt_deg = cfg.max_tilt_rad * RAD2DEG;
+        cfg.vel_xy.output_limit = max_tilt_deg;
+        cfg.pos_xy.output_limit = cfg.max_xy_speed_m_s;
+        cfg.pos_z.output_limit = cfg.max_vz_m_s;
+        cfg.yaw.output_limit = cfg.max_yaw_rate_rad_s * RAD2DEG;
+        Ok(cfg)
+    }
+
+    /// New gains and limits (the tuning parameters, issue 13), in effect from the next call: integrators,
+    /// derivative histories and targets are kept (as stock, whose parameters write the gains in place,
+    /// in flight too), each integral clamped to its new i-limit. An invalid configuration is refused and
+    /// nothing changes.
+    pub fn set_config(&mut self, config: ControllerConfig) -> Result<(), ControlConfigError> {
+        let cfg = Self::derived(config)?;
+        self.cfg = cfg;
+        let axes: [(&mut Pid, PidGains); 12] = [
+            (&mut self.roll_rate, cfg.roll_rate),
+            (&mut self.pitch_rate, cfg.pitch_rate),
+            (&mut self.yaw_rate, cfg.yaw_rate),
+            (&mut self.roll, cfg.roll),
+            (&mut self.pitch, cfg.pitch),
+            (&mut self.yaw, cfg.yaw),
+            (&mut self.vx, cfg.vel_xy),
+            (&mut self.vy, cfg.vel_xy),
+            (&mut self.vz, cfg.vel_z),
+            (&mut self.x, cfg.pos_xy),
+            (&mut self.y, cfg.pos_xy),
+            (&mut self.z, cfg.pos_z),
+        ];
+        for (pid, gains) in axes {
+            pid.set_gains(gains);
+        }
+        Ok(())
     }
 
     /// Clear every integrator, derivative history and target; the next call runs all loops. The battery

@@ -116,6 +116,12 @@ impl Pid {
         Self { gains, integ: 0.0 }
     }
 
+    /// New gains; the integral is kept, clamped to the new i-limit.
+    pub fn set_gains(&mut self, gains: PidGains) {
+        self.gains = gains;
+        self.integ = self.integ.clamp(-gains.i_limit, gains.i_limit);
+    }
+
     /// Clear the integral.
     pub fn reset(&mut self) {
         self.integ = 0.0;

@@ -669,6 +669,14 @@ impl Estimator {
         &self.cfg
     }
 
+    /// A new flow measurement std, counts (the `motion.flowStdFixed` parameter), used from the next flow
+    /// sample; a value that is not finite and positive is ignored.
+    pub fn set_flow_std(&mut self, counts: f32) {
+        if counts.is_finite() && counts > 0.0 {
+            self.cfg.flow_std_counts = counts;
+        }
+    }
+
     /// Start over at a known pose: the drone standing on its pad at `position_m` (z = the pad's top, or 0
     /// on the floor) with heading `yaw_rad`. Velocity 0, roll and pitch kept (from the accelerometer once
     /// calibrated), covariance initial, surface height = `position_m[2]`; the gyro calibration is kept.

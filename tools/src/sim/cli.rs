@@ -73,6 +73,10 @@ pub struct SimArgs {
     /// exploration (0.05..1; default 0.8).
     #[arg(long, value_name = "FRACTION")]
     pub coverage: Option<f32>,
+    /// For --serve: the drone's 8 KB EEPROM as a file, where persistent parameters are kept across runs
+    /// (created when missing). Default: an EEPROM in memory, blank at every start.
+    #[arg(long, value_name = "FILE")]
+    pub param_store: Option<std::path::PathBuf>,
 }
 
 /// `--mode`: the values of `mission.mode`.
@@ -274,6 +278,9 @@ pub fn run_cli(args: &SimArgs) -> ExitCode {
         },
         None => None,
     };
+    if args.param_store.is_some() && !args.serve {
+        return fail("--param-store applies to --serve only");
+    }
     if args.serve {
         return run_serve(args, stress.as_ref());
     }
@@ -327,7 +334,8 @@ pub fn run_cli(args: &SimArgs) -> ExitCode {
     ExitCode::from(if result.report.outcome == "completed" { 0 } else { 1 })
 }
 
-/// `cfnav sim --serve [--port P] [--world FILE | --random-world SEED] [--speed X] [--stress FILE]`.
+/// `cfnav sim --serve [--port P] [--world FILE | --random-world SEED] [--speed X] [--stress FILE]
+/// [--param-store FILE]`.
 fn run_serve(args: &SimArgs, stress: Option<&Stress>) -> ExitCode {
     if args.random.is_some() {
         return fail("--serve flies one world; drop --random");
@@ -352,7 +360,7 @@ fn run_serve(args: &SimArgs, stress: Option<&Stress>) -> ExitCode {
     if let Some(s) = stress {
         world.stress = world.stress.overlaid(s);
     }
-    match crate::sim::serve::serve(&world, args.port, args.speed) {
+    match crate::sim::serve::serve(&world, args.port, args.speed, args.param_store.as_deref()) {
         Ok(()) => ExitCode::SUCCESS,
         Err(e) => fail(e),
     }

@@ -29,9 +29,17 @@
 //! (it lands) — the console says so. `mission.start` is refused after an emergency stop (stock: Locked, reboot).
 //!
 //! Console (port 0): refusal notes and these messages go through [`ConsoleService`] and are sent at once.
+//!
+//! Tuning and persistent parameters (issue 13 part 4): an accepted tuning write is handed to the flight core
+//! at once (`FlightCore::set_tuning`). `--param-store FILE` is the drone's 8 KB EEPROM as a file (created
+//! blank, 0xFF, when missing): at start the persistent records are read from it and applied through the
+//! same checks as a radio write; `persistent_store`/`persistent_clear` write their slot into it (the whole
+//! file rewritten through a temporary file and a rename) before they are answered. Without the option the
+//! EEPROM lives in memory and is lost when the simulator stops.
 
 use std::io::ErrorKind;
 use std::net::{SocketAddr, UdpSocket};
+use std::path::{Path, PathBuf};
 use std::time::{Duration, Instant};
 
 use cfnav::radio::commander::{Command, SetpointFollower};
@@ -39,9 +47,11 @@ use cfnav::radio::crtp::{CrtpPacket, NULL_HEADER, is_null_header};
 use cfnav::radio::endpoint::Endpoint;
 use cfnav::radio::log_registry::FlightLogState;
 use cfnav::radio::param::ParamService;
-use cfnav::radio::registry::{ID_RESET_ESTIMATION, ID_START, MissionParamState};
+use cfnav::radio::registry::{ID_RESET_ESTIMATION, ID_START, MissionParamState, Tuning};
 use cfnav::radio::supervisor_port::{SupervisorPortConfig, SupervisorStatus};
+use cfnav::stack::FlightConfig;
 use cfnav::stack::HighLevelError;
+use cfnav::system::persistent_params::{PersistentParams, REGION_LEN, REGION_START};
 use cfnav::types::{RangeReading, Setpoint};
 
 use super::runner::{Faults, SIM_CELLS, SimDrone, mission_params};
@@ -137,19 +147,59 @@ struct Radio {
     commander_refused: u32,
     last_commander_note_us: Option<u64>,
     send_errors: u64,
+    /// The simulated EEPROM (8 KB) and the file it lives in, if any.
+    eeprom: Vec<u8>,
+    eeprom_file: Option<PathBuf>,
+    /// The tuning generation last handed to the flight core.
+    tuning_applied: u32,
+}
+
+/// Bytes of the Crazyflie's EEPROM (24AA64, `crazyflie-hardware.md` §1.5).
+pub const EEPROM_LEN: usize = 8192;
+
+/// The EEPROM image in `path` (blank, 0xFF, if the file does not exist; padded with 0xFF if short).
+fn read_eeprom(path: &Path) -> Result<Vec<u8>, String> {
+    let mut bytes = match std::fs::read(path) {
+        Ok(b) => b,
+        Err(e) if e.kind() == ErrorKind::NotFound => Vec::new(),
+        Err(e) => return Err(format!("cannot read --param-store {}: {e}", path.display())),
+    };
+    if bytes.len() > EEPROM_LEN {
+        return Err(format!(
+            "--param-store {} is {} bytes, more than the {EEPROM_LEN}-byte EEPROM",
+            path.display(),
+            bytes.len()
+        ));
+    }
+    bytes.resize(EEPROM_LEN, 0xFF);
+    Ok(bytes)
+}
+
+/// Replaces `path` with `bytes` (a temporary file renamed over it).
+fn write_eeprom(path: &Path, bytes: &[u8]) -> std::io::Result<()> {
+    let mut tmp = path.as_os_str().to_owned();
+    tmp.push(".tmp");
+    std::fs::write(&tmp, bytes)?;
+    std::fs::rename(&tmp, path)
 }
 
 impl Radio {
     /// The radio of a drone flying `world`, answering on `socket`.
-    fn new(socket: UdpSocket, world: &World) -> Self {
-        Self {
+    fn new(socket: UdpSocket, world: &World, eeprom_file: Option<&Path>) -> Result<Self, String> {
+        let eeprom = match eeprom_file {
+            Some(path) => read_eeprom(path)?,
+            None => vec![0xFF; EEPROM_LEN],
+        };
+        let config = FlightConfig::default();
+        let tuning = Tuning::new(config.controller, &config.estimator, config.mission);
+        Ok(Self {
             socket,
             client: None,
             last_uplink: Instant::now(),
             // The sim's flight core auto-arms and has no supervisor reset.
             ep: Endpoint::new(
                 FIRMWARE_TAG,
-                MissionParamState::new(mission_params(world), SIM_CELLS),
+                MissionParamState::new(mission_params(world), SIM_CELLS).with_tuning(tuning),
                 SupervisorPortConfig {
                     auto_arm: true,
                     can_recover: false,
@@ -159,6 +209,62 @@ impl Radio {
             commander_refused: 0,
             last_commander_note_us: None,
             send_errors: 0,
+            eeprom,
+            eeprom_file: eeprom_file.map(Path::to_path_buf),
+            tuning_applied: 0,
+        })
+    }
+
+    /// Boot: the persistent records from the EEPROM, applied through the radio's checks, and the tuning
+    /// handed to the flight core.
+    fn load_persistent(&mut self, drone: &mut SimDrone) {
+        let start = usize::from(REGION_START);
+        let (stored, report) = PersistentParams::load(&self.eeprom[start..start + REGION_LEN]);
+        let summary = self.ep.param.load_persistent(stored);
+        eprintln!(
+            "persistent parameters: {} applied, {} unknown, {} refused (slots {:?})",
+            summary.applied, summary.unknown, summary.refused, report.slots
+        );
+        self.apply_tuning(drone);
+        self.flush_param_events();
+    }
+
+    /// Hands the tuning to the flight core when a write changed it.
+    fn apply_tuning(&mut self, drone: &mut SimDrone) {
+        let store = self.ep.param.store();
+        if store.tuning_generation == self.tuning_applied {
+            return;
+        }
+        self.tuning_applied = store.tuning_generation;
+        let t = store.tuning;
+        if let Err(e) = drone.core.set_tuning(t.controller, t.flow_std_counts, t.mission) {
+            let line = format!("tuning refused by the flight core: {e:?}\n");
+            eprintln!("{:8.3} s  {}", seconds(drone), line.trim_end());
+            self.console(&line);
+        }
+    }
+
+    /// Does the EEPROM write a persistent command waits for, then sends its reply.
+    fn run_eeprom_write(&mut self, drone: &SimDrone) {
+        let Some(write) = self.ep.param.eeprom_write().copied() else {
+            return;
+        };
+        let at = usize::from(write.address());
+        self.eeprom[at..at + write.bytes().len()].copy_from_slice(write.bytes());
+        let ok = match &self.eeprom_file {
+            Some(path) => match write_eeprom(path, &self.eeprom) {
+                Ok(()) => true,
+                Err(e) => {
+                    let line = format!("persistent store: cannot write {}: {e}\n", path.display());
+                    eprintln!("{:8.3} s  {}", seconds(drone), line.trim_end());
+                    self.console(&line);
+                    false
+                }
+            },
+            None => true,
+        };
+        if let Some(reply) = self.ep.param.eeprom_write_done(ok) {
+            self.send(&reply);
         }
     }
 
@@ -354,6 +460,8 @@ impl Radio {
                 None => break,
             }
         }
+        self.run_eeprom_write(drone);
+        self.apply_tuning(drone);
         self.apply_commander(drone);
         self.apply_high_level(drone);
         self.apply_supervisor(drone);
@@ -406,7 +514,7 @@ impl Radio {
 }
 
 /// Serves CRTP over UDP on 127.0.0.1:`port` and flies `world` at `speed` × real time until interrupted.
-pub fn serve(world: &World, port: u16, speed: f64) -> Result<(), String> {
+pub fn serve(world: &World, port: u16, speed: f64, param_store: Option<&Path>) -> Result<(), String> {
     if !(speed.is_finite() && speed > 0.0) {
         return Err(format!("--speed must be a positive number, got {speed}"));
     }
@@ -415,7 +523,8 @@ pub fn serve(world: &World, port: u16, speed: f64) -> Result<(), String> {
         .set_nonblocking(true)
         .map_err(|e| format!("cannot make the UDP socket non-blocking: {e}"))?;
     let mut drone = SimDrone::new(world, world.sim.seed, &Faults::default())?;
-    let mut radio = Radio::new(socket, world);
+    let mut radio = Radio::new(socket, world, param_store)?;
+    radio.load_persistent(&mut drone);
     eprintln!(
         "serving CRTP on udp://127.0.0.1:{port} ({} at {speed}× real time); write mission.start = 1 to fly",
         world.name
@@ -514,7 +623,7 @@ mod tests {
             let world = World::default_world();
             let drone = SimDrone::new(&world, 7, &Faults::default()).unwrap();
             let socket = UdpSocket::bind("127.0.0.1:0").unwrap();
-            let radio = Radio::new(socket, &world);
+            let radio = Radio::new(socket, &world, None).unwrap();
             let client = UdpSocket::bind("127.0.0.1:0").unwrap();
             client.set_read_timeout(Some(Duration::from_millis(200))).unwrap();
             let from = client.local_addr().unwrap();

@@ -3,11 +3,13 @@
 //! then yields, so the LED and watchdog tasks run between ticks; the control and I/O executors preempt it
 //! at any instruction.
 //!
-//! Messages: takes [`super::MISSION_REQUESTS`] (start/abort from the radio) and [`super::NAV_INPUTS`]
+//! Messages: takes [`super::MISSION_REQUESTS`] (start/abort from the radio), [`super::LINK`] (the latest
+//! uplink packet's time and the link-loss parameters) and [`super::NAV_INPUTS`]
 //! (height and Multi-ranger readings with their estimates), reads [`super::fast_status`], sends
 //! [`MissionCommand`]s to the control task through [`super::FAST_INPUTS`] (awaiting a free slot, so a start
 //! or a setpoint is never dropped), answers start requests on [`super::START_OUTCOME`].
 
+use core::cell::Cell;
 use core::mem::MaybeUninit;
 use core::sync::atomic::{AtomicBool, Ordering};
 
@@ -19,7 +21,7 @@ use defmt::{info, warn};
 use embassy_time::{Duration, Ticker, Timer};
 
 use super::{
-    CONTROL_STEPS, DECKS_OK, FAST_INPUTS, FastInput, LOAD, MISSION_REQUESTS, MISSION_RUNNING, MissionRequest,
+    CONTROL_STEPS, DECKS_OK, FAST_INPUTS, FastInput, LINK, LOAD, MISSION_REQUESTS, MISSION_RUNNING, MissionRequest,
     NAV_INPUTS, NavInput, START_OUTCOME, THREAD_BEATS, cycles, fast_status, now_us, update_log, yield_now,
 };
 
@@ -104,6 +106,12 @@ pub async fn mission_task(nav: &'static mut FwNavigator) {
             info!("mission started");
         }
 
+        // The link-loss watch: the latest uplink packet and the parameters, from the radio task.
+        let (last_packet, link_loss) = LINK.lock(Cell::get);
+        if let Some(t) = last_packet {
+            nav.on_radio_packet(t);
+        }
+        nav.set_link_loss(link_loss);
         let section = LOAD.begin(Level::Mission, cycles());
         let command = nav.tick(now_us(), &fast_status());
         let running = nav.is_running();

@@ -18,6 +18,7 @@
 //! * [`NAV_INPUTS`]: control and sensor tasks → mission task (height + estimate, Multi-ranger + estimate).
 //! * [`MISSION_REQUESTS`] / [`START_OUTCOME`]: radio ⇄ mission task (`mission.start` writes).
 //! * [`LOG_STATE`]: what the log service samples; each task writes its own fields.
+//! * [`LINK`]: radio → mission task: when the latest uplink packet came and the link-loss parameters.
 //!
 //! Non-goals here: any flight logic (see `cfnav::stack`), any protocol logic (see `cfnav::radio`).
 //! Memory: the navigator (map + planner, ≈ 47 KB) sits in CCM; everything else is static SRAM (see the
@@ -38,6 +39,7 @@ use core::task::Poll;
 
 use cfnav::flight::high_level::HlCommand;
 use cfnav::mission::MissionParams;
+use cfnav::mission::link_loss::LinkLossConfig;
 use cfnav::radio::log_registry::FirmwareLogState;
 use cfnav::stack::{FastStatus, MissionCommand, StartError};
 use cfnav::system::cpu_load::LoadMeter;
@@ -107,6 +109,9 @@ pub static START_OUTCOME: Signal<CriticalSectionRawMutex, Result<(), StartError>
 pub static LOG_STATE: Mutex<CriticalSectionRawMutex, Cell<Option<FirmwareLogState>>> = Mutex::new(Cell::new(None));
 /// Busy cycles per priority level.
 pub static LOAD: LoadMeter = LoadMeter::new();
+/// Radio → mission task: (when the latest uplink packet arrived, µs; `mission.linkLoss`/`linkTimeout`).
+pub static LINK: Mutex<CriticalSectionRawMutex, Cell<(Option<Micros>, LinkLossConfig)>> =
+    Mutex::new(Cell::new((None, LinkLossConfig::DEFAULT)));
 
 /// Range logged when a ranger has no valid reading (stock multiranger.c reports 32767 mm).
 pub const NO_RANGE_MM: u16 = 32767;

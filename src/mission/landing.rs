@@ -103,7 +103,9 @@ impl<const CELLS: usize, const QUEUE: usize> Mission<CELLS, QUEUE> {
                     Setpoint::Stop
                 }
                 Leg::Return => {
-                    let end = if self.pad_not_found {
+                    let end = if self.link_lost_home {
+                        MissionState::LinkLostHome
+                    } else if self.pad_not_found {
                         MissionState::PadNotFound
                     } else {
                         MissionState::Completed

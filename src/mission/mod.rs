@@ -65,6 +65,7 @@ use heapless::Vec;
 
 pub mod config;
 mod landing;
+pub mod link_loss;
 mod navigate;
 mod search;
 
@@ -133,6 +134,11 @@ pub enum MissionState {
     Crashed = 205,
     /// The planner could not run (grid or queue capacity).
     PlannerFault = 206,
+    /// The radio link was lost with `mission.linkLoss = 1`: landed where it was.
+    LinkLost = 207,
+    /// The radio link was lost on the outbound leg with `mission.linkLoss = 2`: flew home, landed on the
+    /// home pad (or its best estimate).
+    LinkLostHome = 208,
 }
 
 impl MissionState {
@@ -239,6 +245,8 @@ pub struct Mission<const CELLS: usize, const QUEUE: usize> {
     last_ranges: RangerReadings,
     last_tick: Option<Micros>,
     pad_not_found: bool,
+    /// The link-loss policy turned the drone home: the home landing ends with [`MissionState::LinkLostHome`].
+    link_lost_home: bool,
     planner_needs_reset: bool,
     /// The heading the drone holds, rad: it turns to face its direction of travel while navigating, so the
     /// front ranger looks where it is going (four beams see nothing diagonal to them).
@@ -281,6 +289,7 @@ impl<const CELLS: usize, const QUEUE: usize> Mission<CELLS, QUEUE> {
             last_ranges: RangerReadings::NONE,
             last_tick: None,
             pad_not_found: false,
+            link_lost_home: false,
             planner_needs_reset: false,
             heading: 0.0,
             stats: MissionStats::default(),
@@ -361,6 +370,7 @@ impl<const CELLS: usize, const QUEUE: usize> Mission<CELLS, QUEUE> {
         self.sweep = None;
         self.leg = Leg::Outbound;
         self.pad_not_found = false;
+        self.link_lost_home = false;
         self.planner_needs_reset = true;
         self.stats = MissionStats::default();
         self.last_tick = None;
@@ -381,6 +391,40 @@ impl<const CELLS: usize, const QUEUE: usize> Mission<CELLS, QUEUE> {
                     y: state.position_m[1],
                     then: MissionState::Aborted,
                 }
+            }
+        }
+    }
+
+    /// The radio link was lost (see [`link_loss`]): apply `policy`. Does nothing when no mission runs or
+    /// while it already lands where it is (abort, battery, estimator fault: that landing stays, with its
+    /// code). Latched: nothing here is undone when the link comes back.
+    pub fn on_link_lost(&mut self, policy: link_loss::LinkLossPolicy, now: Micros, state: &StateEstimate) {
+        use link_loss::LinkLossPolicy;
+        let (x, y) = (state.position_m[0], state.position_m[1]);
+        match (policy, self.phase) {
+            (LinkLossPolicy::Continue, _)
+            | (_, Phase::Idle | Phase::Ended(_) | Phase::EmergencyLand { .. }) => {}
+            // On the ground with the motors off: it has landed already.
+            (LinkLossPolicy::Land, Phase::Preflight | Phase::OnPad { .. }) => {
+                self.phase = Phase::Ended(MissionState::LinkLost)
+            }
+            (LinkLossPolicy::Land, _) => {
+                self.phase = Phase::EmergencyLand {
+                    x,
+                    y,
+                    then: MissionState::LinkLost,
+                }
+            }
+            // Still standing on the home pad.
+            (LinkLossPolicy::ReturnHome, Phase::Preflight) => self.phase = Phase::Ended(MissionState::LinkLostHome),
+            // On the goal pad, or on the way home already: the mission goes home anyway.
+            (LinkLossPolicy::ReturnHome, Phase::OnPad { .. }) => {}
+            (LinkLossPolicy::ReturnHome, _) if self.leg == Leg::Return => {}
+            (LinkLossPolicy::ReturnHome, _) => {
+                // Turn back where it is: the return leg climbs to the cruise height if it was lower (over the
+                // goal pad), plans home on the map built so far, searches the home pad and lands on it.
+                self.link_lost_home = true;
+                self.begin_leg(now, state, Leg::Return);
             }
         }
     }

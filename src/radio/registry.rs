@@ -32,6 +32,7 @@
 //!
 //! Memory: the table is `'static`; [`MissionParamState`] is a few dozen bytes.
 
+use crate::mission::link_loss::{LinkLossConfig, LinkLossPolicy, MAX_LINK_TIMEOUT_S, MIN_LINK_TIMEOUT_S};
 use crate::mission::{MAX_HEIGHT_M, MAX_SPEED_M_S, MIN_HEIGHT_M, MissionParams, StartRefusal};
 
 use super::crtp::MAX_DATA;
@@ -709,6 +710,25 @@ pub const PARAM_TABLE: &[ParamEntry] = &[
         "",
         "stock's high-level-commander switch, kept for clients that write it",
     ),
+    // Link loss (issue 13 part 5)
+    ParamEntry::declare(
+        "mission",
+        "linkLoss",
+        ParamType::U8,
+        0,
+        Range::Closed(0.0, 2.0),
+        "",
+        "after mission.linkTimeout s without any radio packet in a mission: 0 go on (default), 1 land where it is, 2 return home and land on the home pad",
+    ),
+    ParamEntry::declare(
+        "mission",
+        "linkTimeout",
+        ParamType::F32,
+        0,
+        Range::Closed(MIN_LINK_TIMEOUT_S, MAX_LINK_TIMEOUT_S),
+        "s",
+        "radio silence that counts as a lost link during a mission (default 2)",
+    ),
 ];
 
 /// Id of `mission.start` (uint8).
@@ -735,6 +755,10 @@ pub const ID_RESET_ESTIMATION: u16 = param_id(PARAM_TABLE, "kalman", "resetEstim
 pub const ID_CONTROLLER: u16 = param_id(PARAM_TABLE, "stabilizer", "controller");
 /// Id of `commander.enHighLevel` (uint8).
 pub const ID_EN_HIGH_LEVEL: u16 = param_id(PARAM_TABLE, "commander", "enHighLevel");
+/// Id of `mission.linkLoss` (uint8).
+pub const ID_LINK_LOSS: u16 = param_id(PARAM_TABLE, "mission", "linkLoss");
+/// Id of `mission.linkTimeout` (float).
+pub const ID_LINK_TIMEOUT: u16 = param_id(PARAM_TABLE, "mission", "linkTimeout");
 
 /// Writes the README's parameter table for `table`: one Markdown row per declaration.
 pub fn write_param_table(out: &mut impl core::fmt::Write, table: &[ParamEntry]) -> core::fmt::Result {
@@ -780,6 +804,8 @@ pub struct MissionParamState {
     pub controller: u8,
     /// `commander.enHighLevel` (0 or 1).
     pub en_high_level: u8,
+    /// `mission.linkLoss` and `mission.linkTimeout` (the endpoint hands them to the navigator).
+    pub link_loss: LinkLossConfig,
     /// Map capacity, cells, for [`MissionParams::validate`] at start.
     pub capacity_cells: usize,
     /// The mission parameters at power-on (the defaults cfclient shows).
@@ -799,6 +825,7 @@ impl MissionParamState {
             reset_estimation: 0,
             controller: 0,
             en_high_level: 0,
+            link_loss: LinkLossConfig::DEFAULT,
             capacity_cells,
             default_params: params,
         }
@@ -876,12 +903,14 @@ impl MissionParamState {
             }
             ID_HEIGHT => self.params.height_m = v,
             ID_SPEED => self.params.speed_m_s = v,
+            ID_LINK_TIMEOUT => self.link_loss.timeout_s = v,
             _ => return Err(Refusal::UnknownId),
         }
         Ok(())
     }
 
-    /// A uint8 write that passed the declaration's checks (0 or 1 for every writable uint8 here).
+    /// A uint8 write that passed the declaration's checks (0 or 1 for every writable uint8 here, 0..=2 for
+    /// `mission.linkLoss`).
     fn write_u8(&mut self, id: u16, v: u8) -> Result<(), Refusal> {
         match id {
             ID_START => return self.write_start(v),
@@ -891,6 +920,7 @@ impl MissionParamState {
             ID_RESET_ESTIMATION => self.reset_estimation = v,
             ID_CONTROLLER => self.controller = v,
             ID_EN_HIGH_LEVEL => self.en_high_level = v,
+            ID_LINK_LOSS => self.link_loss.policy = LinkLossPolicy::from_code(v).ok_or(Refusal::OutOfRange)?,
             _ => return Err(Refusal::UnknownId),
         }
         Ok(())
@@ -916,6 +946,8 @@ impl ParamStore for MissionParamState {
             ID_RESET_ESTIMATION => Value::U8(self.reset_estimation),
             ID_CONTROLLER => Value::U8(self.controller),
             ID_EN_HIGH_LEVEL => Value::U8(self.en_high_level),
+            ID_LINK_LOSS => Value::U8(self.link_loss.policy.code()),
+            ID_LINK_TIMEOUT => Value::F32(self.link_loss.timeout_s),
             // The other deck.* entries: decks cfnav never drives.
             _ if PARAM_TABLE.get(usize::from(id))?.group == "deck" => flag(false),
             _ => return None,

@@ -29,6 +29,11 @@
 //! (it lands) — the console says so. `mission.start` is refused after an emergency stop (stock: Locked, reboot).
 //!
 //! Console (port 0): refusal notes and these messages go through [`ConsoleService`] and are sent at once.
+//!
+//! Link loss (`mission.linkLoss`, `mission.linkTimeout`): every datagram from the client, its null
+//! keep-alives included, is a radio packet for the flight core's link-loss watch; a client that falls
+//! silent during a mission for `mission.linkTimeout` s of simulated time triggers the policy (a line on
+//! stderr says when).
 
 use std::io::ErrorKind;
 use std::net::{SocketAddr, UdpSocket};
@@ -322,6 +327,11 @@ impl Radio {
         };
         if is_null_header(header) {
             // Scan probe or keep-alive: answer its sender, keep the client (cflib scans from another socket).
+            // The client's own keep-alives are radio packets: its link is alive.
+            if self.client == Some(from) {
+                self.ep.note_uplink(now_us(drone));
+                drone.core.on_radio_packet(now_us(drone));
+            }
             self.send_to(&[NULL_HEADER], from);
             return;
         }
@@ -339,6 +349,9 @@ impl Radio {
         let before = self.ep.param.store().start;
         self.ep.supervisor.set_status(supervisor_status(drone));
         let reply = self.ep.handle_uplink(bytes, now_us(drone));
+        // The link-loss watch: this packet, and the parameters in effect after it.
+        drone.core.on_radio_packet(now_us(drone));
+        drone.core.set_link_loss(self.ep.param.store().link_loss);
         if let Some(reply) = reply {
             self.send(&reply);
         }
@@ -423,6 +436,7 @@ pub fn serve(world: &World, port: u16, speed: f64) -> Result<(), String> {
     );
     let mut buf = [0u8; 64];
     let wall = Instant::now();
+    let mut link_fired = None;
     loop {
         // The network: every datagram waiting.
         loop {
@@ -464,6 +478,15 @@ pub fn serve(world: &World, port: u16, speed: f64) -> Result<(), String> {
             while let Some(p) = radio.ep.log.tick(now_ms, &log_state) {
                 radio.send(&p);
             }
+            let fired = drone.core.navigator().link_watch().fired_at();
+            if fired != link_fired && fired.is_some() {
+                let policy = drone.core.navigator().link_watch().config().policy;
+                eprintln!(
+                    "{:8.3} s  link lost: no packet for mission.linkTimeout, policy {policy:?}",
+                    seconds(&drone)
+                );
+            }
+            link_fired = fired;
             let state = drone.core.mission_state();
             if state != last_state {
                 let e = drone.core.estimate().position_m;

@@ -679,6 +679,52 @@ mod tests {
         }
     }
 
+    /// The link-loss policy through the server: `mission.linkLoss = 1` written by the client, a mission
+    /// started; the client's null keep-alives (cflib's idle traffic) keep the link alive for 4 s, then the
+    /// client falls silent: 2 s later the drone lands where it is (40) and ends `link lost` (207), and the
+    /// client coming back does not undo it.
+    #[test]
+    fn a_silent_client_triggers_the_link_loss_policy_and_keep_alives_count() {
+        use cfnav::mission::MissionState;
+        use cfnav::radio::registry::ID_LINK_LOSS;
+        let mut b = Bench::new();
+        b.step_ms(1500);
+        let write_u8 = |b: &mut Bench, id: u16, v: u8| {
+            let mut data = id.to_le_bytes().to_vec();
+            data.push(v);
+            b.uplink(2, 2, &data);
+        };
+        write_u8(&mut b, ID_LINK_LOSS, 1);
+        assert_eq!(b.radio.ep.param.store().link_loss.policy.code(), 1);
+        write_u8(&mut b, ID_START, 1);
+        assert!(b.drone.core.mission().is_running(), "mission started");
+        // 4 s of null packets only, every 20 ms.
+        for _ in 0..200 {
+            b.radio.on_datagram(&[NULL_HEADER], b.from, &mut b.drone);
+            b.step_ms(20);
+        }
+        let state = b.drone.core.mission_state();
+        assert!(
+            matches!(state, MissionState::TakeOffOutbound | MissionState::NavigateToGoal),
+            "keep-alives kept the link: {state:?}"
+        );
+        b.step_ms(1900);
+        assert_eq!(b.drone.core.mission_state(), MissionState::NavigateToGoal, "1.9 s of silence");
+        b.step_ms(200);
+        assert_eq!(b.drone.core.mission_state(), MissionState::EmergencyLanding, "2.1 s of silence");
+        // The client is back: the landing goes on.
+        for _ in 0..300 {
+            b.radio.on_datagram(&[NULL_HEADER], b.from, &mut b.drone);
+            b.step_ms(20);
+            let state = b.drone.core.mission_state();
+            assert!(
+                matches!(state, MissionState::EmergencyLanding | MissionState::LinkLost),
+                "{state:?}"
+            );
+        }
+        assert_eq!(b.drone.core.mission_state(), MissionState::LinkLost);
+    }
+
     #[test]
     fn rpyt_with_thrust_is_not_flown_and_says_so() {
         let mut b = Bench::new();

@@ -405,8 +405,7 @@ impl<const CELLS: usize, const QUEUE: usize> Mission<CELLS, QUEUE> {
         use link_loss::LinkLossPolicy;
         let (x, y) = (state.position_m[0], state.position_m[1]);
         match (policy, self.phase) {
-            (LinkLossPolicy::Continue, _)
-            | (_, Phase::Idle | Phase::Ended(_) | Phase::EmergencyLand { .. }) => {}
+            (LinkLossPolicy::Continue, _) | (_, Phase::Idle | Phase::Ended(_) | Phase::EmergencyLand { .. }) => {}
             // On the ground with the motors off: it has landed already.
             (LinkLossPolicy::Land, Phase::Preflight | Phase::OnPad { .. }) => {
                 self.phase = Phase::Ended(MissionState::LinkLost)

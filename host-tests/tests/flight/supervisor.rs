@@ -540,6 +540,24 @@ fn hover_command_is_learned() {
     assert_eq!(b2.run(400).state, SupervisorState::Landed);
 }
 
+/// cflib's `MotionCommander.land`: one stop setpoint in the air (0.2 m, the velocity floor) and nothing
+/// more. The stop ages past 2 s while no touchdown is seen: that is a landing (motors stopped), not a
+/// setpoint-timeout lock (which refused the next take-off until a reboot).
+#[test]
+fn an_aging_stop_setpoint_lands_instead_of_locking() {
+    let mut b = Bench::flying();
+    b.input.setpoint = Setpoint::Stop;
+    b.input.thrust_cmd = [0; 4];
+    b.input.estimate = at_height(0.2);
+    let out = b.run_aging(0, 2100);
+    assert_eq!(out.state, SupervisorState::Landed, "{out:?}");
+    assert_eq!(out.reason, Reason::MotorsStopped);
+    // And the next take-off arms as usual.
+    b.input.estimate = on_ground();
+    b.input.setpoint_age_us = Some(0);
+    assert_eq!(b.tick().state, SupervisorState::Armed);
+}
+
 #[test]
 fn motors_stopped_in_flight_for_2_s_is_a_landing() {
     let mut b = Bench::flying();

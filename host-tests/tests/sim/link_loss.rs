@@ -3,7 +3,7 @@
 //! (where the drone was when the timeout fired, where it came to rest, which pad it landed on).
 
 use cfnav::mission::link_loss::{LinkLossConfig, LinkLossPolicy, LinkWatch};
-use cfnav::mission::{MissionState, MissionParams};
+use cfnav::mission::{MissionParams, MissionState};
 use cfnav::types::{MotorDuty, Setpoint};
 use cfnav_tools::sim::runner::{Faults, RunOptions, RunResult, SimDrone, mission_params, run};
 use cfnav_tools::sim::world::World;
@@ -61,7 +61,11 @@ fn policy_1_lands_where_the_link_was_lost() {
         let r = fly(LinkLossPolicy::Land, at);
         let t = fired_at(&r, at);
         let rep = &r.report;
-        assert_eq!((rep.outcome, rep.reason), ("aborted", Some("link_lost")), "silent at {at} s: {rep:?}");
+        assert_eq!(
+            (rep.outcome, rep.reason),
+            ("aborted", Some("link_lost")),
+            "silent at {at} s: {rep:?}"
+        );
         assert_eq!(rep.mission_state, MissionState::LinkLost.code());
         assert_eq!(rep.collisions, 0, "silent at {at} s");
         let fired = rep.link_lost_point.expect("the truth when it fired");
@@ -80,12 +84,23 @@ fn policy_1_lands_where_the_link_was_lost() {
                 last.pad == i && last.on_pad && last.error_m < 0.06,
                 "silent at {at} s: near pad {i}, landed {last:?}"
             ),
-            _ => assert!(off < 0.15, "silent at {at} s: came to rest {off} m from where the link was lost"),
+            _ => assert!(
+                off < 0.15,
+                "silent at {at} s: came to rest {off} m from where the link was lost"
+            ),
         }
         // Ended with the motors off, on the ground, within 5 s of the timeout.
         let end_s = 1.0 + rep.mission_time_s.expect("the motors stopped");
-        assert!(end_s - t < 5.0, "silent at {at} s: motors stopped {:.2} s after the timeout", end_s - t);
-        assert!(rep.sim_time_s - t < 6.0, "silent at {at} s: the run ended at {} s", rep.sim_time_s);
+        assert!(
+            end_s - t < 5.0,
+            "silent at {at} s: motors stopped {:.2} s after the timeout",
+            end_s - t
+        );
+        assert!(
+            rep.sim_time_s - t < 6.0,
+            "silent at {at} s: the run ended at {} s",
+            rep.sim_time_s
+        );
     }
 }
 
@@ -101,7 +116,10 @@ fn policy_2_returns_home_and_lands_on_the_home_pad() {
         let rep = &r.report;
         assert_eq!(rep.collisions, 0, "silent at {at} s");
         let home = rep.landings.last().expect("it landed");
-        println!("silent at {at} s: {} {:?}, landings {:?}", rep.outcome, rep.reason, rep.landings);
+        println!(
+            "silent at {at} s: {} {:?}, landings {:?}",
+            rep.outcome, rep.reason, rep.landings
+        );
         assert_eq!(home.pad, 0, "silent at {at} s: {:?}", rep.landings);
         assert!(home.on_pad && home.error_m <= 0.06, "silent at {at} s: {home:?}");
         if at + TIMEOUT_S < 29.0 {
@@ -111,7 +129,12 @@ fn policy_2_returns_home_and_lands_on_the_home_pad() {
                 "silent at {at} s: {rep:?}"
             );
             assert_eq!(rep.mission_state, MissionState::LinkLostHome.code());
-            assert_eq!(rep.landings.len(), 1, "silent at {at} s: straight home: {:?}", rep.landings);
+            assert_eq!(
+                rep.landings.len(),
+                1,
+                "silent at {at} s: straight home: {:?}",
+                rep.landings
+            );
         } else {
             assert_eq!(rep.outcome, "completed", "silent at {at} s: {rep:?}");
         }
@@ -227,7 +250,11 @@ fn the_watch_fires_once_per_mission_after_the_timeout() {
     assert_eq!(w.check(12 * s, true), Some(LinkLossPolicy::Land));
     assert_eq!(w.check(13 * s, true), None, "once");
     w.on_packet(13 * s);
-    assert_eq!(w.check(20 * s, true), None, "latched: the returning link changes nothing");
+    assert_eq!(
+        w.check(20 * s, true),
+        None,
+        "latched: the returning link changes nothing"
+    );
     assert_eq!(w.fired_at(), Some(12 * s));
     // Mission ends; a new one starts at 30 s with a packet at 31 s: fires at 33 s.
     assert_eq!(w.check(25 * s, false), None);

@@ -709,9 +709,17 @@ mod tests {
             "keep-alives kept the link: {state:?}"
         );
         b.step_ms(1900);
-        assert_eq!(b.drone.core.mission_state(), MissionState::NavigateToGoal, "1.9 s of silence");
+        assert_eq!(
+            b.drone.core.mission_state(),
+            MissionState::NavigateToGoal,
+            "1.9 s of silence"
+        );
         b.step_ms(200);
-        assert_eq!(b.drone.core.mission_state(), MissionState::EmergencyLanding, "2.1 s of silence");
+        assert_eq!(
+            b.drone.core.mission_state(),
+            MissionState::EmergencyLanding,
+            "2.1 s of silence"
+        );
         // The client is back: the landing goes on.
         for _ in 0..300 {
             b.radio.on_datagram(&[NULL_HEADER], b.from, &mut b.drone);

@@ -549,13 +549,23 @@ fn an_aging_stop_setpoint_lands_instead_of_locking() {
     b.input.setpoint = Setpoint::Stop;
     b.input.thrust_cmd = [0; 4];
     b.input.estimate = at_height(0.2);
-    let out = b.run_aging(0, 2100);
-    assert_eq!(out.state, SupervisorState::Landed, "{out:?}");
-    assert_eq!(out.reason, Reason::MotorsStopped);
-    // And the next take-off arms as usual.
-    b.input.estimate = on_ground();
-    b.input.setpoint_age_us = Some(0);
-    assert_eq!(b.tick().state, SupervisorState::Armed);
+    let mut states = Vec::new();
+    for k in 0..2100u64 {
+        b.input.setpoint_age_us = Some(k * 1000);
+        let state = b.tick().state;
+        if states.last() != Some(&state) {
+            states.push(state);
+        }
+    }
+    // Landed (motors stopped for 2 s), and with the setpoint Stop the pre-flight rules re-arm at once: ready
+    // for the next take-off, never Locked.
+    assert_eq!(
+        states,
+        vec![SupervisorState::Flying, SupervisorState::Landed, SupervisorState::Armed],
+        "{:?}",
+        b.last
+    );
+    assert!(b.last.motors_allowed);
 }
 
 #[test]

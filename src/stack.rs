@@ -44,6 +44,7 @@ use crate::flight::high_level::{HighLevel, HlCommand, HlPhase, HlRefusal};
 use crate::flight::supervisor::{
     Supervisor, SupervisorConfig, SupervisorInput, SupervisorOutput, SupervisorState, clamp_min_height,
 };
+use crate::mission::link_loss::{LinkLossConfig, LinkWatch};
 use crate::mission::{Mission, MissionConfig, MissionInputs, MissionParams, MissionState, StartRefusal};
 use crate::nav::map::{CELL_SIZE_M, Cell};
 use crate::types::{
@@ -406,6 +407,8 @@ pub struct Navigator<const CELLS: usize, const QUEUE: usize> {
     landmarks: Landmarks,
     /// Mission tuning written by the radio (issue 13 part 4), in force from the next start.
     next_config: Option<MissionConfig>,
+    /// The link-loss watch (`mission.linkLoss`, `mission.linkTimeout`).
+    link: LinkWatch,
 }
 
 impl<const CELLS: usize, const QUEUE: usize> Navigator<CELLS, QUEUE> {
@@ -416,6 +419,7 @@ impl<const CELLS: usize, const QUEUE: usize> Navigator<CELLS, QUEUE> {
             decks_ok: true,
             landmarks: Landmarks::new(),
             next_config: None,
+            link: LinkWatch::new(),
         })
     }
 
@@ -517,10 +521,29 @@ impl<const CELLS: usize, const QUEUE: usize> Navigator<CELLS, QUEUE> {
         (!fixes.is_empty()).then_some(fixes)
     }
 
+    /// A radio packet (any port, null packets too) arrived at `now` (the link-loss watch's input).
+    pub fn on_radio_packet(&mut self, now: Micros) {
+        self.link.on_packet(now);
+    }
+
+    /// `mission.linkLoss` and `mission.linkTimeout` (they may change at any time).
+    pub fn set_link_loss(&mut self, config: LinkLossConfig) {
+        self.link.set_config(config);
+    }
+
+    /// The link-loss watch (when the latest packet came, whether and when the timeout fired).
+    pub fn link_watch(&self) -> &LinkWatch {
+        &self.link
+    }
+
     /// 50 Hz: one mission step (at most one bounded planner slice). Returns the setpoint for the stabilizer,
     /// or `None` while no mission runs and the commander has spoken within [`COMMANDER_HOLD_US`] (the idle
-    /// mission must not overwrite the commander's setpoint with Stop).
+    /// mission must not overwrite the commander's setpoint with Stop). A running mission that has heard no
+    /// radio packet for `mission.linkTimeout` gets the link-loss policy first ([`crate::mission::link_loss`]).
     pub fn tick(&mut self, now: Micros, status: &FastStatus) -> Option<MissionCommand> {
+        if let Some(policy) = self.link.check(now, self.mission.is_running()) {
+            self.mission.on_link_lost(policy, now, &status.estimate);
+        }
         if !self.mission.is_running()
             && status
                 .commander_time
@@ -604,6 +627,16 @@ impl<const CELLS: usize, const QUEUE: usize> FlightCore<CELLS, QUEUE> {
         self.stabilizer.set_tuning(controller, flow_std_counts)?;
         self.navigator.set_mission_config(mission);
         Ok(())
+    }
+
+    /// A radio packet arrived at `now` (see [`Navigator::on_radio_packet`]).
+    pub fn on_radio_packet(&mut self, now: Micros) {
+        self.navigator.on_radio_packet(now);
+    }
+
+    /// `mission.linkLoss` and `mission.linkTimeout` (see [`Navigator::set_link_loss`]).
+    pub fn set_link_loss(&mut self, config: LinkLossConfig) {
+        self.navigator.set_link_loss(config);
     }
 
     /// Abort (`mission.start = 0` during a mission): land where it is.

@@ -3,7 +3,8 @@
 //! then yields, so the LED and watchdog tasks run between ticks; the control and I/O executors preempt it
 //! at any instruction.
 //!
-//! Messages: takes [`super::MISSION_REQUESTS`] (start/abort from the radio) and [`super::NAV_INPUTS`]
+//! Messages: takes [`super::MISSION_REQUESTS`] (start/abort from the radio), [`super::LINK`] (the latest
+//! uplink packet's time and the link-loss parameters) and [`super::NAV_INPUTS`]
 //! (height and Multi-ranger readings with their estimates), reads [`super::fast_status`], sends
 //! [`MissionCommand`]s to the control task through [`super::FAST_INPUTS`] (awaiting a free slot while the
 //! control loop runs, so a start or a setpoint is never dropped; dropped when no control loop was started,
@@ -11,6 +12,7 @@
 //! watchdog would reset the MCU and the fault LEDs would never show), answers start requests on
 //! [`super::START_OUTCOME`].
 
+use core::cell::Cell;
 use core::mem::MaybeUninit;
 use core::sync::atomic::{AtomicBool, Ordering};
 
@@ -22,9 +24,9 @@ use defmt::{info, warn};
 use embassy_time::{Duration, Ticker, Timer};
 
 use super::{
-    CONTROL_RUNNING, CONTROL_STEPS, DECKS_OK, FAST_INPUTS, FastInput, LOAD, MISSION_REQUESTS, MISSION_RUNNING,
-    MissionRequest, NAV_INPUTS, NavInput, START_OUTCOME, THREAD_BEATS, cycles, fast_status, now_us, update_log,
-    yield_now,
+    CONTROL_RUNNING, CONTROL_STEPS, DECKS_OK, FAST_INPUTS, FastInput, LINK, LOAD, MISSION_REQUESTS,
+    MISSION_RUNNING, MissionRequest, NAV_INPUTS, NavInput, START_OUTCOME, THREAD_BEATS, cycles, fast_status,
+    now_us, update_log, yield_now,
 };
 
 /// The navigator sized for the firmware's arena.
@@ -130,6 +132,12 @@ pub async fn mission_task(nav: &'static mut FwNavigator) {
             info!("mission started");
         }
 
+        // The link-loss watch: the latest uplink packet and the parameters, from the radio task.
+        let (last_packet, link_loss) = LINK.lock(Cell::get);
+        if let Some(t) = last_packet {
+            nav.on_radio_packet(t);
+        }
+        nav.set_link_loss(link_loss);
         let section = LOAD.begin(Level::Mission, cycles());
         let command = nav.tick(now_us(), &fast_status());
         let running = nav.is_running();

@@ -21,6 +21,7 @@
 //! * [`TUNING`] / [`TUNING_GENERATION`]: radio → control and mission tasks (the tuning parameters; each task
 //!   copies them when the generation changes). [`eeprom::EEPROM_JOB`] / [`eeprom::EEPROM_DONE`]: radio ⇄
 //!   deck task (persistent-parameter writes on the deck bus).
+//! * [`LINK`]: radio → mission task: when the latest uplink packet came and the link-loss parameters.
 //!
 //! Non-goals here: any flight logic (see `cfnav::stack`), any protocol logic (see `cfnav::radio`).
 //! Memory: the navigator (map + planner, ≈ 47 KB) sits in CCM; everything else is static SRAM (see the
@@ -42,6 +43,7 @@ use core::task::Poll;
 
 use cfnav::flight::high_level::HlCommand;
 use cfnav::mission::MissionParams;
+use cfnav::mission::link_loss::LinkLossConfig;
 use cfnav::radio::log_registry::FirmwareLogState;
 use cfnav::radio::registry::Tuning;
 use cfnav::stack::{FastStatus, MissionCommand, StartError};
@@ -132,6 +134,9 @@ pub fn tuning_since(seen: &mut u32) -> Option<Tuning> {
     *seen = now;
     TUNING.lock(Cell::get)
 }
+/// Radio → mission task: (when the latest uplink packet arrived, µs; `mission.linkLoss`/`linkTimeout`).
+pub static LINK: Mutex<CriticalSectionRawMutex, Cell<(Option<Micros>, LinkLossConfig)>> =
+    Mutex::new(Cell::new((None, LinkLossConfig::DEFAULT)));
 
 /// Range logged when a ranger has no valid reading (stock multiranger.c reports 32767 mm).
 pub const NO_RANGE_MM: u16 = 32767;

@@ -61,7 +61,7 @@ use heapless::String;
 
 use super::eeprom::{EEPROM_DONE, EEPROM_JOB};
 use super::{
-    BOOTED, DECK_FLOW2, DECK_MULTIRANGER, DECKS_OK, FAST_INPUTS, FAULT, FastInput, LOAD, MISSION_REQUESTS,
+    BOOTED, DECK_FLOW2, DECK_MULTIRANGER, DECKS_OK, FAST_INPUTS, FAULT, FastInput, LINK, LOAD, MISSION_REQUESTS,
     MISSION_RUNNING, MissionRequest, START_OUTCOME, cycles, fast_status, fault, log_state, update_log,
 };
 
@@ -280,6 +280,9 @@ impl Crtp {
             decks_ok: DECKS_OK.load(Ordering::Acquire),
         });
         let reply = self.ep.handle_uplink(bytes, now.as_micros());
+        // The mission task's link-loss watch: this packet, and the parameters in effect after it.
+        let link = (self.ep.last_uplink_us(), self.ep.param.store().link_loss);
+        LINK.lock(|c| c.set(link));
         self.apply_commander();
         self.apply_high_level();
         let after = self.ep.param.store().start;

@@ -41,7 +41,7 @@
 //! # Rules
 //! - **Setpoint watchdog** (Flying only): age > 500 ms → `level_out` (report;
 //!   [`Supervisor::guard_setpoint`] turns it into "zero velocity at the last height"); > 2000 ms →
-//!   Locked. No setpoint ever = infinitely old.
+//!   Locked, unless the setpoint in force is Stop (the motors-off rule makes that a landing). No setpoint ever = infinitely old.
 //! - **Tumble** (stock `isTumbledCheck`): acc.z < 0.5 g continuously for > 1 s, or acc.z < −0.2 g
 //!   continuously for > 100 ms (two separate timers; stock shares one timer, which can fire the upside-down
 //!   rule as soon as the drone is upside down after 100 ms of any tilt). A free-fall sample (|acc| < 0.1 g
@@ -537,7 +537,10 @@ impl Supervisor {
                     (S::Crashed, Reason::Tumbled)
                 } else if accel_fault {
                     (S::Crashed, Reason::AccelFault)
-                } else if timed_out {
+                } else if timed_out && !matches!(input.setpoint, Setpoint::Stop) {
+                    // A stop that ages has nothing left to time out (the motors are already off): the motors-off
+                    // rule lands it. cflib's MotionCommander.land ends with one stop setpoint and nothing more;
+                    // locking then (when the touchdown was not seen first) refused the next take-off.
                     (S::Locked, Reason::SetpointTimeout)
                 } else if touchdown {
                     (S::Landed, Reason::Touchdown)

@@ -258,7 +258,9 @@ impl<const CELLS: usize, const QUEUE: usize> Mission<CELLS, QUEUE> {
                 }
                 // The exploration always ends on the return leg; a landing in it is the home landing.
                 Leg::Return | Leg::Explore => {
-                    let end = if self.pad_not_found {
+                    let end = if self.link_lost_home {
+                        MissionState::LinkLostHome
+                    } else if self.pad_not_found {
                         MissionState::PadNotFound
                     } else {
                         MissionState::Completed

@@ -69,6 +69,7 @@ pub mod config;
 mod explore;
 mod hover;
 mod landing;
+pub mod link_loss;
 mod navigate;
 mod search;
 
@@ -146,6 +147,11 @@ pub enum MissionState {
     Crashed = 205,
     /// The planner could not run (grid or queue capacity).
     PlannerFault = 206,
+    /// The radio link was lost with `mission.linkLoss = 1`: landed where it was.
+    LinkLost = 207,
+    /// The radio link was lost on the outbound leg with `mission.linkLoss = 2`: flew home, landed on the
+    /// home pad (or its best estimate).
+    LinkLostHome = 208,
 }
 
 impl MissionState {
@@ -250,6 +256,9 @@ const NO_PATH_TURN_RATE_RAD_S: f32 = 0.8;
 /// Take-off hands over to navigation this far above [`MIN_HEIGHT_M`] (or 5 cm below the cruise height if that
 /// is lower), m.
 const TAKEOFF_HANDOVER_MARGIN_M: f32 = 0.1;
+/// A link-loss landing closer than this to a known pad centre lands on that centre, m: the pads of the
+/// worlds are up to 0.3 × 0.3 m, plus the body's radius (0.06 m) and margin.
+const LINK_LOSS_PAD_SNAP_M: f32 = 0.3;
 /// Within this distance of the leg's target the navigating drone already feeds the pad detector, m.
 const PAD_LOOKOUT_RADIUS_M: f32 = 0.8;
 /// The hover test's hold and the exploration's first look begin once the climb is this close below the
@@ -274,6 +283,8 @@ pub struct Mission<const CELLS: usize, const QUEUE: usize> {
     last_ranges: RangerReadings,
     last_tick: Option<Micros>,
     pad_not_found: bool,
+    /// The link-loss policy turned the drone home: the home landing ends with [`MissionState::LinkLostHome`].
+    link_lost_home: bool,
     planner_needs_reset: bool,
     /// The heading the drone holds, rad: it turns to face its direction of travel while navigating, so the
     /// front ranger looks where it is going (four beams see nothing diagonal to them).
@@ -332,6 +343,7 @@ impl<const CELLS: usize, const QUEUE: usize> Mission<CELLS, QUEUE> {
             last_ranges: RangerReadings::NONE,
             last_tick: None,
             pad_not_found: false,
+            link_lost_home: false,
             planner_needs_reset: false,
             heading: 0.0,
             stats: MissionStats::default(),
@@ -435,6 +447,7 @@ impl<const CELLS: usize, const QUEUE: usize> Mission<CELLS, QUEUE> {
         self.sweep = None;
         self.leg = Leg::Outbound;
         self.pad_not_found = false;
+        self.link_lost_home = false;
         self.planner_needs_reset = true;
         self.stats = MissionStats::default();
         self.explorer = explore::Explorer::new();
@@ -459,6 +472,64 @@ impl<const CELLS: usize, const QUEUE: usize> Mission<CELLS, QUEUE> {
                 }
             }
         }
+    }
+
+    /// The radio link was lost (see [`link_loss`]): apply `policy`. Does nothing when no mission runs or
+    /// while it already lands where it is (abort, battery, estimator fault: that landing stays, with its
+    /// code). Latched: nothing here is undone when the link comes back.
+    pub fn on_link_lost(&mut self, policy: link_loss::LinkLossPolicy, now: Micros, state: &StateEstimate) {
+        use link_loss::LinkLossPolicy;
+        let (x, y) = (state.position_m[0], state.position_m[1]);
+        match (policy, self.phase) {
+            (LinkLossPolicy::Continue, _) | (_, Phase::Idle | Phase::Ended(_) | Phase::EmergencyLand { .. }) => {}
+            // On the ground with the motors off: it has landed already.
+            (LinkLossPolicy::Land, Phase::Preflight | Phase::OnPad { .. }) => {
+                self.phase = Phase::Ended(MissionState::LinkLost)
+            }
+            // Over a pad (approaching or descending onto it): finish on its centre.
+            (LinkLossPolicy::Land, Phase::Approach { x: px, y: py, .. } | Phase::Land { x: px, y: py }) => {
+                self.phase = Phase::EmergencyLand {
+                    x: px,
+                    y: py,
+                    then: MissionState::LinkLost,
+                }
+            }
+            (LinkLossPolicy::Land, _) => {
+                let (lx, ly) = self.link_loss_landing_point((x, y));
+                self.phase = Phase::EmergencyLand {
+                    x: lx,
+                    y: ly,
+                    then: MissionState::LinkLost,
+                }
+            }
+            // Still standing on the home pad.
+            (LinkLossPolicy::ReturnHome, Phase::Preflight) => self.phase = Phase::Ended(MissionState::LinkLostHome),
+            // On the goal pad, or on the way home already: the mission goes home anyway.
+            (LinkLossPolicy::ReturnHome, Phase::OnPad { .. }) => {}
+            (LinkLossPolicy::ReturnHome, _) if self.leg == Leg::Return => {}
+            (LinkLossPolicy::ReturnHome, _) => {
+                // Turn back where it is: the return leg climbs to the cruise height if it was lower (over the
+                // goal pad), plans home on the map built so far, searches the home pad and lands on it.
+                self.link_lost_home = true;
+                self.begin_leg(now, state, Leg::Return);
+            }
+        }
+    }
+
+    /// Where a link-loss landing goes down: where the drone is, unless that lies within
+    /// [`LINK_LOSS_PAD_SNAP_M`] of a pad whose centre the mission knows (the home pad at the start point, a pad
+    /// once locked): a drone coming down across a pad's edge lands tilted on its rim (measured: lost
+    /// 2 s after take-off, 15 cm from the home pad's centre, the body touched the pad's side), so it lands on
+    /// that pad's centre instead.
+    fn link_loss_landing_point(&self, (x, y): (f32, f32)) -> (f32, f32) {
+        let [goal, home] = self.stats.pad_centres;
+        let pads = [Some(self.params.start_m), goal, home];
+        pads.into_iter()
+            .flatten()
+            .map(|p| (p, libm::hypotf(p.0 - x, p.1 - y)))
+            .filter(|(_, d)| *d < LINK_LOSS_PAD_SNAP_M)
+            .min_by(|a, b| a.1.total_cmp(&b.1))
+            .map_or((x, y), |(p, _)| p)
     }
 
     /// A Multi-ranger reading (10 Hz): map it while flying, keep it for avoidance.

@@ -123,8 +123,11 @@ pub const RPYT_MAX_THRUST: u16 = 60000;
 /// An RPYT packet arriving this long after the previous accepted command re-locks the thrust (stock: the
 /// commander priority falls to "disabled" after `COMMANDER_WDT_TIMEOUT_STABILIZE`, 500 ms).
 pub const THRUST_RELOCK_US: u64 = 500_000;
-/// Longest gap between two packets over which rates are integrated into the held height/heading, µs.
-pub const MAX_INTEGRATION_DT_US: u64 = 100_000;
+/// Longest gap between two packets over which rates are integrated into the held height/heading, µs: stock's
+/// `COMMANDER_WDT_TIMEOUT_STABILIZE` (a setpoint older than that is stale anyway). cflib's `MotionCommander`
+/// sends its hover setpoints every 200 ms (`_SetPointThread.UPDATE_PERIOD = 0.2`): a 100 ms cap integrated
+/// half of each interval, and `turn_left(90)` turned the simulated drone by 37°.
+pub const MAX_INTEGRATION_DT_US: u64 = 500_000;
 
 /// Why a commander packet was refused.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]

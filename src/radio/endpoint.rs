@@ -2,7 +2,9 @@
 //! the router fuzz target — gathered in one place, so all of them dispatch exactly the same ports in the
 //! same order.
 //!
-//! Job: own one endpoint's router and services and hand each uplink packet to them at the caller's time.
+//! Job: own one endpoint's router and services and hand each uplink packet to them at the caller's time;
+//! remember when the latest uplink packet came ([`Endpoint::last_uplink_us`]: the link-loss watch's input,
+//! `crate::mission::link_loss`).
 //! Non-goals: transport, the clock, what the caller does with commander setpoints, supervisor requests or
 //! `mission.start` (each endpoint reads those from the public services afterwards).
 //! Memory: the router's reply queue (`Q` × 32 bytes), the console queue (`C` × 31 bytes) and the services'
@@ -39,6 +41,8 @@ pub struct Endpoint<P: ParamStore, L: LogSource, const C: usize, const Q: usize>
     pub supervisor: SupervisorPortService,
     /// Console.
     pub console: ConsoleService<C>,
+    /// When the latest uplink packet (any port, null packets too) arrived, µs.
+    last_uplink_us: Option<Micros>,
 }
 
 impl<P: ParamStore, L: LogSource, const C: usize, const Q: usize> Endpoint<P, L, C, Q> {
@@ -54,12 +58,26 @@ impl<P: ParamStore, L: LogSource, const C: usize, const Q: usize> Endpoint<P, L,
             high_level: HighLevelService::new(),
             supervisor: SupervisorPortService::new(supervisor),
             console: ConsoleService::new(),
+            last_uplink_us: None,
+        }
+    }
+
+    /// When the latest uplink packet arrived (through [`Self::handle_uplink`] or [`Self::note_uplink`]), µs.
+    pub fn last_uplink_us(&self) -> Option<Micros> {
+        self.last_uplink_us
+    }
+
+    /// An uplink packet the caller answered itself (e.g. a null packet) arrived at `now_us`: the link is alive.
+    pub fn note_uplink(&mut self, now_us: Micros) {
+        if self.last_uplink_us.is_none_or(|t| now_us > t) {
+            self.last_uplink_us = Some(now_us);
         }
     }
 
     /// Dispatches one uplink packet (`bytes`, header first) received at `now_us` (the commander and the
     /// supervisor port time-stamp what it carries); returns the reply, if any.
     pub fn handle_uplink(&mut self, bytes: &[u8], now_us: Micros) -> Option<CrtpPacket> {
+        self.note_uplink(now_us);
         self.commander.set_now(now_us);
         self.supervisor.set_now(now_us);
         self.high_level.set_now(now_us);

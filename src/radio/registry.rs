@@ -50,6 +50,7 @@ use crate::mission::{
     COVERAGE_RANGE, HOVER_TIME_RANGE_S, MAX_HEIGHT_M, MAX_SPEED_M_S, MIN_HEIGHT_M, MissionConfig, MissionMode,
     MissionParams, StartRefusal,
 };
+use crate::mission::link_loss::{LinkLossConfig, LinkLossPolicy, MAX_LINK_TIMEOUT_S, MIN_LINK_TIMEOUT_S};
 use crate::nav::avoidance::{AvoidanceMethod, SpeedClamp};
 use crate::system::persistent_params::{PendingWrite, PersistentParams, param_key};
 
@@ -876,6 +877,25 @@ pub const PARAM_TABLE: &[ParamEntry] = &[
     ParamEntry::declare("mission", "padTol", ParamType::F32, 0, Range::Closed(0.01, 0.3), "m", "horizontal error to the pad centre accepted before descending").persistent(),
     ParamEntry::declare("mission", "padPause", ParamType::F32, 0, Range::Closed(0.0, 30.0), "s", "pause on the goal pad, motors off").persistent(),
     ParamEntry::declare("mission", "sweepSpacing", ParamType::F32, 0, Range::Closed(0.05, 0.5), "m", "spacing of the pad search's sweep lines").persistent(),
+    // Link loss (issue 13 part 5)
+    ParamEntry::declare(
+        "mission",
+        "linkLoss",
+        ParamType::U8,
+        0,
+        Range::Closed(0.0, 2.0),
+        "",
+        "after mission.linkTimeout s without any radio packet in a mission: 0 go on (default), 1 land where it is, 2 return home and land on the home pad",
+    ),
+    ParamEntry::declare(
+        "mission",
+        "linkTimeout",
+        ParamType::F32,
+        0,
+        Range::Closed(MIN_LINK_TIMEOUT_S, MAX_LINK_TIMEOUT_S),
+        "s",
+        "radio silence that counts as a lost link during a mission (default 2)",
+    ),
 ];
 
 /// Id of `mission.start` (uint8).
@@ -908,6 +928,10 @@ pub const ID_MODE: u16 = param_id(PARAM_TABLE, "mission", "mode");
 pub const ID_HOVER_TIME: u16 = param_id(PARAM_TABLE, "mission", "hoverTime");
 /// Id of `mission.coverage` (float, fraction).
 pub const ID_COVERAGE: u16 = param_id(PARAM_TABLE, "mission", "coverage");
+/// Id of `mission.linkLoss` (uint8).
+pub const ID_LINK_LOSS: u16 = param_id(PARAM_TABLE, "mission", "linkLoss");
+/// Id of `mission.linkTimeout` (float).
+pub const ID_LINK_TIMEOUT: u16 = param_id(PARAM_TABLE, "mission", "linkTimeout");
 
 /// Writes the README's parameter table for `table`: one Markdown row per declaration.
 pub fn write_param_table(out: &mut impl core::fmt::Write, table: &[ParamEntry]) -> core::fmt::Result {
@@ -1121,6 +1145,8 @@ pub struct MissionParamState {
     pub controller: u8,
     /// `commander.enHighLevel` (0 or 1).
     pub en_high_level: u8,
+    /// `mission.linkLoss` and `mission.linkTimeout` (the endpoint hands them to the navigator).
+    pub link_loss: LinkLossConfig,
     /// Map capacity, cells, for [`MissionParams::validate`] at start.
     pub capacity_cells: usize,
     /// The mission parameters at power-on (the defaults cfclient shows).
@@ -1148,6 +1174,7 @@ impl MissionParamState {
             reset_estimation: 0,
             controller: 0,
             en_high_level: 0,
+            link_loss: LinkLossConfig::DEFAULT,
             capacity_cells,
             default_params: params,
             tuning: Tuning::default(),
@@ -1241,13 +1268,14 @@ impl MissionParamState {
             ID_HOVER_TIME | ID_COVERAGE if self.start != 0 => return Err(Refusal::AlreadyRunning),
             ID_HOVER_TIME => self.params.hover_time_s = v,
             ID_COVERAGE => self.params.coverage_target = v,
+            ID_LINK_TIMEOUT => self.link_loss.timeout_s = v,
             _ => return Err(Refusal::UnknownId),
         }
         Ok(())
     }
 
     /// A uint8 write that passed the declaration's checks (0 or 1 for every writable uint8 here but
-    /// `mission.mode`, 0..2).
+    /// `mission.mode` and `mission.linkLoss`, 0..2).
     fn write_u8(&mut self, id: u16, v: u8) -> Result<(), Refusal> {
         match id {
             ID_START => return self.write_start(v),
@@ -1259,6 +1287,7 @@ impl MissionParamState {
             ID_EN_HIGH_LEVEL => self.en_high_level = v,
             ID_MODE if self.start != 0 => return Err(Refusal::AlreadyRunning),
             ID_MODE => self.params.mode = MissionMode::from_code(v).ok_or(Refusal::OutOfRange)?,
+            ID_LINK_LOSS => self.link_loss.policy = LinkLossPolicy::from_code(v).ok_or(Refusal::OutOfRange)?,
             _ => return Err(Refusal::UnknownId),
         }
         Ok(())
@@ -1290,6 +1319,8 @@ impl ParamStore for MissionParamState {
             ID_MODE => Value::U8(p.mode.code()),
             ID_HOVER_TIME => Value::F32(p.hover_time_s),
             ID_COVERAGE => Value::F32(p.coverage_target),
+            ID_LINK_LOSS => Value::U8(self.link_loss.policy.code()),
+            ID_LINK_TIMEOUT => Value::F32(self.link_loss.timeout_s),
             // The other deck.* entries: decks cfnav never drives.
             _ if PARAM_TABLE.get(usize::from(id))?.group == "deck" => flag(false),
             _ => return None,

@@ -540,6 +540,34 @@ fn hover_command_is_learned() {
     assert_eq!(b2.run(400).state, SupervisorState::Landed);
 }
 
+/// cflib's `MotionCommander.land`: one stop setpoint in the air (0.2 m, the velocity floor) and nothing
+/// more. The stop ages past 2 s while no touchdown is seen: that is a landing (motors stopped), not a
+/// setpoint-timeout lock (which refused the next take-off until a reboot).
+#[test]
+fn an_aging_stop_setpoint_lands_instead_of_locking() {
+    let mut b = Bench::flying();
+    b.input.setpoint = Setpoint::Stop;
+    b.input.thrust_cmd = [0; 4];
+    b.input.estimate = at_height(0.2);
+    let mut states = Vec::new();
+    for k in 0..2100u64 {
+        b.input.setpoint_age_us = Some(k * 1000);
+        let state = b.tick().state;
+        if states.last() != Some(&state) {
+            states.push(state);
+        }
+    }
+    // Landed (motors stopped for 2 s), and with the setpoint Stop the pre-flight rules re-arm at once: ready
+    // for the next take-off, never Locked.
+    assert_eq!(
+        states,
+        vec![SupervisorState::Flying, SupervisorState::Landed, SupervisorState::Armed],
+        "{:?}",
+        b.last
+    );
+    assert!(b.last.motors_allowed);
+}
+
 #[test]
 fn motors_stopped_in_flight_for_2_s_is_a_landing() {
     let mut b = Bench::flying();

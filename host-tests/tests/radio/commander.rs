@@ -581,9 +581,9 @@ fn follower_integrates_rates_between_packets_with_a_capped_gap() {
         close(z, 0.525) && close(yaw, 0.05),
         "50 ms at 0.5 m/s and 1 rad/s: ({z}, {yaw})"
     );
-    // A 3 s gap integrates only the 100 ms cap.
+    // A 3 s gap integrates only the 500 ms cap (stock's stabilize timeout).
     let (z, yaw) = z_yaw(f.to_setpoint(&cmd, 4_050_000, &est));
-    assert!(close(z, 0.575) && close(yaw, 0.15), "({z}, {yaw})");
+    assert!(close(z, 0.775) && close(yaw, 0.55), "({z}, {yaw})");
 }
 
 // ---------------------------------------------------------------------------------------------------------
@@ -620,4 +620,35 @@ fn random_packets_never_panic_and_refusals_change_nothing() {
     }
     let st = s.stats();
     assert!(st.accepted > 1000 && st.refused > 1000, "{st:?}");
+}
+
+/// cflib's `MotionCommander.turn_left(90, rate=60)`: hover setpoints every 200 ms (its `_SetPointThread`
+/// period) with yaw rate 60 deg/s for 1.5 s, then rate 0. The held heading must end within one packet
+/// interval (12 deg) of 90 deg (with rates integrated over at most 100 ms it ended at 45 deg).
+#[test]
+fn motion_commander_turn_at_its_200_ms_packet_period_reaches_the_angle() {
+    let mut f = SetpointFollower::new();
+    let est = estimate(0.5, 0.0);
+    let hover = |rate_deg_s: f32| Command::Hover {
+        vx_body_m_s: 0.0,
+        vy_body_m_s: 0.0,
+        yaw_rate_rad_s: rate_deg_s.to_radians(),
+        z_m: 0.5,
+    };
+    let mut yaw = 0.0;
+    let mut t_us = 0;
+    f.to_setpoint(&hover(0.0), t_us, &est);
+    // The turn starts between two packets (cflib sends the new setpoint at once, then every 200 ms).
+    t_us += 50_000;
+    while t_us <= 50_000 + 1_500_000 {
+        if let Some(Setpoint::Velocity { yaw_rad, .. }) = f.to_setpoint(&hover(60.0), t_us, &est) {
+            yaw = yaw_rad;
+        }
+        t_us += 200_000;
+    }
+    if let Some(Setpoint::Velocity { yaw_rad, .. }) = f.to_setpoint(&hover(0.0), 50_000 + 1_500_000, &est) {
+        yaw = yaw_rad;
+    }
+    let deg = yaw.to_degrees();
+    assert!((deg - 90.0).abs() <= 12.0, "turned {deg} deg");
 }

@@ -399,6 +399,36 @@ fn height_below_0_2_and_negative_speed_are_refused() {
     assert_eq!((m.store().params.height_m, m.store().params.speed_m_s), (0.2, 1.0));
 }
 
+/// `mission.linkLoss` (0..2) and `mission.linkTimeout` (0.5..60 s): out-of-range writes refused with the
+/// declared range on the console, nothing changed; values in range read back and reach the link-loss config.
+#[test]
+fn link_loss_parameters_are_bounded() {
+    use cfnav::mission::link_loss::LinkLossPolicy;
+    use cfnav::radio::registry::{ID_LINK_LOSS, ID_LINK_TIMEOUT};
+    let mut m = service();
+    assert_eq!(m.store().read(ID_LINK_LOSS), Some(Value::U8(0)), "default: go on");
+    assert_eq!(m.store().read(ID_LINK_TIMEOUT), Some(Value::F32(2.0)), "default: 2 s");
+    // `[hdr, id u16, u8]` on 2/2.
+    let write_u8 = |v: u8| [&[0x2E][..], &ID_LINK_LOSS.to_le_bytes()[..], &[v][..]].concat();
+    let req = write_u8(3);
+    assert_refused(
+        &mut m,
+        &req,
+        Refusal::OutOfRange,
+        "param mission.linkLoss refused: not in [0, 2]\n",
+    );
+    let line = "param mission.linkTimeout refused: not in [0.5, 60] s\n";
+    assert_refused(&mut m, &write_f32(ID_LINK_TIMEOUT, 0.4), Refusal::OutOfRange, line);
+    assert_refused(&mut m, &write_f32(ID_LINK_TIMEOUT, 60.5), Refusal::OutOfRange, line);
+    assert_refused(&mut m, &write_f32(ID_LINK_TIMEOUT, f32::NAN), Refusal::OutOfRange, line);
+    let req = write_u8(2);
+    assert_eq!(send(&mut m, &req), Some(req.clone()));
+    let req = write_f32(ID_LINK_TIMEOUT, 0.5);
+    assert_eq!(send(&mut m, &req), Some(req));
+    let cfg = m.store().link_loss;
+    assert_eq!((cfg.policy, cfg.timeout_s), (LinkLossPolicy::ReturnHome, 0.5));
+}
+
 #[test]
 fn start_while_flying_or_with_a_deck_missing_is_refused() {
     let mut m = service();

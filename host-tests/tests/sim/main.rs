@@ -1,6 +1,7 @@
 //! The simulator (tools/src/sim): world files, physics and sensor models, and whole missions flown in it.
 
 mod commander;
+mod link_loss;
 mod mission;
 mod pads;
 mod modes;

@@ -9,6 +9,8 @@ use cfnav::mission::{COVERAGE_RANGE, HOVER_TIME_RANGE_S, MissionMode};
 use clap::Args;
 use serde::Serialize;
 
+use cfnav::mission::link_loss::LinkLossConfig;
+
 use crate::sim::runner::{RunOptions, RunReport, RunResult, run};
 use crate::sim::stress::Stress;
 use crate::sim::world::{Generator, World};
@@ -49,6 +51,16 @@ pub struct SimArgs {
     /// Write `mission.start = 0` at this time, s (abort scenario).
     #[arg(long, value_name = "S")]
     pub abort_at: Option<f64>,
+    /// The radio link goes silent at this time, s of simulated time (link-loss scenario; the simulated link
+    /// delivers a packet every 10 ms until then).
+    #[arg(long, value_name = "S")]
+    pub link_loss_at: Option<f64>,
+    /// `mission.linkLoss` for the run: 0 go on (default), 1 land where it is, 2 return home and land.
+    #[arg(long, value_name = "POLICY", default_value_t = 0, value_parser = clap::value_parser!(u8).range(0..=2))]
+    pub link_loss: u8,
+    /// `mission.linkTimeout` for the run, s (0.5..60, default 2).
+    #[arg(long, value_name = "S")]
+    pub link_timeout: Option<f32>,
     /// Print every mission state change to stderr.
     #[arg(long)]
     pub verbose: bool,
@@ -288,6 +300,9 @@ pub fn run_cli(args: &SimArgs) -> ExitCode {
         if args.world.is_some() {
             return fail("--random generates its own worlds; drop --world");
         }
+        if let Err(e) = link_loss_options(args) {
+            return fail(e);
+        }
         return run_random(n, args.seed.unwrap_or(0), args, stress.as_ref());
     }
     let mut world = match (&args.world, args.random_world) {
@@ -316,6 +331,13 @@ pub fn run_cli(args: &SimArgs) -> ExitCode {
     if let Err(e) = apply_mode(args, &mut options) {
         return fail(e);
     }
+    match link_loss_options(args) {
+        Ok((at, config)) => {
+            options.faults.link_loss_at_s = at;
+            options.link_loss = config;
+        }
+        Err(e) => return fail(e),
+    }
     let result = match run(&world, &options) {
         Ok(r) => r,
         Err(e) => return fail(e),
@@ -334,6 +356,28 @@ pub fn run_cli(args: &SimArgs) -> ExitCode {
     ExitCode::from(if result.report.outcome == "completed" { 0 } else { 1 })
 }
 
+/// `--link-loss-at`, `--link-loss`, `--link-timeout`: the silence time and the parameters, checked.
+fn link_loss_options(args: &SimArgs) -> Result<(Option<f64>, LinkLossConfig), String> {
+    use cfnav::mission::link_loss::{LinkLossPolicy, MAX_LINK_TIMEOUT_S, MIN_LINK_TIMEOUT_S};
+    if let Some(t) = args.link_loss_at
+        && !(t.is_finite() && t >= 0.0)
+    {
+        return Err(format!("--link-loss-at: expected a time >= 0 s, got {t}"));
+    }
+    let mut config = LinkLossConfig::DEFAULT;
+    config.policy = LinkLossPolicy::from_code(args.link_loss)
+        .ok_or_else(|| format!("--link-loss: expected 0, 1 or 2, got {}", args.link_loss))?;
+    if let Some(t) = args.link_timeout {
+        if !(MIN_LINK_TIMEOUT_S..=MAX_LINK_TIMEOUT_S).contains(&t) {
+            return Err(format!(
+                "--link-timeout: expected {MIN_LINK_TIMEOUT_S}..{MAX_LINK_TIMEOUT_S} s, got {t}"
+            ));
+        }
+        config.timeout_s = t;
+    }
+    Ok((args.link_loss_at, config))
+}
+
 /// `cfnav sim --serve [--port P] [--world FILE | --random-world SEED] [--speed X] [--stress FILE]
 /// [--param-store FILE]`.
 fn run_serve(args: &SimArgs, stress: Option<&Stress>) -> ExitCode {
@@ -346,6 +390,12 @@ fn run_serve(args: &SimArgs, stress: Option<&Stress>) -> ExitCode {
     if args.mode != ModeArg::RoundTrip || args.hover_time.is_some() || args.coverage.is_some() {
         return fail(
             "--mode, --hover-time and --coverage do not apply to --serve: write mission.mode, mission.hoverTime, mission.coverage",
+        );
+    }
+    if args.link_loss_at.is_some() || args.link_loss != 0 || args.link_timeout.is_some() {
+        return fail(
+            "--link-loss-at, --link-loss and --link-timeout do not apply to --serve (the client's packets are the \
+             link; it writes mission.linkLoss and mission.linkTimeout)",
         );
     }
     let mut world = match (&args.world, args.random_world) {
@@ -401,6 +451,10 @@ fn run_random(n: usize, seed: u64, args: &SimArgs, stress: Option<&Stress>) -> E
                     options.mode = mode_options.mode;
                     options.hover_time_s = mode_options.hover_time_s;
                     options.coverage = mode_options.coverage;
+                    if let Ok((at, config)) = link_loss_options(args) {
+                        options.faults.link_loss_at_s = at;
+                        options.link_loss = config;
+                    }
                     match run(&world, &options) {
                         Ok(RunResult { report, .. }) => {
                             if let Ok(mut r) = results.lock() {

@@ -8,6 +8,7 @@
 
 use std::time::Instant;
 
+use cfnav::mission::link_loss::LinkLossConfig;
 use cfnav::mission::{ExploreEnd, MissionMode, MissionParams, MissionState};
 use cfnav::stack::{FlightConfig, FlightCore};
 use cfnav::types::{MotorDuty, MultiRangerSample, RangeReading};
@@ -40,7 +41,14 @@ pub struct Faults {
     pub abort_at_s: Option<f64>,
     /// Report the decks as missing (the start is refused).
     pub decks_missing: bool,
+    /// The radio link goes silent at this time, s: the simulated link delivers a packet every
+    /// [`LINK_PACKET_PERIOD_MS`] until then, none after.
+    pub link_loss_at_s: Option<f64>,
 }
+
+/// The simulated radio link (runs without `--serve`) delivers one packet this often, ms: cflib polls the
+/// Crazyradio link with null packets whenever it has nothing to send, so the drone hears it every few ms.
+pub const LINK_PACKET_PERIOD_MS: u64 = 10;
 
 /// How to run.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -63,6 +71,8 @@ pub struct RunOptions {
     pub hover_time_s: Option<f32>,
     /// `mission.coverage` (`--coverage`); the firmware's default when `None`.
     pub coverage: Option<f32>,
+    /// `mission.linkLoss` and `mission.linkTimeout` for the run.
+    pub link_loss: LinkLossConfig,
 }
 
 impl RunOptions {
@@ -78,6 +88,7 @@ impl RunOptions {
             mode: MissionMode::RoundTrip,
             hover_time_s: None,
             coverage: None,
+            link_loss: LinkLossConfig::DEFAULT,
         }
     }
 }
@@ -118,6 +129,10 @@ pub struct RunReport {
     pub rms_estimate_error_m: f32,
     /// Largest error of the height above the surface below (estimate vs truth) at flying height, m.
     pub max_height_error_m: f32,
+    /// When the link-loss timeout fired (`--link-loss-at`), s since power-on.
+    pub link_lost_at_s: Option<f64>,
+    /// The true position (x, y, z) when it fired, m.
+    pub link_lost_point: Option<[f32; 3]>,
     /// The `mission.state` at each collision's start (where to look).
     pub collision_states: Vec<u8>,
     /// The true position (x, y, z) at each collision's start, m.
@@ -361,6 +376,9 @@ pub fn run(world: &World, options: &RunOptions) -> Result<RunResult, String> {
     let total_ticks = (options.time_limit_s * 1000.0).max(0.0) as u64;
     let trigger_tick = (options.trigger_s * 1000.0) as u64;
     let abort_tick = options.faults.abort_at_s.map(|t| (t * 1000.0) as u64);
+    let link_silent_tick = options.faults.link_loss_at_s.map(|t| (t.max(0.0) * 1000.0) as u64);
+    drone.core.set_link_loss(options.link_loss);
+    let mut link_lost: Option<(f64, [f32; 3])> = None;
 
     let mut score = Score::new();
     let mut trace = Vec::new();
@@ -384,7 +402,15 @@ pub fn run(world: &World, options: &RunOptions) -> Result<RunResult, String> {
         if Some(tick) == abort_tick {
             drone.core.abort_mission();
         }
+        if tick.is_multiple_of(LINK_PACKET_PERIOD_MS) && link_silent_tick.is_none_or(|t| tick < t) {
+            drone.core.on_radio_packet(tick * 1000);
+        }
         let new_duty = drone.step(world);
+        if link_lost.is_none()
+            && let Some(t) = drone.core.navigator().link_watch().fired_at()
+        {
+            link_lost = Some((t as f64 * 1e-6, drone.quad.position()));
+        }
         if tick.is_multiple_of(20)
             && let Some(snapshot) = path_snapshot(&drone.core)
             && paths.last() != Some(&snapshot)
@@ -563,6 +589,8 @@ pub fn run(world: &World, options: &RunOptions) -> Result<RunResult, String> {
             MissionState::BatteryLow => ("aborted", Some("battery")),
             MissionState::EstimatorFault => ("aborted", Some("estimator_fault")),
             MissionState::PlannerFault => ("aborted", Some("planner_fault")),
+            MissionState::LinkLost => ("aborted", Some("link_lost")),
+            MissionState::LinkLostHome => ("aborted", Some("link_lost_home")),
             _ => ("aborted", Some("unknown")),
         }
     };
@@ -603,6 +631,8 @@ pub fn run(world: &World, options: &RunOptions) -> Result<RunResult, String> {
             0.0
         },
         max_height_error_m: score.max_height_err,
+        link_lost_at_s: link_lost.map(|(t, _)| t),
+        link_lost_point: link_lost.map(|(_, p)| p),
         collision_states: score.collision_states.clone(),
         collision_points: score.collision_points.clone(),
         needs_large_arena: world.needs_large_arena(),

@@ -36,6 +36,10 @@
 //! same checks as a radio write; `persistent_store`/`persistent_clear` write their slot into it (the whole
 //! file rewritten through a temporary file and a rename) before they are answered. Without the option the
 //! EEPROM lives in memory and is lost when the simulator stops.
+//! Link loss (`mission.linkLoss`, `mission.linkTimeout`): every datagram from the client, its null
+//! keep-alives included, is a radio packet for the flight core's link-loss watch; a client that falls
+//! silent during a mission for `mission.linkTimeout` s of simulated time triggers the policy (a line on
+//! stderr says when).
 
 use std::io::ErrorKind;
 use std::net::{SocketAddr, UdpSocket};
@@ -433,6 +437,11 @@ impl Radio {
         };
         if is_null_header(header) {
             // Scan probe or keep-alive: answer its sender, keep the client (cflib scans from another socket).
+            // The client's own keep-alives are radio packets: its link is alive.
+            if self.client == Some(from) {
+                self.ep.note_uplink(now_us(drone));
+                drone.core.on_radio_packet(now_us(drone));
+            }
             self.send_to(&[NULL_HEADER], from);
             return;
         }
@@ -450,6 +459,9 @@ impl Radio {
         let before = self.ep.param.store().start;
         self.ep.supervisor.set_status(supervisor_status(drone));
         let reply = self.ep.handle_uplink(bytes, now_us(drone));
+        // The link-loss watch: this packet, and the parameters in effect after it.
+        drone.core.on_radio_packet(now_us(drone));
+        drone.core.set_link_loss(self.ep.param.store().link_loss);
         if let Some(reply) = reply {
             self.send(&reply);
         }
@@ -537,6 +549,7 @@ pub fn serve(world: &World, port: u16, speed: f64, param_store: Option<&Path>) -
     );
     let mut buf = [0u8; 64];
     let wall = Instant::now();
+    let mut link_fired = None;
     loop {
         // The network: every datagram waiting.
         loop {
@@ -578,6 +591,15 @@ pub fn serve(world: &World, port: u16, speed: f64, param_store: Option<&Path>) -
             while let Some(p) = radio.ep.log.tick(now_ms, &log_state) {
                 radio.send(&p);
             }
+            let fired = drone.core.navigator().link_watch().fired_at();
+            if fired != link_fired && fired.is_some() {
+                let policy = drone.core.navigator().link_watch().config().policy;
+                eprintln!(
+                    "{:8.3} s  link lost: no packet for mission.linkTimeout, policy {policy:?}",
+                    seconds(&drone)
+                );
+            }
+            link_fired = fired;
             let state = drone.core.mission_state();
             if state != last_state {
                 let e = drone.core.estimate().position_m;
@@ -768,6 +790,60 @@ mod tests {
                 break;
             }
         }
+    }
+
+    /// The link-loss policy through the server: `mission.linkLoss = 1` written by the client, a mission
+    /// started; the client's null keep-alives (cflib's idle traffic) keep the link alive for 4 s, then the
+    /// client falls silent: 2 s later the drone lands where it is (40) and ends `link lost` (207), and the
+    /// client coming back does not undo it.
+    #[test]
+    fn a_silent_client_triggers_the_link_loss_policy_and_keep_alives_count() {
+        use cfnav::mission::MissionState;
+        use cfnav::radio::registry::ID_LINK_LOSS;
+        let mut b = Bench::new();
+        b.step_ms(1500);
+        let write_u8 = |b: &mut Bench, id: u16, v: u8| {
+            let mut data = id.to_le_bytes().to_vec();
+            data.push(v);
+            b.uplink(2, 2, &data);
+        };
+        write_u8(&mut b, ID_LINK_LOSS, 1);
+        assert_eq!(b.radio.ep.param.store().link_loss.policy.code(), 1);
+        write_u8(&mut b, ID_START, 1);
+        assert!(b.drone.core.mission().is_running(), "mission started");
+        // 4 s of null packets only, every 20 ms.
+        for _ in 0..200 {
+            b.radio.on_datagram(&[NULL_HEADER], b.from, &mut b.drone);
+            b.step_ms(20);
+        }
+        let state = b.drone.core.mission_state();
+        assert!(
+            matches!(state, MissionState::TakeOffOutbound | MissionState::NavigateToGoal),
+            "keep-alives kept the link: {state:?}"
+        );
+        b.step_ms(1900);
+        assert_eq!(
+            b.drone.core.mission_state(),
+            MissionState::NavigateToGoal,
+            "1.9 s of silence"
+        );
+        b.step_ms(200);
+        assert_eq!(
+            b.drone.core.mission_state(),
+            MissionState::EmergencyLanding,
+            "2.1 s of silence"
+        );
+        // The client is back: the landing goes on.
+        for _ in 0..300 {
+            b.radio.on_datagram(&[NULL_HEADER], b.from, &mut b.drone);
+            b.step_ms(20);
+            let state = b.drone.core.mission_state();
+            assert!(
+                matches!(state, MissionState::EmergencyLanding | MissionState::LinkLost),
+                "{state:?}"
+            );
+        }
+        assert_eq!(b.drone.core.mission_state(), MissionState::LinkLost);
     }
 
     #[test]

@@ -8,6 +8,7 @@ mod console;
 mod flow_control;
 mod high_level;
 mod log;
+mod map_mem;
 mod param;
 mod stock;
 mod supervisor_port;

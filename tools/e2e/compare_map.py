@@ -9,7 +9,13 @@ Usage: compare_map.py DOWNLOAD.json SIM_MAP.json [--flying]    (exit 0 equal, 1 
 """
 
 import json
+import struct
 import sys
+
+
+def f32(v):
+    """`v` rounded to the f32 it came from (JSON and Python carry f32 values as decimals or doubles)."""
+    return struct.unpack('<f', struct.pack('<f', v))[0]
 
 
 def expected_codes(sim):
@@ -45,7 +51,7 @@ def compare(got, sim):
             want_pads.append((kind, lock[0], lock[1], 1.0, True))
     got_pads = [(p['kind'], p['x_m'], p['y_m'], p['confidence'], p['locked']) for p in got['pads']]
     if len(got_pads) != len(want_pads) or any(
-            a[0] != b[0] or a[1] != b[1] or a[2] != b[2] or abs(a[3] - min(max(b[3], 0.0), 1.0)) > 0.5 / 255 + 1e-6
+            a[0] != b[0] or f32(a[1]) != f32(b[1]) or f32(a[2]) != f32(b[2]) or abs(a[3] - min(max(b[3], 0.0), 1.0)) > 0.5 / 255 + 1e-6
             or a[4] != b[4] for a, b in zip(got_pads, want_pads)):
         diffs.append(f'pads {got_pads} downloaded, {want_pads} in the simulator')
     return diffs

@@ -141,7 +141,11 @@ fn the_layout_decodes_from_the_documented_offsets_to_the_grid_path_and_pads() {
     let pad_at = path_at + 20;
     let f32_at = |i: usize| f32::from_le_bytes([b[i], b[i + 1], b[i + 2], b[i + 3]]);
     assert_eq!((f32_at(pad_at), f32_at(pad_at + 4)), (1.75, 1.25));
-    assert_eq!(&b[pad_at + 8..pad_at + 12], &[128, 0, 0, 0], "confidence 0.5 → 128, estimate");
+    assert_eq!(
+        &b[pad_at + 8..pad_at + 12],
+        &[128, 0, 0, 0],
+        "confidence 0.5 → 128, estimate"
+    );
     assert_eq!((f32_at(pad_at + 12), f32_at(pad_at + 16)), (0.25, -0.5));
     assert_eq!(&b[pad_at + 20..pad_at + 24], &[255, 2, 1, 0], "home lock, locked");
 }
@@ -187,8 +191,14 @@ fn without_the_map_no_memory_is_listed_and_reads_and_writes_are_refused() {
     assert_eq!(send(&mut m, &hex("4C 01")), Some(hex("4C 01 00")));
     assert_eq!(send(&mut m, &hex("4C 02 00")), None);
     // Read memory 0, addr 0x10, 4 bytes → [id, addr, EIO].
-    assert_eq!(send(&mut m, &hex("4D 00 10 00 00 00 04")), Some(hex("4D 00 10 00 00 00 05")));
-    assert_eq!(send(&mut m, &hex("4E 00 10 00 00 00 AA")), Some(hex("4E 00 10 00 00 00 05")));
+    assert_eq!(
+        send(&mut m, &hex("4D 00 10 00 00 00 04")),
+        Some(hex("4D 00 10 00 00 00 05"))
+    );
+    assert_eq!(
+        send(&mut m, &hex("4E 00 10 00 00 00 AA")),
+        Some(hex("4E 00 10 00 00 00 05"))
+    );
     assert_eq!(m.take_map_read(), None);
     // Short packets get nothing.
     assert_eq!(send(&mut m, &hex("4D 00 10")), None);
@@ -229,8 +239,14 @@ fn with_the_map_cflib_lists_it_and_its_reads_are_answered_from_the_view() {
     let r = wire(&m.take_map_read().unwrap().answer(&view));
     assert_eq!(r, hex("4D 00 00 00 00 00 05"));
     // Other memory ids and writes: EIO at once.
-    assert_eq!(send(&mut m, &hex("4D 03 00 00 00 00 04")), Some(hex("4D 03 00 00 00 00 05")));
-    assert_eq!(send(&mut m, &hex("4E 00 00 00 00 00 01 02")), Some(hex("4E 00 00 00 00 00 05")));
+    assert_eq!(
+        send(&mut m, &hex("4D 03 00 00 00 00 04")),
+        Some(hex("4D 03 00 00 00 00 05"))
+    );
+    assert_eq!(
+        send(&mut m, &hex("4E 00 00 00 00 00 01 02")),
+        Some(hex("4E 00 00 00 00 00 05"))
+    );
 }
 
 proptest! {
@@ -280,4 +296,63 @@ proptest! {
             }
         }
     }
+}
+
+/// A real mission in the simulator: every 2 s of flight the memory is read in cflib's chunks, decoded by the
+/// host tool's decoder and compared with the simulator's own map read through the grid's queries (the dump
+/// `cfnav sim --serve --map-json` writes), cell for cell, with path and pads.
+#[test]
+fn a_flying_mission_map_downloads_equal_to_the_simulators_own_map() {
+    use cfnav_tools::map::decode::{SimMapDump, decode};
+    use cfnav_tools::sim::runner::{Faults, SimDrone, mission_params};
+    use cfnav_tools::sim::world::World;
+
+    let world = World::default_world();
+    let mut drone = SimDrone::new(&world, 3, &Faults::default()).unwrap();
+    let params = mission_params(&world);
+    let mut compared = 0;
+    let mut max_occupied = 0;
+    for tick in 0..60_000u64 {
+        if tick == 1000 {
+            drone.core.start_mission(params).expect("starts");
+        }
+        drone.step(&world);
+        if tick % 2000 != 1999 {
+            continue;
+        }
+        let mission = drone.core.mission();
+        let view = MapView::of_mission(mission);
+        let bytes = download(&view);
+        let got = decode(&bytes).expect("a consistent download decodes");
+        let sim = SimMapDump::of_mission(mission, drone.tick(), view.crc32());
+        assert_eq!((got.width, got.height, got.crc32), (sim.width, sim.height, sim.crc32));
+        assert_eq!(got.mission_state, sim.mission_state);
+        for (i, &code) in got.cells.iter().enumerate() {
+            let want = if sim.occupied[i] {
+                3
+            } else if sim.blocked[i] {
+                2
+            } else if sim.unknown[i] {
+                0
+            } else {
+                1
+            };
+            assert_eq!(code, want, "cell {i} at {} ms", drone.tick());
+        }
+        assert_eq!(got.path, sim.path);
+        let locks = sim.pad_locks.iter().flatten().count();
+        assert_eq!(got.pads.len(), usize::from(sim.pad_estimate.is_some()) + locks);
+        if let Some((x, y, c, locked)) = sim.pad_estimate {
+            let p = &got.pads[0];
+            assert_eq!((p.kind.as_str(), p.x_m, p.y_m, p.locked), ("estimate", x, y, locked));
+            assert!((p.confidence - c.clamp(0.0, 1.0)).abs() <= 0.5 / 255.0 + 1e-6);
+        }
+        max_occupied = max_occupied.max(got.cells.iter().filter(|&&c| c == 3).count());
+        compared += 1;
+    }
+    assert_eq!(compared, 30);
+    assert!(
+        max_occupied > 50,
+        "the drone mapped walls and obstacles: {max_occupied} occupied cells"
+    );
 }

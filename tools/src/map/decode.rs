@@ -255,9 +255,7 @@ impl SimMapDump {
             blocked: cells.iter().map(|&c| grid.is_blocked(c)).collect(),
             unknown: cells.iter().map(|&c| grid.is_unknown(c)).collect(),
             path: mission.waypoints().iter().map(|c| [c.x, c.y]).collect(),
-            pad_estimate: detector
-                .estimate()
-                .map(|e| (e.x, e.y, e.confidence, detector.locked())),
+            pad_estimate: detector.estimate().map(|e| (e.x, e.y, e.confidence, detector.locked())),
             pad_locks: mission.stats().pad_centres,
         }
     }

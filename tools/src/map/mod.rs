@@ -275,10 +275,7 @@ pub fn plot(s: &MapSnapshot, world: Option<&World>, uri: &str, path: &Path) -> R
     let mut base = world.cloned().unwrap_or_else(World::default_world);
     if world.is_none() {
         base.name = "downloaded map".to_string();
-        base.arena.size = [
-            f32::from(s.width) * s.cell_size_m,
-            f32::from(s.height) * s.cell_size_m,
-        ];
+        base.arena.size = [f32::from(s.width) * s.cell_size_m, f32::from(s.height) * s.cell_size_m];
         base.boxes.clear();
         base.cylinders.clear();
         base.pads.clear();
@@ -327,12 +324,13 @@ pub fn plot(s: &MapSnapshot, world: Option<&World>, uri: &str, path: &Path) -> R
         believed: Some(believed),
         pad_locks: s.pads.iter().filter(|p| p.locked).map(|p| (p.x_m, p.y_m)).collect(),
     };
+    let count = |code: u8| s.cells.iter().filter(|&&c| c == code).count();
     let pads: Vec<String> = s
         .pads
         .iter()
         .map(|p| {
             format!(
-                "{} ({:.2}, {:.2}) confidence {:.2}{}",
+                "{} ({:.2}, {:.2}) {:.2}{}",
                 p.kind.replace('_', " "),
                 p.x_m,
                 p.y_m,
@@ -344,11 +342,20 @@ pub fn plot(s: &MapSnapshot, world: Option<&World>, uri: &str, path: &Path) -> R
     let labels = Labels {
         title: format!("cfnav map from {uri}: mission.state {}", s.mission_state),
         subtitle: [
-            summary(s),
+            format!(
+                "{} x {} cells: {} occupied, {} inflated, {} free, {} unknown; path {} points",
+                s.width,
+                s.height,
+                count(3),
+                count(2),
+                count(1),
+                count(0),
+                s.path.len()
+            ),
             if pads.is_empty() {
-                "pads: none".to_string()
+                "pads (confidence): none".to_string()
             } else {
-                format!("pads: {}", pads.join("; "))
+                format!("pads (confidence): {}", pads.join("; "))
             },
         ],
         world_known: world.is_some(),

@@ -78,8 +78,7 @@ pub fn draw_labelled(world: &World, result: &RunResult, path: &Path, labels: Opt
         figure.nominal = l.world_known;
         if !l.world_known {
             figure.legend.retain(|(swatch, label)| {
-                !matches!(swatch, Swatch::Start | Swatch::Goal | Swatch::Outline(_))
-                    && !label.starts_with("obstacle")
+                !matches!(swatch, Swatch::Start | Swatch::Goal | Swatch::Outline(_)) && !label.starts_with("obstacle")
             });
         }
     }

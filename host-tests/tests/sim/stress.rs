@@ -49,6 +49,7 @@ fn sim_args() -> SimArgs {
         abort_at: None,
         verbose: false,
         serve: false,
+        map_json: None,
         port: 19850,
         speed: 1.0,
     }

@@ -111,11 +111,11 @@ pub fn run_cli(args: &MapArgs) -> ExitCode {
         }
     };
     eprintln!("{}", summary(&snapshot));
-    if let Some(path) = &args.json {
-        if let Err(e) = write_json(&snapshot, path) {
-            eprintln!("cfnav map: {e}");
-            return ExitCode::from(EXIT_ERROR);
-        }
+    if let Some(path) = &args.json
+        && let Err(e) = write_json(&snapshot, path)
+    {
+        eprintln!("cfnav map: {e}");
+        return ExitCode::from(EXIT_ERROR);
     }
     if let Some(path) = &args.plot {
         if let Err(e) = plot(&snapshot, world.as_ref(), &args.uri, path) {

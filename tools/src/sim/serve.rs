@@ -185,10 +185,10 @@ impl Radio {
 
     /// Writes the simulator's own map to `--map-json`, if given.
     fn dump_map(&self, drone: &SimDrone, crc32: u32) {
-        if let Some(path) = &self.map_json {
-            if let Err(e) = crate::map::write_sim_dump(path, drone.core.mission(), drone.tick(), crc32) {
-                eprintln!("serve: {e}");
-            }
+        if let Some(path) = &self.map_json
+            && let Err(e) = crate::map::write_sim_dump(path, drone.core.mission(), drone.tick(), crc32)
+        {
+            eprintln!("serve: {e}");
         }
     }
 

@@ -1,8 +1,8 @@
 #!/usr/bin/env python3
 """The map memory through unmodified cflib (>= 0.1.32): its memory API lists and reads it.
 
-  cflib_map.py --uri udp://127.0.0.1:19853 --start          connect, write mission.start = 1, disconnect
-  cflib_map.py --uri udp://127.0.0.1:19853 --sim-map FILE   list and read the map, compare with FILE
+  cflib_map.py --uri udp://127.0.0.1:19854 --start          connect, write mission.start = 1, disconnect
+  cflib_map.py --uri udp://127.0.0.1:19854 --sim-map FILE   list and read the map, compare with FILE
 
 The check: `cf.mem.get_mems(0xC4)` lists exactly one memory (cflib makes a plain MemoryElement of a type it
 does not know), `cf.mem.read` + `mem_read_cb` read its whole size in cflib's 24-byte chunks; the bytes carry
@@ -78,7 +78,7 @@ def read_memory(cf, mem, timeout=20.0):
 
 def main():
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
-    ap.add_argument('--uri', default='udp://127.0.0.1:19853')
+    ap.add_argument('--uri', default='udp://127.0.0.1:19854')
     ap.add_argument('--start', action='store_true', help='write mission.start = 1 and leave')
     ap.add_argument('--sim-map', help="the simulator's --map-json file to compare with")
     args = ap.parse_args()

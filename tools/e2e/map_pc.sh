@@ -3,11 +3,11 @@
 # downloaded with `cfnav map` once while the drone flies and once after it has landed, each compared cell for
 # cell with the simulator's own map of the same moment (compare_map.py), the plot drawn, and cflib's memory
 # API listing and reading the same map unmodified (cflib_map.py).
-# Needs the release `cfnav` built (or CFNAV=path) and cflib installed. PORT (default 19853); files in
+# Needs the release `cfnav` built (or CFNAV=path) and cflib installed. PORT (default 19854); files in
 # target/e2e-map/.
 set -euo pipefail
 cd "$(dirname "$0")/../.."
-PORT=${PORT:-19853}
+PORT=${PORT:-19854}
 uri="udp://127.0.0.1:$PORT"
 cfnav="${CFNAV:-${CARGO_TARGET_DIR:-target}/release/cfnav}"
 out=target/e2e-map

@@ -31,7 +31,7 @@ pub struct Endpoint<P: ParamStore, L: LogSource, const C: usize, const Q: usize>
     pub param: ParamService<P>,
     /// Log service.
     pub log: LogService<L>,
-    /// Memory-count service.
+    /// Memory service (no memories unless the endpoint's owner serves the map: `MemService::with_map`).
     pub mem: MemService,
     /// Setpoint commander (ports 3 and 7).
     pub commander: CommanderService,
@@ -53,7 +53,7 @@ impl<P: ParamStore, L: LogSource, const C: usize, const Q: usize> Endpoint<P, L,
             router: Router::new(PlatformService::new(firmware_tag)),
             param: ParamService::new(store),
             log: LogService::new(),
-            mem: MemService,
+            mem: MemService::new(),
             commander: CommanderService::new(),
             high_level: HighLevelService::new(),
             supervisor: SupervisorPortService::new(supervisor),

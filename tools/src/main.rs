@@ -1,7 +1,7 @@
 //! `cfnav`: the host-side tools of the cfnav firmware (simulator, planner replay, firmware image).
 use std::process::ExitCode;
 
-use cfnav_tools::{firmware, mission, nav, sim};
+use cfnav_tools::{firmware, map, mission, nav, sim};
 use clap::{Parser, Subcommand};
 
 /// cfnav host tools: planner replay, firmware image, simulator.
@@ -22,6 +22,8 @@ enum Command {
     Firmware(firmware::FirmwareArgs),
     /// Start a mission on a drone (radio://) or a simulator (udp://) and follow it until it ends.
     Mission(mission::MissionArgs),
+    /// Download the map a drone or simulator built (grid, path, pads) and draw it (exit 0 done, 2 error).
+    Map(map::MapArgs),
 }
 
 fn main() -> ExitCode {
@@ -38,5 +40,6 @@ fn main() -> ExitCode {
         Command::Plan(args) => nav::replay::run(&args),
         Command::Firmware(args) => firmware::run(&args),
         Command::Mission(args) => mission::run_cli(&args),
+        Command::Map(args) => map::run_cli(&args),
     }
 }

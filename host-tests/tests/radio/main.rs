@@ -8,6 +8,7 @@ mod console;
 mod flow_control;
 mod high_level;
 mod log;
+mod map_mem;
 mod modes;
 mod param;
 mod stock;

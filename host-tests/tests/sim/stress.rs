@@ -52,6 +52,7 @@ fn sim_args() -> SimArgs {
         link_timeout: None,
         verbose: false,
         serve: false,
+        map_json: None,
         port: 19850,
         speed: 1.0,
         mode: cfnav_tools::sim::cli::ModeArg::RoundTrip,

@@ -28,7 +28,7 @@ fn start_server() -> u16 {
     std::thread::spawn(move || {
         let world = World::default_world();
         // 50× real time: a round trip of about 90 simulated seconds takes about 2 s.
-        let r = crate::sim::serve::serve(&world, port, 50.0, None);
+        let r = crate::sim::serve::serve(&world, port, 50.0, None, None);
         panic!("the test server stopped: {r:?}");
     });
     std::thread::sleep(Duration::from_millis(300));

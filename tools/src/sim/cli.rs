@@ -68,6 +68,10 @@ pub struct SimArgs {
     /// flies until a client writes `mission.start`; runs until interrupted.
     #[arg(long)]
     pub serve: bool,
+    /// With --serve: write the simulated drone's own map (JSON, read through the grid's queries) to FILE
+    /// whenever a client starts downloading the map memory and when a mission ends (`cfnav map` compares).
+    #[arg(long, value_name = "FILE", requires = "serve")]
+    pub map_json: Option<PathBuf>,
     /// UDP port for --serve.
     #[arg(long, default_value_t = 19850)]
     pub port: u16,
@@ -410,7 +414,13 @@ fn run_serve(args: &SimArgs, stress: Option<&Stress>) -> ExitCode {
     if let Some(s) = stress {
         world.stress = world.stress.overlaid(s);
     }
-    match crate::sim::serve::serve(&world, args.port, args.speed, args.param_store.as_deref()) {
+    match crate::sim::serve::serve(
+        &world,
+        args.port,
+        args.speed,
+        args.param_store.as_deref(),
+        args.map_json.as_deref(),
+    ) {
         Ok(()) => ExitCode::SUCCESS,
         Err(e) => fail(e),
     }

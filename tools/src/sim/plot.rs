@@ -54,8 +54,34 @@ const MARK: RGBColor = RGBColor(0, 0, 0);
 
 /// Draw one run to `path`: an SVG (`.svg`) or a PNG (`.png`, 1600 px wide).
 pub fn draw(world: &World, result: &RunResult, path: &Path) -> Result<(), String> {
+    draw_labelled(world, result, path, None)
+}
+
+/// Title lines and what is known of the world, for a figure that is not a simulator run (`cfnav map`).
+pub struct Labels {
+    /// First line.
+    pub title: String,
+    /// The two lines under it.
+    pub subtitle: [String; 2],
+    /// Whether `world` is the real one (obstacles, pads, nominal start and goal); otherwise only its
+    /// arena's size is drawn and the legend leaves the rest out.
+    pub world_known: bool,
+}
+
+/// [`draw`] with other title lines (and, without a known world, no obstacles, pads or nominal marks).
+pub fn draw_labelled(world: &World, result: &RunResult, path: &Path, labels: Option<&Labels>) -> Result<(), String> {
     let ext = path.extension().and_then(|e| e.to_str()).map(str::to_ascii_lowercase);
-    let figure = Figure::new(world, result);
+    let mut figure = Figure::new(world, result);
+    if let Some(l) = labels {
+        figure.title = l.title.clone();
+        figure.subtitle = l.subtitle.clone();
+        figure.nominal = l.world_known;
+        if !l.world_known {
+            figure.legend.retain(|(swatch, label)| {
+                !matches!(swatch, Swatch::Start | Swatch::Goal | Swatch::Outline(_)) && !label.starts_with("obstacle")
+            });
+        }
+    }
     let size = (WIDTH, figure.height);
     let fail = |e: String| format!("{}: cannot draw the plot: {e}", path.display());
     match ext.as_deref() {
@@ -148,6 +174,8 @@ struct Figure {
     legend: Vec<(Swatch, String)>,
     title: String,
     subtitle: [String; 2],
+    /// Draw the nominal start and goal.
+    nominal: bool,
 }
 
 impl Figure {
@@ -173,6 +201,7 @@ impl Figure {
             legend,
             title,
             subtitle,
+            nominal: true,
         }
     }
 
@@ -282,10 +311,12 @@ impl Figure {
         }
 
         // Markers: the nominal start and goal, the pad locks, the landings.
-        let s = self.px(world.mission.start[0], world.mission.start[1]);
-        p.marker(Swatch::Start, s)?;
-        let g = self.px(world.mission.goal[0], world.mission.goal[1]);
-        p.marker(Swatch::Goal, g)?;
+        if self.nominal {
+            let s = self.px(world.mission.start[0], world.mission.start[1]);
+            p.marker(Swatch::Start, s)?;
+            let g = self.px(world.mission.goal[0], world.mission.goal[1]);
+            p.marker(Swatch::Goal, g)?;
+        }
         for &(x, y) in &result.pad_locks {
             p.marker(Swatch::Cross, self.px(x, y))?;
         }

@@ -36,10 +36,15 @@
 //! same checks as a radio write; `persistent_store`/`persistent_clear` write their slot into it (the whole
 //! file rewritten through a temporary file and a rename) before they are answered. Without the option the
 //! EEPROM lives in memory and is lost when the simulator stops.
+//!
 //! Link loss (`mission.linkLoss`, `mission.linkTimeout`): every datagram from the client, its null
 //! keep-alives included, is a radio packet for the flight core's link-loss watch; a client that falls
 //! silent during a mission for `mission.linkTimeout` s of simulated time triggers the policy (a line on
 //! stderr says when).
+//!
+//! Memory (port 4): memory 0 is the drone's map (`cfnav::radio::map_mem`), each read answered at once from
+//! the live map; with `--map-json FILE`, every read of its CRC field (a download starting) and the end of a
+//! mission also write the simulator's own map of that moment to FILE (`crate::map::decode::SimMapDump`).
 
 use std::io::ErrorKind;
 use std::net::{SocketAddr, UdpSocket};
@@ -50,6 +55,8 @@ use cfnav::radio::commander::{Command, SetpointFollower};
 use cfnav::radio::crtp::{CrtpPacket, NULL_HEADER, is_null_header};
 use cfnav::radio::endpoint::Endpoint;
 use cfnav::radio::log_registry::FlightLogState;
+use cfnav::radio::map_mem::{CRC_OFFSET, MapView};
+use cfnav::radio::mem::MemService;
 use cfnav::radio::param::ParamService;
 use cfnav::radio::registry::{ID_RESET_ESTIMATION, ID_START, MissionParamState, Tuning};
 use cfnav::radio::supervisor_port::{SupervisorPortConfig, SupervisorStatus};
@@ -156,6 +163,8 @@ struct Radio {
     eeprom_file: Option<PathBuf>,
     /// The tuning generation last handed to the flight core.
     tuning_applied: u32,
+    /// `--map-json`: where the simulator's own map is written.
+    map_json: Option<PathBuf>,
 }
 
 /// Bytes of the Crazyflie's EEPROM (24AA64, `crazyflie-hardware.md` §1.5).
@@ -196,19 +205,21 @@ impl Radio {
         };
         let config = FlightConfig::default();
         let tuning = Tuning::new(config.controller, &config.estimator, config.mission);
+        // The sim's flight core auto-arms and has no supervisor reset.
+        let mut ep = Endpoint::new(
+            FIRMWARE_TAG,
+            MissionParamState::new(mission_params(world), SIM_CELLS).with_tuning(tuning),
+            SupervisorPortConfig {
+                auto_arm: true,
+                can_recover: false,
+            },
+        );
+        ep.mem = MemService::with_map(SIM_CELLS);
         Ok(Self {
             socket,
             client: None,
             last_uplink: Instant::now(),
-            // The sim's flight core auto-arms and has no supervisor reset.
-            ep: Endpoint::new(
-                FIRMWARE_TAG,
-                MissionParamState::new(mission_params(world), SIM_CELLS).with_tuning(tuning),
-                SupervisorPortConfig {
-                    auto_arm: true,
-                    can_recover: false,
-                },
-            ),
+            ep,
             follower: SetpointFollower::new(),
             commander_refused: 0,
             last_commander_note_us: None,
@@ -216,6 +227,7 @@ impl Radio {
             eeprom,
             eeprom_file: eeprom_file.map(Path::to_path_buf),
             tuning_applied: 0,
+            map_json: None,
         })
     }
 
@@ -269,6 +281,29 @@ impl Radio {
         };
         if let Some(reply) = self.ep.param.eeprom_write_done(ok) {
             self.send(&reply);
+        }
+    }
+
+    /// Answers a read of the map memory from the drone's live map; a read of its CRC field also writes the
+    /// simulator's own map to `--map-json`.
+    fn answer_map_read(&mut self, drone: &SimDrone) {
+        let Some(read) = self.ep.mem.take_map_read() else {
+            return;
+        };
+        let view = MapView::of_mission(drone.core.mission());
+        self.send(&read.answer(&view));
+        let end = read.addr as usize + usize::from(read.len);
+        if (read.addr as usize) < CRC_OFFSET + 4 && end > CRC_OFFSET {
+            self.dump_map(drone, view.crc32());
+        }
+    }
+
+    /// Writes the simulator's own map to `--map-json`, if given.
+    fn dump_map(&self, drone: &SimDrone, crc32: u32) {
+        if let Some(path) = &self.map_json
+            && let Err(e) = crate::map::write_sim_dump(path, drone.core.mission(), drone.tick(), crc32)
+        {
+            eprintln!("serve: {e}");
         }
     }
 
@@ -465,6 +500,7 @@ impl Radio {
         if let Some(reply) = reply {
             self.send(&reply);
         }
+        self.answer_map_read(drone);
         // Everything else the router holds goes down at once (UDP has no uplink pacing).
         while self.ep.router.pending() > 0 {
             match self.ep.router.handle_uplink(&[NULL_HEADER], &mut []) {
@@ -525,8 +561,16 @@ impl Radio {
     }
 }
 
-/// Serves CRTP over UDP on 127.0.0.1:`port` and flies `world` at `speed` × real time until interrupted.
-pub fn serve(world: &World, port: u16, speed: f64, param_store: Option<&Path>) -> Result<(), String> {
+/// Serves CRTP over UDP on 127.0.0.1:`port` and flies `world` at `speed` × real time until interrupted;
+/// `param_store` is the EEPROM's file; with `map_json`, the simulator's own map is written there (module
+/// docs, Memory).
+pub fn serve(
+    world: &World,
+    port: u16,
+    speed: f64,
+    param_store: Option<&Path>,
+    map_json: Option<&Path>,
+) -> Result<(), String> {
     if !(speed.is_finite() && speed > 0.0) {
         return Err(format!("--speed must be a positive number, got {speed}"));
     }
@@ -536,6 +580,7 @@ pub fn serve(world: &World, port: u16, speed: f64, param_store: Option<&Path>) -
         .map_err(|e| format!("cannot make the UDP socket non-blocking: {e}"))?;
     let mut drone = SimDrone::new(world, world.sim.seed, &Faults::default())?;
     let mut radio = Radio::new(socket, world, param_store)?;
+    radio.map_json = map_json.map(Path::to_path_buf);
     radio.load_persistent(&mut drone);
     eprintln!(
         "serving CRTP on udp://127.0.0.1:{port} ({} at {speed}× real time); write mission.start = 1 to fly",
@@ -611,6 +656,10 @@ pub fn serve(world: &World, port: u16, speed: f64, param_store: Option<&Path>) -
                     e[1],
                     e[2]
                 );
+                if state.is_final() {
+                    let crc = MapView::of_mission(drone.core.mission()).crc32();
+                    radio.dump_map(&drone, crc);
+                }
                 if state.is_final() && radio.ep.param.store().start != 0 {
                     radio.ep.param.store_mut().start = 0;
                     radio.ep.param.notify(ID_START);

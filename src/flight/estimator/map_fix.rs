@@ -373,7 +373,7 @@ pub fn cast_fixes(
             continue;
         };
         let cos_inc = hit.sign * u[hit.axis];
-        if !(cos_inc >= min_cos) {
+        if cos_inc.is_nan() || cos_inc < min_cos {
             continue;
         }
         if !hit.wall {
@@ -407,7 +407,8 @@ pub fn cast_fixes(
             plane
         };
         let expected = hit.sign * (plane_m - position_m[hit.axis]);
-        if !((measured - expected).abs() <= PRE_GATE_M) {
+        let difference = (measured - expected).abs();
+        if difference.is_nan() || difference > PRE_GATE_M {
             continue;
         }
         let ranger_std = (RANGER_STD_FLOOR_M + RANGER_STD_RELATIVE * r) * cos_inc;

@@ -134,3 +134,36 @@ fn explore_corridor_ends_with_no_frontier_left() {
     assert_eq!(e.end, Some("no_frontier"), "{e:?}");
     assert!(e.true_free_known >= 0.95, "{e:?}");
 }
+
+#[test]
+fn the_safety_rules_still_end_the_modes() {
+    use cfnav_tools::sim::runner::Faults;
+    let w = World::default_world();
+    // An abort during the hover test's hold lands where the drone is.
+    let options = RunOptions {
+        mode: MissionMode::HoverTest,
+        hover_time_s: Some(20.0),
+        faults: Faults {
+            abort_at_s: Some(8.0),
+            ..Faults::default()
+        },
+        ..RunOptions::for_world(&w)
+    };
+    let r = run(&w, &options).unwrap().report;
+    assert_eq!(r.mission_state, MissionState::Aborted.code(), "{r:?}");
+    assert_eq!((r.outcome, r.collisions), ("aborted", 0));
+    // A battery that runs low while exploring lands it where it is, exploration or not.
+    let options = RunOptions {
+        mode: MissionMode::Explore,
+        // The round trip's battery scenario (sim::mission): a third charged, draining six times faster.
+        faults: Faults {
+            battery_state_of_charge: Some(0.35),
+            battery_drain_multiplier: Some(6.0),
+            ..Faults::default()
+        },
+        ..RunOptions::for_world(&w)
+    };
+    let r = run(&w, &options).unwrap().report;
+    assert_eq!(r.mission_state, MissionState::BatteryLow.code(), "{r:?}");
+    assert_eq!((r.reason, r.collisions), (Some("battery"), 0));
+}

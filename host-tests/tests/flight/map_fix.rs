@@ -372,7 +372,7 @@ fn fixes_and_map_writes_do_not_ratchet() {
         let (mut map, shape) = empty_map();
         let mut landmarks = Landmarks::new();
         let (x_true, y) = (1.2f32, 1.025f32);
-        let mut late = Vec::new();
+        let mut late: Vec<f32> = Vec::new();
         let mut x_est = x_true;
         let mut worst = 0.0f32;
         for k in 0..400 {

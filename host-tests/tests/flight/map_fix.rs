@@ -372,7 +372,7 @@ fn fixes_and_map_writes_do_not_ratchet() {
         let (mut map, shape) = empty_map();
         let mut landmarks = Landmarks::new();
         let (x_true, y) = (1.2f32, 1.025f32);
-        let mut late = Vec::new();
+        let mut late: Vec<f32> = Vec::new();
         let mut x_est = x_true;
         let mut worst = 0.0f32;
         for k in 0..400 {
@@ -390,10 +390,20 @@ fn fixes_and_map_writes_do_not_ratchet() {
             }
             write_front(&mut map, x_est, y, sample.front_m.unwrap());
             worst = worst.max((x_est - x_true).abs());
+            if k >= 300 {
+                late.push(x_est - x_true);
+            }
         }
+        // The fixes' own noise (gain 0.3, ≈ 1.1 cm per range) and the landmark's placement error move the
+        // estimate by a centimetre or two; a ratchet walks on by a cell per few sweeps.
+        let mean_late = late.iter().sum::<f32>() / late.len() as f32;
         assert!(
-            worst < 0.02,
+            worst < 0.04,
             "seed {seed}: the estimate walked {worst} m from the truth"
+        );
+        assert!(
+            mean_late.abs() < 0.015,
+            "seed {seed}: mean error over the last 100 sweeps {mean_late} m"
         );
     }
 }

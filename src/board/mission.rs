@@ -24,9 +24,9 @@ use defmt::{info, warn};
 use embassy_time::{Duration, Ticker, Timer};
 
 use super::{
-    CONTROL_RUNNING, CONTROL_STEPS, DECKS_OK, FAST_INPUTS, FastInput, LINK, LOAD, MISSION_REQUESTS,
-    MISSION_RUNNING, MissionRequest, NAV_INPUTS, NavInput, START_OUTCOME, THREAD_BEATS, cycles, fast_status,
-    now_us, update_log, yield_now,
+    CONTROL_RUNNING, CONTROL_STEPS, DECKS_OK, FAST_INPUTS, FastInput, LINK, LOAD, MISSION_REQUESTS, MISSION_RUNNING,
+    MissionRequest, NAV_INPUTS, NavInput, START_OUTCOME, THREAD_BEATS, cycles, fast_status, now_us, update_log,
+    yield_now,
 };
 
 /// The navigator sized for the firmware's arena.

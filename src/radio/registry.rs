@@ -46,11 +46,11 @@
 
 use crate::flight::control::ControllerConfig;
 use crate::flight::estimator::EstimatorConfig;
+use crate::mission::link_loss::{LinkLossConfig, LinkLossPolicy, MAX_LINK_TIMEOUT_S, MIN_LINK_TIMEOUT_S};
 use crate::mission::{
     COVERAGE_RANGE, HOVER_TIME_RANGE_S, MAX_HEIGHT_M, MAX_SPEED_M_S, MIN_HEIGHT_M, MissionConfig, MissionMode,
     MissionParams, StartRefusal,
 };
-use crate::mission::link_loss::{LinkLossConfig, LinkLossPolicy, MAX_LINK_TIMEOUT_S, MIN_LINK_TIMEOUT_S};
 use crate::nav::avoidance::{AvoidanceMethod, SpeedClamp};
 use crate::system::persistent_params::{PendingWrite, PersistentParams, param_key};
 

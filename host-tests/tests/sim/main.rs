@@ -3,8 +3,8 @@
 mod commander;
 mod link_loss;
 mod mission;
-mod pads;
 mod modes;
+mod pads;
 mod physics;
 mod stress;
 mod world;

@@ -398,7 +398,12 @@ fn flow_deck_failure_lands_safely() {
         if r.outcome == "completed" {
             // The mission was over before the failure (its time runs from the trigger, 1 s into the run).
             let ended = r.mission_time_s.expect("a completed mission has a time");
-            assert!(t >= ended, "at {t} s: {r:?}");
+            // Or the flow died during the very last descent onto the home pad (the estimator's 0.5 s sensor
+            // timeout and the touchdown race there): the mission may then complete, but only on both pads.
+            assert!(
+                t >= ended || (t + 1.5 >= ended && r.landings.len() == 2 && r.landings.iter().all(|l| l.on_pad)),
+                "at {t} s: {r:?}"
+            );
             continue;
         }
         // The mission's own verdict; the score's outcome says `collision` when a rim touchdown happened.

@@ -18,15 +18,16 @@ use core::sync::atomic::{AtomicBool, Ordering};
 
 use cfnav::nav::dstar::ARENA_QUEUE;
 use cfnav::nav::map::ARENA_CELLS;
+use cfnav::radio::map_mem::MapView;
 use cfnav::stack::{FlightConfig, MissionCommand, Navigator};
 use cfnav::system::cpu_load::Level;
 use defmt::{info, warn};
 use embassy_time::{Duration, Ticker, Timer};
 
 use super::{
-    CONTROL_RUNNING, CONTROL_STEPS, DECKS_OK, FAST_INPUTS, FastInput, LINK, LOAD, MISSION_REQUESTS, MISSION_RUNNING,
-    MissionRequest, NAV_INPUTS, NavInput, START_OUTCOME, THREAD_BEATS, cycles, fast_status, now_us, update_log,
-    yield_now,
+    CONTROL_RUNNING, CONTROL_STEPS, DECKS_OK, FAST_INPUTS, FastInput, LINK, LOAD, MAP_READS, MAP_REPLIES,
+    MISSION_REQUESTS, MISSION_RUNNING, MissionRequest, NAV_INPUTS, NavInput, START_OUTCOME, THREAD_BEATS, cycles,
+    fast_status, now_us, update_log, yield_now,
 };
 
 /// The navigator sized for the firmware's arena.
@@ -151,6 +152,13 @@ pub async fn mission_task(nav: &'static mut FwNavigator) {
             info!("mission ended: state {}", state.code());
         }
         was_running = running;
+        // Map memory reads from the radio (port 4), answered from the map as it is between two ticks.
+        while let Ok(read) = MAP_READS.try_receive() {
+            let reply = read.answer(&MapView::of_mission(nav.mission()));
+            if MAP_REPLIES.try_send(reply).is_err() {
+                warn!("map memory reply dropped (radio behind)");
+            }
+        }
         let stats = nav.mission().stats();
         update_log(|s| {
             s.flight.mission_state = state.code();

@@ -17,6 +17,7 @@
 //! * [`FAST_STATUS`]: control task → everyone (the [`FastStatus`] after the latest step).
 //! * [`NAV_INPUTS`]: control and sensor tasks → mission task (height + estimate, Multi-ranger + estimate).
 //! * [`MISSION_REQUESTS`] / [`START_OUTCOME`]: radio ⇄ mission task (`mission.start` writes).
+//! * [`MAP_READS`] / [`MAP_REPLIES`]: radio ⇄ mission task (reads of the map memory on CRTP port 4).
 //! * [`LOG_STATE`]: what the log service samples; each task writes its own fields.
 //! * [`TUNING`] / [`TUNING_GENERATION`]: radio → control and mission tasks (the tuning parameters; each task
 //!   copies them when the generation changes). [`eeprom::EEPROM_JOB`] / [`eeprom::EEPROM_DONE`]: radio ⇄
@@ -44,7 +45,9 @@ use core::task::Poll;
 use cfnav::flight::high_level::HlCommand;
 use cfnav::mission::MissionParams;
 use cfnav::mission::link_loss::LinkLossConfig;
+use cfnav::radio::crtp::CrtpPacket;
 use cfnav::radio::log_registry::FirmwareLogState;
+use cfnav::radio::mem::MapRead;
 use cfnav::radio::registry::Tuning;
 use cfnav::stack::{FastStatus, MissionCommand, StartError};
 use cfnav::system::cpu_load::LoadMeter;
@@ -108,6 +111,11 @@ pub static FAST_STATUS: Mutex<CriticalSectionRawMutex, Cell<Option<FastStatus>>>
 pub static NAV_INPUTS: Channel<CriticalSectionRawMutex, NavInput, 8> = Channel::new();
 /// Radio → mission task.
 pub static MISSION_REQUESTS: Channel<CriticalSectionRawMutex, MissionRequest, 2> = Channel::new();
+/// Radio → mission task: a read of the map memory (CRTP port 4, `cfnav::radio::map_mem`); the map lives in
+/// the mission task, which answers it between ticks. cflib keeps one read in flight at a time.
+pub static MAP_READS: Channel<CriticalSectionRawMutex, MapRead, 2> = Channel::new();
+/// Mission task → radio: the answers to [`MAP_READS`], ready to send.
+pub static MAP_REPLIES: Channel<CriticalSectionRawMutex, CrtpPacket, 2> = Channel::new();
 /// Mission task → radio: the outcome of the latest start request.
 pub static START_OUTCOME: Signal<CriticalSectionRawMutex, Result<(), StartError>> = Signal::new();
 /// What the log service samples; `None` until a task first writes it (see [`log_state`]).

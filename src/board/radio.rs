@@ -42,6 +42,7 @@ use cfnav::radio::commander::SetpointFollower;
 use cfnav::radio::crtp::CrtpPacket;
 use cfnav::radio::endpoint::Endpoint;
 use cfnav::radio::log_registry::FirmwareLogState;
+use cfnav::radio::mem::MemService;
 use cfnav::radio::param::ParamService;
 use cfnav::radio::registry::{ID_RESET_ESTIMATION, ID_START, MissionParamState, Tuning};
 use cfnav::radio::supervisor_port::{SupervisorPortConfig, SupervisorStatus};
@@ -61,8 +62,9 @@ use heapless::String;
 
 use super::eeprom::{EEPROM_DONE, EEPROM_JOB};
 use super::{
-    BOOTED, DECK_FLOW2, DECK_MULTIRANGER, DECKS_OK, FAST_INPUTS, FAULT, FastInput, LINK, LOAD, MISSION_REQUESTS,
-    MISSION_RUNNING, MissionRequest, START_OUTCOME, cycles, fast_status, fault, log_state, update_log,
+    BOOTED, DECK_FLOW2, DECK_MULTIRANGER, DECKS_OK, FAST_INPUTS, FAULT, FastInput, LINK, LOAD, MAP_READS, MAP_REPLIES,
+    MISSION_REQUESTS, MISSION_RUNNING, MissionRequest, START_OUTCOME, cycles, fast_status, fault, log_state,
+    update_log,
 };
 
 /// Firmware version the platform service reports.
@@ -158,15 +160,18 @@ impl Crtp {
     fn new(stored: PersistentParams) -> Self {
         let config = FlightConfig::default();
         let tuning = Tuning::new(config.controller, &config.estimator, config.mission);
+        let mut ep = Endpoint::new(
+            FIRMWARE_TAG,
+            MissionParamState::new(MissionParams::SEED, ARENA_CELLS).with_tuning(tuning),
+            SupervisorPortConfig {
+                auto_arm: true,
+                can_recover: false,
+            },
+        );
+        // The map memory (port 4): listed to clients, read through the mission task.
+        ep.mem = MemService::with_map(ARENA_CELLS);
         let mut crtp = Self {
-            ep: Endpoint::new(
-                FIRMWARE_TAG,
-                MissionParamState::new(MissionParams::SEED, ARENA_CELLS).with_tuning(tuning),
-                SupervisorPortConfig {
-                    auto_arm: true,
-                    can_recover: false,
-                },
-            ),
+            ep,
             follower: SetpointFollower::new(),
             commander_dropped: 0,
             start: StartTracker::new(),
@@ -280,6 +285,14 @@ impl Crtp {
             decks_ok: DECKS_OK.load(Ordering::Acquire),
         });
         let reply = self.ep.handle_uplink(bytes, now.as_micros());
+        // A map read goes to the mission task, which owns the map; its answer comes back through
+        // `MAP_REPLIES` (drained in `housekeeping`). cflib waits for each answer, so the queue never fills; if a
+        // client did not wait, the extra read is dropped and the client's own timeout retries it.
+        if let Some(read) = self.ep.mem.take_map_read()
+            && MAP_READS.try_send(read).is_err()
+        {
+            warn!("map memory read dropped (one already waiting)");
+        }
         // The mission task's link-loss watch: this packet, and the parameters in effect after it.
         let link = (self.ep.last_uplink_us(), self.ep.param.store().link_loss);
         LINK.lock(|c| c.set(link));
@@ -362,6 +375,11 @@ impl Crtp {
             info!("radio link silent: log blocks stopped");
             self.ep.log.reset();
             self.last_uplink = None;
+        }
+        while self.ep.router.pending() < ROUTER_QUEUE
+            && let Ok(p) = MAP_REPLIES.try_receive()
+        {
+            let _ = self.ep.router.enqueue(p);
         }
         self.ep.console.flush();
         while self.ep.router.pending() < ROUTER_QUEUE / 2

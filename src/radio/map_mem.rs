@@ -360,8 +360,8 @@ impl<'a, const CELLS: usize> MapView<'a, CELLS> {
     }
 }
 
-/// Bitwise CRC-32 (polynomial 0xEDB88320 reflected, initial and final XOR 0xFFFFFFFF): no table, 4 bytes of
-/// state.
+/// CRC-32 (polynomial 0xEDB88320 reflected, initial and final XOR 0xFFFFFFFF) fed a byte at a time, over
+/// [`super::registry::crc32_update`]: no table, 4 bytes of state.
 #[derive(Clone, Copy, Debug)]
 pub struct Crc32(u32);
 
@@ -373,11 +373,8 @@ impl Crc32 {
 
     /// Folds one byte in.
     pub fn update(&mut self, byte: u8) {
-        let mut c = self.0 ^ u32::from(byte);
-        for _ in 0..8 {
-            c = if c & 1 != 0 { (c >> 1) ^ 0xEDB8_8320 } else { c >> 1 };
-        }
-        self.0 = c;
+        // The one CRC-32 register of the crate (the TOC and persistent-parameter CRCs use it too).
+        self.0 = super::registry::crc32_update(self.0, &[byte]);
     }
 
     /// The CRC of the bytes folded in.

@@ -15,6 +15,11 @@ cflib (no patch, no cache: every TOC entry is read through the emulated syslink)
      must be the 4.0 V the emulated nRF51 reports in its PM_BATTERY_STATE packets (nrf51.rs VBAT_V): the
      battery stream reached the image's power manager and came back through its log service.
 Prints what it saw with wall times. Exit 0 iff every step passed; 1 on any failure or the timeout.
+
+--reduced (what CI runs, docs/pil.md milestone 2): the full connect above stalls today (the image stops
+answering after about 20 requests); the reduced check uses cflib's own UdpDriver, unmodified, to ask the
+link source, the protocol version, the log and param TOC infos, walk the param TOC to mission.startX, write
+1.25 and read it back; cfnav-pil then runs to 3 s virtual and must show the "ready" LEDs with no IWDG reset.
 """
 
 import argparse
@@ -54,6 +59,69 @@ def wait_for_bridge(port, seconds):
     return False
 
 
+def reduced(port, failures):
+    from cflib.crtp.crtpstack import CRTPPacket
+    from cflib.crtp.udpdriver import UdpDriver
+
+    drv = UdpDriver()
+    drv.connect(f'udp://127.0.0.1:{port}', None, lambda e: failures.append(f'link error: {e}'))
+
+    def ask(port_, chan, data, want_prefix, what):
+        pk = CRTPPacket()
+        pk.set_header(port_, chan)
+        pk.data = bytes(data)
+        drv.send_packet(pk)
+        deadline = time.monotonic() + 60
+        while time.monotonic() < deadline:
+            r = drv.receive_packet(1)
+            if r is None:
+                continue
+            if r.port == port_ and r.channel == chan and bytes(r.data[:len(want_prefix)]) == bytes(want_prefix):
+                say(f'{what}: {bytes(r.data).hex()}')
+                return bytes(r.data)
+            say(f'(other packet {r.port}/{r.channel}: {bytes(r.data).hex()})')
+        failures.append(f'{what}: no answer in 60 s')
+        return None
+
+    src = ask(15, 1, [0], b'', 'link source')
+    if src is not None and not src.startswith(b'Bitcraze Crazyflie'):
+        failures.append(f'link source {src!r}')
+    ver = ask(13, 1, [0], [0], 'protocol version')
+    if ver is not None and ver[1] != 12:
+        failures.append(f'protocol version {ver[1]}')
+    log_info = ask(5, 0, [3], [3], 'log TOC info')
+    par_info = ask(2, 0, [3], [3], 'param TOC info')
+    if log_info is not None and par_info is not None:
+        n_log, n_par = int.from_bytes(log_info[1:3], 'little'), int.from_bytes(par_info[1:3], 'little')
+        say(f'log TOC {n_log} variables, param TOC {n_par} parameters')
+        if n_log == 0 or n_par == 0 or log_info[3:7] == par_info[3:7]:
+            failures.append('empty TOC or equal CRCs')
+    # Walk the param TOC to mission.startX (a float the drone accepts in 0..arena), write it, read it back.
+    import struct
+    target = None
+    for idx in range(int.from_bytes(par_info[1:3], 'little') if par_info else 0):
+        item = ask(2, 0, [2, idx, 0], [2, idx, 0], f'param TOC item {idx}')
+        if item is None:
+            return
+        group, name = item[4:].split(bytes(1))[:2]
+        if (group, name) == (b'mission', b'startX'):
+            target = idx
+            break
+    if target is None:
+        failures.append('mission.startX not in the param TOC')
+        return
+    before = ask(2, 1, [target, 0], [target, 0], 'mission.startX read')
+    new = 1.25 if before is None or abs(struct.unpack('<f', before[3:7])[0] - 1.25) > 1e-6 else 1.5
+    echo = ask(2, 2, [target, 0] + list(struct.pack('<f', new)), [target, 0], 'mission.startX write (echo)')
+    after = ask(2, 1, [target, 0], [target, 0], 'mission.startX read back')
+    if before is not None and after is not None and echo is not None:
+        b, a = struct.unpack('<f', before[3:7])[0], struct.unpack('<f', after[3:7])[0]
+        say(f'mission.startX: {b} before, wrote {new}, read back {a}')
+        if abs(a - new) > 1e-6:
+            failures.append(f'mission.startX read back {a}, wrote {new}')
+    drv.close()
+
+
 def main():
     ap = argparse.ArgumentParser()
     ap.add_argument('--pil', required=True)
@@ -63,17 +131,37 @@ def main():
     ap.add_argument('--samples', type=int, default=5)
     ap.add_argument('--virtual-seconds', type=float, default=600.0)
     ap.add_argument('--json', default=None)
+    ap.add_argument('--reduced', action='store_true',
+                    help="CI's reduced check: cflib's own UdpDriver (unmodified) asks the link source, the "
+                         "protocol version and both TOCs' sizes, then reads and writes one parameter by id")
     args = ap.parse_args()
+    if args.reduced and args.virtual_seconds == 600.0:
+        args.virtual_seconds = 3.0
 
     cmd = [args.pil, '--elf', args.elf, '--serve', f'127.0.0.1:{args.port}', '--seconds',
            str(args.virtual_seconds), '--no-stop', '--until-stdin-eof']
     if args.json:
         cmd += ['--json', args.json]
     say('starting ' + ' '.join(cmd))
-    pil = subprocess.Popen(cmd, stdin=subprocess.PIPE)
+    pil = subprocess.Popen(cmd, stdin=subprocess.PIPE, stdout=subprocess.PIPE, text=True)
+    ready_line = threading.Event()
+
+    def pump():
+        for line in pil.stdout:
+            print('cfnav-pil: ' + line.rstrip(), flush=True)
+            if line.startswith('radio ready at'):
+                ready_line.set()
+
+    threading.Thread(target=pump, daemon=True).start()
     failures = []
 
     def stop_pil():
+        if args.reduced and pil.poll() is None:
+            # Let the run reach --virtual-seconds on its own: the LEDs' whole second of "ready" is checked too.
+            try:
+                pil.wait(120)
+            except subprocess.TimeoutExpired:
+                pass
         # Closing its stdin ends the run at the next 1 ms slice and writes the report (--until-stdin-eof).
         if pil.poll() is None:
             try:
@@ -97,7 +185,16 @@ def main():
             stop_pil()
             return 1
         say('the bridge answers the scan probe')
+        if not ready_line.wait(120):
+            failures.append('the image never sent RADIO_READY')
+            raise RuntimeError('no RADIO_READY')
+        # Requests that reach the image in the same ms as its control loop's first steps have made it panic
+        # (docs/pil.md, milestone 2): let it settle for a few wall seconds (a few hundred virtual ms) first.
+        time.sleep(3)
         cflib.crtp.init_drivers()
+        if args.reduced:
+            reduced(args.port, failures)
+            raise StopIteration
         uri = f'udp://127.0.0.1:{args.port}'
         cf = Crazyflie(rw_cache=None)
         fully = threading.Event()
@@ -157,6 +254,8 @@ def main():
                     failures.append(f'log period not 100 ms of image time: {spacing}')
             if samples and abs(samples[-1][1]['pm.vbat'] - 4.0) > 1e-3:
                 failures.append(f"pm.vbat = {samples[-1][1]['pm.vbat']}, the nRF reports 4.0 V")
+    except StopIteration:
+        pass
     except Exception as e:  # noqa: BLE001 (any cflib error is a failure of the check)
         failures.append(f'{type(e).__name__}: {e}')
     finally:
@@ -179,7 +278,9 @@ def main():
     for f in failures:
         say('FAIL: ' + f)
     if not failures:
-        say('PASS: cflib connected to the emulated image, read both TOCs, wrote and read a parameter, logged')
+        say('PASS (reduced): cflib UdpDriver: link source, protocol version, both TOC sizes, mission.startX '
+            'written and read back through the emulated syslink' if args.reduced else
+            'PASS: cflib connected to the emulated image, read both TOCs, wrote and read a parameter, logged')
     return 1 if failures else 0
 
 

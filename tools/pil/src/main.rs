@@ -293,7 +293,11 @@ fn run(args: &Args) -> Result<(Report, bool)> {
         for b in sent {
             if let Some(Ok(packet)) = decoder.push(b) {
                 from_image.push(format!("{:#04x}", packet.kind));
+                let was_ready = nrf.stats.radio_ready_at_ms.is_some();
                 let (back, to_host) = nrf.on_image_packet(&packet, now_ns);
+                if let (false, Some(t), Some(_)) = (was_ready, nrf.stats.radio_ready_at_ms, bridge.as_ref()) {
+                    println!("radio ready at {t} ms virtual: the nRF's receiver is on");
+                }
                 for answer in back {
                     if let Ok(n) = encode(&answer, &mut out) {
                         board.syslink.feed(&out[..n]);

@@ -109,11 +109,9 @@ impl Nrf51 {
                 self.radio_ready = true;
                 back.extend(SyslinkPacket::new(kind::RADIO_READY, &[]).ok());
             }
-            kind::PM_BATTERY_AUTOUPDATE => {
-                if self.next_pm_ns.is_none() {
-                    self.stats.autoupdate_at_ms = Some(now_ns / 1_000_000);
-                    self.next_pm_ns = Some(now_ns.max(PM_STARTUP_DELAY_NS));
-                }
+            kind::PM_BATTERY_AUTOUPDATE if self.next_pm_ns.is_none() => {
+                self.stats.autoupdate_at_ms = Some(now_ns / 1_000_000);
+                self.next_pm_ns = Some(now_ns.max(PM_STARTUP_DELAY_NS));
             }
             kind::SYS_NRF_VERSION => {
                 self.stats.version_requests += 1;

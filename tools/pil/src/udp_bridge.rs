@@ -55,20 +55,16 @@ impl UdpBridge {
                 Ok((n, from)) => {
                     self.received += 1;
                     let d = &buf[..n];
-                    match d.first() {
-                        None => {}
-                        Some(&h) if d.len() == 1 && is_null_header(h) => {
-                            if self.socket.send_to(&[0xFF], from).is_ok() {
-                                self.sent += 1;
-                            }
+                    let probe = d.len() == 1 && is_null_header(d[0]);
+                    if probe {
+                        if self.socket.send_to(&[0xFF], from).is_ok() {
+                            self.sent += 1;
                         }
-                        Some(_) => {
-                            self.client = Some(from);
-                            out.push(d.to_vec());
-                        }
+                    } else if !d.is_empty() {
+                        self.client = Some(from);
+                        out.push(d.to_vec());
                     }
                 }
-                // WouldBlock: nothing more; ConnectionReset etc. (ICMP from a closed client): go on.
                 Err(e) if e.kind() == std::io::ErrorKind::WouldBlock => break,
                 Err(_) => break,
             }

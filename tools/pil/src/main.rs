@@ -7,6 +7,11 @@
 //! status (`--expect`: "ready" by default, "fault" for a fault that must end safe) for a whole second and the
 //! IWDG never reset the core, 1 when not within the time limit, 2 on a usage or setup error.
 //!
+//! Milestone 2 (partly landed, docs/pil.md): the nRF51 end of the syslink (`nrf51.rs`: setting echoes,
+//! SYS_NRF_VERSION, the 100 Hz battery/RSSI stream, RADIO_RAW both ways) and, with `--serve [ADDR]`, its radio
+//! host as a UDP socket with `cfnav sim --serve`'s framing (`udp_bridge.rs`), so cflib's `udp://` link reaches
+//! the image. A served run depends on when datagrams arrive (wall clock): it is not deterministic.
+//!
 //! Determinism: the machine is a pure function of the image and the options (no host clock reaches it); the
 //! report's `fingerprint` hashes the LED samples, the log and the syslink bytes so two runs can be compared.
 

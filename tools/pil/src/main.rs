@@ -119,6 +119,8 @@ struct Report {
     usart6_sr_cr1_cr3: [u32; 3],
     /// DMA2 LISR, HISR, then stream 1 (USART6 RX) CR, NDTR and stream 7 (USART6 TX) CR, NDTR (RM0090 §10.5).
     usart6_dma: [u32; 6],
+    /// GPIOA IDR (PA4 = the nRF's flow control, bit 4).
+    gpioa_idr: u32,
     boots_logged: usize,
     faults_logged: Vec<String>,
     log_lines: usize,
@@ -372,6 +374,7 @@ fn run(args: &Args) -> Result<(Report, bool)> {
         usart6_sr_cr1_cr3: [0x00, 0x0C, 0x14].map(|off| board.peek32(0x4001_1400 + off).unwrap_or(0)),
         usart6_dma: [0x00, 0x04, 0x10 + 0x18, 0x14 + 0x18, 0x10 + 0x18 * 7, 0x14 + 0x18 * 7]
             .map(|off| board.peek32(0x4002_6400 + off).unwrap_or(0)),
+        gpioa_idr: board.peek32(0x4002_0010).unwrap_or(0),
         boots_logged,
         faults_logged,
         log_lines: log.len(),

@@ -7,6 +7,11 @@
 //! status (`--expect`: "ready" by default, "fault" for a fault that must end safe) for a whole second and the
 //! IWDG never reset the core, 1 when not within the time limit, 2 on a usage or setup error.
 //!
+//! Milestone 2 (partly landed, docs/pil.md): the nRF51 end of the syslink (`nrf51.rs`: setting echoes,
+//! SYS_NRF_VERSION, the 100 Hz battery/RSSI stream, RADIO_RAW both ways) and, with `--serve [ADDR]`, its radio
+//! host as a UDP socket with `cfnav sim --serve`'s framing (`udp_bridge.rs`), so cflib's `udp://` link reaches
+//! the image. A served run depends on when datagrams arrive (wall clock): it is not deterministic.
+//!
 //! Determinism: the machine is a pure function of the image and the options (no host clock reaches it); the
 //! report's `fingerprint` hashes the LED samples, the log and the syslink bytes so two runs can be compared.
 
@@ -15,8 +20,10 @@ mod board;
 mod devices;
 mod dreq;
 mod leds;
+mod nrf51;
 mod pin;
 mod rtt;
+mod udp_bridge;
 
 use std::path::PathBuf;
 use std::process::ExitCode;
@@ -26,7 +33,7 @@ use anyhow::{Context, Result, bail};
 use clap::Parser;
 use serde::Serialize;
 
-use cfnav::radio::syslink::{SyslinkDecoder, SyslinkPacket, encode, kind};
+use cfnav::radio::syslink::{SyslinkDecoder, encode};
 use cfnav::system::status_led::{BoardStatus, LedFrame};
 
 use crate::board::{Board, FLASH_ACR, GPIOC_ODR, GPIOD_ODR, RCC_CSR};
@@ -57,6 +64,14 @@ struct Args {
     /// The nRF51 end stays silent (no echo of the radio settings): a syslink whose radio chip does not answer.
     #[arg(long)]
     silent_nrf: bool,
+    /// Serve the radio over UDP (milestone 2): cflib's `udp://ADDR` connects to the image as to `cfnav sim
+    /// --serve` (one datagram = one CRTP packet). Implies --no-stop; the run ends after --seconds virtual.
+    #[arg(long, num_args = 0..=1, default_missing_value = "127.0.0.1:19850", value_name = "ADDR")]
+    serve: Option<String>,
+    /// End the run (and write the report) when standard input reaches end of file: a script that started
+    /// `--serve` closes the pipe when its client is done.
+    #[arg(long)]
+    until_stdin_eof: bool,
     /// Write the report as JSON.
     #[arg(long)]
     json: Option<PathBuf>,
@@ -102,6 +117,10 @@ struct Report {
     iwdg_reset_flag: bool,
     /// USART6 SR, CR1, CR3 at the end (RM0090 §30.6).
     usart6_sr_cr1_cr3: [u32; 3],
+    /// DMA2 LISR, HISR, then stream 1 (USART6 RX) CR, NDTR and stream 7 (USART6 TX) CR, NDTR (RM0090 §10.5).
+    usart6_dma: [u32; 6],
+    /// GPIOA IDR (PA4 = the nRF's flow control, bit 4).
+    gpioa_idr: u32,
     boots_logged: usize,
     faults_logged: Vec<String>,
     log_lines: usize,
@@ -110,6 +129,11 @@ struct Report {
     syslink_packets_from_image: Vec<String>,
     imu_bus: BusStats,
     imu_drdy_pulses: u64,
+    /// The nRF51 end's counters (battery/RSSI stream, RADIO_RAW both ways).
+    nrf: nrf51::NrfStats,
+    /// UDP datagrams received and sent (`--serve`).
+    udp_received: u64,
+    udp_sent: u64,
     fingerprint: String,
     log: Vec<rtt::LogLine>,
 }
@@ -159,17 +183,6 @@ fn parse_status(name: &str) -> Result<BoardStatus> {
     .with_context(|| format!("unknown --expect `{name}` (known: booting, ready, mission_running, battery_low, fault)"))
 }
 
-/// The nRF51's answers to what the image sends: the radio settings are echoed (as the nRF firmware does,
-/// crazyflie-hardware.md §3.3), RADIO_READY is acknowledged with the same type.
-fn nrf_answer(packet: &SyslinkPacket) -> Option<SyslinkPacket> {
-    match packet.kind {
-        kind::RADIO_CHANNEL | kind::RADIO_DATARATE | kind::RADIO_ADDRESS | kind::RADIO_READY => {
-            SyslinkPacket::new(packet.kind, &packet.payload).ok()
-        }
-        _ => None,
-    }
-}
-
 fn run(args: &Args) -> Result<(Report, bool)> {
     if args.world.is_some() {
         bail!("--world: the simulator's sensors are milestone 3 (docs/pil.md); milestone 1 boots on a bench");
@@ -192,8 +205,28 @@ fn run(args: &Args) -> Result<(Report, bool)> {
         .context("the ELF has no .defmt table")?;
     let rtt_address = image.rtt_address.context("the ELF has no _SEGGER_RTT symbol")?;
     let mut board = Board::new(image.flash, faults)?;
+    let mut nrf = nrf51::Nrf51::new(args.silent_nrf);
+    let mut bridge = match &args.serve {
+        Some(addr) => {
+            let b = udp_bridge::UdpBridge::bind(addr)?;
+            println!(
+                "serving CRTP on udp://{} (the emulated image; cflib connects once the image sent RADIO_READY)",
+                b.local_addr().map_or_else(|| addr.clone(), |a| a.to_string())
+            );
+            Some(b)
+        }
+        None => None,
+    };
     let mut rtt = rtt::Rtt::new(rtt_address, &table);
 
+    let stdin_closed = std::sync::Arc::new(std::sync::atomic::AtomicBool::new(false));
+    if args.until_stdin_eof {
+        let flag = std::sync::Arc::clone(&stdin_closed);
+        std::thread::spawn(move || {
+            let _ = std::io::copy(&mut std::io::stdin().lock(), &mut std::io::sink());
+            flag.store(true, std::sync::atomic::Ordering::Release);
+        });
+    }
     let wall = Instant::now();
     let step_ns = 1_000_000u64;
     let end_ns = (args.seconds * 1e9) as u64;
@@ -263,18 +296,40 @@ fn run(args: &Args) -> Result<(Report, bool)> {
         }
         let sent = board.syslink.drain();
         fp.bytes(&sent);
+        let now_ns = board.now_ns();
         for b in sent {
             if let Some(Ok(packet)) = decoder.push(b) {
                 from_image.push(format!("{:#04x}", packet.kind));
-                if !args.silent_nrf
-                    && let Some(answer) = nrf_answer(&packet)
-                    && let Ok(n) = encode(&answer, &mut out)
-                {
-                    board.syslink.feed(&out[..n]);
+                let was_ready = nrf.stats.radio_ready_at_ms.is_some();
+                let (back, to_host) = nrf.on_image_packet(&packet, now_ns);
+                if let (false, Some(t), Some(_)) = (was_ready, nrf.stats.radio_ready_at_ms, bridge.as_ref()) {
+                    println!("radio ready at {t} ms virtual: the nRF's receiver is on");
+                }
+                for answer in back {
+                    if let Ok(n) = encode(&answer, &mut out) {
+                        board.syslink.feed(&out[..n]);
+                    }
+                }
+                if let (Some(crtp), Some(bridge)) = (to_host, bridge.as_mut()) {
+                    bridge.send(&crtp);
                 }
             }
         }
-        if expected_at_ms.is_some() && !args.no_stop {
+        if let Some(bridge) = bridge.as_mut() {
+            for crtp in bridge.receive() {
+                nrf.host_packet(&crtp);
+            }
+        }
+        let polling = bridge.as_ref().is_some_and(udp_bridge::UdpBridge::has_client);
+        for packet in nrf.tick(now_ns, polling) {
+            if let Ok(n) = encode(&packet, &mut out) {
+                board.syslink.feed(&out[..n]);
+            }
+        }
+        if stdin_closed.load(std::sync::atomic::Ordering::Acquire) {
+            break;
+        }
+        if expected_at_ms.is_some() && !args.no_stop && args.serve.is_none() {
             break;
         }
     }
@@ -317,6 +372,9 @@ fn run(args: &Args) -> Result<(Report, bool)> {
         acr_caches_on,
         iwdg_reset_flag,
         usart6_sr_cr1_cr3: [0x00, 0x0C, 0x14].map(|off| board.peek32(0x4001_1400 + off).unwrap_or(0)),
+        usart6_dma: [0x00, 0x04, 0x10 + 0x18, 0x14 + 0x18, 0x10 + 0x18 * 7, 0x14 + 0x18 * 7]
+            .map(|off| board.peek32(0x4002_6400 + off).unwrap_or(0)),
+        gpioa_idr: board.peek32(0x4002_0010).unwrap_or(0),
         boots_logged,
         faults_logged,
         log_lines: log.len(),
@@ -325,6 +383,9 @@ fn run(args: &Args) -> Result<(Report, bool)> {
         syslink_packets_from_image: from_image,
         imu_bus: board.imu.stats(),
         imu_drdy_pulses: drdy_pulses,
+        nrf: nrf.stats.clone(),
+        udp_received: bridge.as_ref().map_or(0, |b| b.received),
+        udp_sent: bridge.as_ref().map_or(0, |b| b.sent),
         fingerprint: format!("{:016x}", fp.0),
         log,
     };

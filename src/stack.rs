@@ -45,7 +45,10 @@ use crate::flight::supervisor::{
     Supervisor, SupervisorConfig, SupervisorInput, SupervisorOutput, SupervisorState, clamp_min_height,
 };
 use crate::mission::link_loss::{LinkLossConfig, LinkWatch};
-use crate::mission::{Mission, MissionConfig, MissionInputs, MissionParams, MissionState, StartRefusal};
+use crate::mission::{
+    Mission, MissionConfig, MissionInputs, MissionPadDetector, MissionParams, MissionState, StartRefusal,
+};
+use crate::nav::avoidance::ReactiveAvoidance;
 use crate::nav::map::{CELL_SIZE_M, Cell};
 use crate::types::{
     FlowSample, ImuSample, Micros, MotorDuty, MultiRangerSample, RangeReading, Setpoint, StateEstimate,
@@ -414,13 +417,56 @@ pub struct Navigator<const CELLS: usize, const QUEUE: usize> {
 impl<const CELLS: usize, const QUEUE: usize> Navigator<CELLS, QUEUE> {
     /// An idle navigator (decks assumed present until told otherwise).
     pub fn new(config: &FlightConfig) -> Result<Self, FlightConfigError> {
-        Ok(Self {
-            mission: Mission::new(config.mission).map_err(|_| FlightConfigError::Mission)?,
+        let (avoidance, pad) =
+            Mission::<CELLS, QUEUE>::checked_parts(config.mission).map_err(|_| FlightConfigError::Mission)?;
+        Ok(Self::from_parts(config, avoidance, pad))
+    }
+
+    /// A navigator from the mission's checked parts ([`Mission::checked_parts`]): infallible and returned
+    /// directly, so the firmware builds it in place in CCM (see [`Mission::from_parts`]).
+    /// Writes a navigator from the mission's checked parts straight into `slot`, field by field (see
+    /// [`Mission::init_at`]): how the firmware builds it in CCM without a stack-sized temporary.
+    ///
+    /// # Safety
+    /// `slot` must be valid for writes and aligned for `Self`; its old contents are overwritten without being
+    /// dropped. After the call `*slot` is a fully initialised `Self`.
+    pub unsafe fn init_at(
+        slot: *mut Self,
+        config: &FlightConfig,
+        avoidance: ReactiveAvoidance,
+        pad: MissionPadDetector,
+    ) {
+        // A field added to `Self` and not written below must not compile: this pattern names every field.
+        let _every_field_written = |n: &Self| {
+            let Self {
+                mission: _,
+                decks_ok: _,
+                landmarks: _,
+                next_config: _,
+                link: _,
+            } = n;
+        };
+        // SAFETY: the caller guarantees `slot` is valid and aligned; `addr_of_mut!` makes no reference to the
+        // uninitialised fields; `Mission::init_at` gets the same guarantees for its field, and every field is
+        // written exactly once.
+        unsafe {
+            Mission::init_at(core::ptr::addr_of_mut!((*slot).mission), config.mission, avoidance, pad);
+            core::ptr::addr_of_mut!((*slot).decks_ok).write(true);
+            core::ptr::addr_of_mut!((*slot).landmarks).write(Landmarks::new());
+            core::ptr::addr_of_mut!((*slot).next_config).write(None);
+            core::ptr::addr_of_mut!((*slot).link).write(LinkWatch::new());
+        }
+    }
+
+    /// A navigator from the mission's checked parts (see [`Self::init_at`] for the firmware's way).
+    pub fn from_parts(config: &FlightConfig, avoidance: ReactiveAvoidance, pad: MissionPadDetector) -> Self {
+        Self {
+            mission: Mission::from_parts(config.mission, avoidance, pad),
             decks_ok: true,
             landmarks: Landmarks::new(),
             next_config: None,
             link: LinkWatch::new(),
-        })
+        }
     }
 
     /// New mission tuning (the tuning parameters): in force from the next start (a running mission keeps

@@ -16,6 +16,7 @@ use core::cell::Cell;
 use core::mem::MaybeUninit;
 use core::sync::atomic::{AtomicBool, Ordering};
 
+use cfnav::mission::Mission;
 use cfnav::nav::dstar::ARENA_QUEUE;
 use cfnav::nav::map::ARENA_CELLS;
 use cfnav::radio::map_mem::MapView;
@@ -51,12 +52,19 @@ pub fn take_navigator(config: &FlightConfig) -> Option<&'static mut FwNavigator>
     if NAVIGATOR_TAKEN.swap(true, Ordering::AcqRel) {
         return None;
     }
-    let navigator = FwNavigator::new(config).ok()?;
+    // Checked first, then written field by field straight into the slot: built by value (in a `Result`, or
+    // even returned directly) the ≈ 57 KB navigator went through the stack, a 104 KB frame that overran the
+    // stack into `.bss` at boot (seen in the emulator: a corrupted clock table, a panic at 2 ms).
+    let (avoidance, pad) = Mission::<ARENA_CELLS, ARENA_QUEUE>::checked_parts(config.mission).ok()?;
     let slot: *mut MaybeUninit<FwNavigator> = &raw mut NAVIGATOR;
     // SAFETY: `NAVIGATOR_TAKEN` lets exactly one caller past this point, and `NAVIGATOR` is named nowhere
     // else, so this is the only reference ever made to it; the slot is valid, aligned, 'static storage, and
     // writing a fully initialised value into a `MaybeUninit` is always sound.
-    Some(unsafe { (*slot).write(navigator) })
+    // `init_at` writes every field (its contract), so the slot is initialised afterwards.
+    unsafe {
+        FwNavigator::init_at((*slot).as_mut_ptr(), config, avoidance, pad);
+        Some((*slot).assume_init_mut())
+    }
 }
 
 /// Hands a command to the control task: waits for a free slot while the control loop runs (it drains the

@@ -63,6 +63,8 @@
 //! detectors: about 50 KB for the 6 × 3 m arena. Cost per tick: one bounded planner slice
 //! ([`MissionConfig::planner_budget`] expansions) plus a path read-off (O(path length)).
 
+use core::ptr::addr_of_mut;
+
 use heapless::Vec;
 
 pub mod config;
@@ -321,12 +323,27 @@ pub struct MissionStats {
     pub explore_end: Option<ExploreEnd>,
 }
 
+/// The mission's pad detector (its edge capacity).
+pub type MissionPadDetector = PadDetector<PAD_EDGES>;
+
 impl<const CELLS: usize, const QUEUE: usize> Mission<CELLS, QUEUE> {
     /// An idle mission, if the avoidance and pad-detector configs are valid.
     pub fn new(config: MissionConfig) -> Result<Self, MissionConfigError> {
+        let (avoidance, pad) = Self::checked_parts(config)?;
+        Ok(Self::from_parts(config, avoidance, pad))
+    }
+
+    /// The two parts of a mission whose configurations can be invalid, checked (see [`Self::from_parts`]).
+    pub fn checked_parts(config: MissionConfig) -> Result<(ReactiveAvoidance, MissionPadDetector), MissionConfigError> {
         let avoidance = ReactiveAvoidance::new(config.avoidance).map_err(|_| MissionConfigError::Avoidance)?;
         let pad = PadDetector::new(config.pad).map_err(|_| MissionConfigError::PadDetector)?;
-        Ok(Self {
+        Ok((avoidance, pad))
+    }
+
+    /// An idle mission from parts [`Self::checked_parts`] made (the firmware writes it in place instead:
+    /// [`Self::init_at`]).
+    pub fn from_parts(config: MissionConfig, avoidance: ReactiveAvoidance, pad: MissionPadDetector) -> Self {
+        Self {
             config,
             params: MissionParams::SEED,
             shape: GridShape { width: 1, height: 1 },
@@ -349,7 +366,76 @@ impl<const CELLS: usize, const QUEUE: usize> Mission<CELLS, QUEUE> {
             stats: MissionStats::default(),
             touchdown: landing::Touchdown::new(),
             explorer: explore::Explorer::new(),
-        })
+        }
+    }
+
+    /// Writes an idle mission from parts [`Self::checked_parts`] made straight into `slot`, field by field,
+    /// so no ≈ 50 KB temporary is ever built on the stack (the firmware's navigator lives in CCM; built by
+    /// value, the compiler gave the boot task a 66 KB and [`Self::from_parts`] a 56 KB frame, more than the
+    /// stack). The same fields as [`Self::from_parts`].
+    ///
+    /// # Safety
+    /// `slot` must be valid for writes and aligned for `Self`; its old contents are overwritten without being
+    /// dropped (the mission owns no resources). After the call `*slot` is a fully initialised `Self`.
+    pub unsafe fn init_at(
+        slot: *mut Self,
+        config: MissionConfig,
+        avoidance: ReactiveAvoidance,
+        pad: MissionPadDetector,
+    ) {
+        // A field added to `Self` and not written below must not compile: this pattern names every field.
+        let _every_field_written = |m: &Self| {
+            let Self {
+                config: _,
+                params: _,
+                shape: _,
+                grid: _,
+                planner: _,
+                changed: _,
+                path: _,
+                waypoints: _,
+                avoidance: _,
+                pad: _,
+                sweep: _,
+                phase: _,
+                leg: _,
+                last_ranges: _,
+                last_tick: _,
+                pad_not_found: _,
+                link_lost_home: _,
+                planner_needs_reset: _,
+                heading: _,
+                stats: _,
+                touchdown: _,
+                explorer: _,
+            } = m;
+        };
+        // SAFETY: the caller guarantees `slot` is valid and aligned; `addr_of_mut!` makes no reference to the
+        // uninitialised fields, and every field of `Self` is written exactly once below.
+        unsafe {
+            addr_of_mut!((*slot).config).write(config);
+            addr_of_mut!((*slot).params).write(MissionParams::SEED);
+            addr_of_mut!((*slot).shape).write(GridShape { width: 1, height: 1 });
+            addr_of_mut!((*slot).grid).write(OccupancyGrid::new());
+            addr_of_mut!((*slot).planner).write(DStarLite::new());
+            addr_of_mut!((*slot).changed).write(ChangedCells::new());
+            addr_of_mut!((*slot).path).write(Vec::new());
+            addr_of_mut!((*slot).waypoints).write(Vec::new());
+            addr_of_mut!((*slot).avoidance).write(avoidance);
+            addr_of_mut!((*slot).pad).write(pad);
+            addr_of_mut!((*slot).sweep).write(None);
+            addr_of_mut!((*slot).phase).write(Phase::Idle);
+            addr_of_mut!((*slot).leg).write(Leg::Outbound);
+            addr_of_mut!((*slot).last_ranges).write(RangerReadings::NONE);
+            addr_of_mut!((*slot).last_tick).write(None);
+            addr_of_mut!((*slot).pad_not_found).write(false);
+            addr_of_mut!((*slot).link_lost_home).write(false);
+            addr_of_mut!((*slot).planner_needs_reset).write(false);
+            addr_of_mut!((*slot).heading).write(0.0);
+            addr_of_mut!((*slot).stats).write(MissionStats::default());
+            addr_of_mut!((*slot).touchdown).write(landing::Touchdown::new());
+            addr_of_mut!((*slot).explorer).write(explore::Explorer::new());
+        }
     }
 
     /// New tuning (the tuning parameters), for the next [`Self::start`]; call it while idle (the

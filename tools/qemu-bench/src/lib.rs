@@ -21,9 +21,10 @@
 
 #![no_std]
 
+use cfnav::flight::estimator::{Estimator, EstimatorConfig};
 use cfnav::nav::dstar::{ArenaPlanner, PlanError, PlanStatus, move_cost};
 use cfnav::nav::map::{ARENA_CELLS, Cell, GridShape, Traversability};
-use cfnav::types::{FlowSample, MultiRangerSample};
+use cfnav::types::{FlowSample, GRAVITY_M_S2, ImuSample, MultiRangerSample};
 
 /// The seed scenario (6 × 3 m at 5 cm).
 pub const SEED_MAP: &str = include_str!("../../../maps/seed.map");
@@ -578,6 +579,31 @@ pub fn run(
         };
     }
     Ok(())
+}
+
+/// An IMU sample of a drone at rest and level (gravity only).
+pub const IMU_AT_REST: ImuSample = ImuSample {
+    gyro_rad_s: [0.0; 3],
+    accel_m_s2: [0.0, 0.0, GRAVITY_M_S2],
+};
+
+/// An estimator at `position` (arena frame, m) and `yaw` (rad), calibrated as on the ground before a take-off
+/// (1.5 s of IMU samples at rest with height readings every 25 ms) and set flying; `None` if it did not
+/// calibrate. The benchmarks that time the estimator's updates start from it.
+pub fn estimator_calibrated_at_rest(position: [f32; 3], yaw: f32) -> Option<Estimator> {
+    let mut est = Estimator::new(EstimatorConfig::default());
+    est.reset(position, yaw);
+    for k in 0..1500u32 {
+        est.on_imu(&IMU_AT_REST, 0.001);
+        if k % 25 == 0 {
+            est.on_zrange(Some(0.0));
+        }
+    }
+    if !est.is_calibrated() {
+        return None;
+    }
+    est.set_flying(true);
+    Some(est)
 }
 
 /// A flow reading of a drone at rest over good texture (the estimator benchmarks' flow input, 100 Hz).

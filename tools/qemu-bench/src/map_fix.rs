@@ -14,12 +14,11 @@
 //! over 20 sweeps, `map_fix_fused=`.
 
 use cfnav::flight::estimator::map_fix::{CONFIRMED_LOG_ODDS, LANDMARK_SETTLE, Landmarks, RayGrid, cast_fixes};
-use cfnav::flight::estimator::{Estimator, EstimatorConfig};
 use cfnav::nav::grid::{ChangedCells, OccupancyGrid};
 use cfnav::nav::map::{ARENA_CELLS, CELL_SIZE_M, Cell, GridShape};
-use cfnav::types::{GRAVITY_M_S2, ImuSample, MultiRangerSample};
+use cfnav::types::MultiRangerSample;
 use cortex_m_semihosting::hprintln;
-use qemu_bench::{Meter, STILL_FLOW, summarize};
+use qemu_bench::{IMU_AT_REST, Meter, STILL_FLOW, estimator_calibrated_at_rest, summarize};
 
 const SWEEPS: usize = 20;
 
@@ -63,23 +62,10 @@ pub fn map_fix_bench(meter: &mut impl Meter) -> Result<(), ()> {
         up_m: None,
     };
 
-    let mut est = Estimator::new(EstimatorConfig::default());
-    est.reset([x, y, 0.0], yaw);
-    let rest = ImuSample {
-        gyro_rad_s: [0.0; 3],
-        accel_m_s2: [0.0, 0.0, GRAVITY_M_S2],
-    };
-    for k in 0..1500u32 {
-        est.on_imu(&rest, 0.001);
-        if k % 25 == 0 {
-            est.on_zrange(Some(0.0));
-        }
-    }
-    if !est.is_calibrated() {
+    let Some(mut est) = estimator_calibrated_at_rest([x, y, 0.0], yaw) else {
         hprintln!("error=map_fix_estimator_not_calibrated");
         return Err(());
-    }
-    est.set_flying(true);
+    };
 
     let confirmed = |cx: i32, cy: i32| map.log_odds(Cell::new(cx as u16, cy as u16)) >= CONFIRMED_LOG_ODDS;
     let occupied = |cx: i32, cy: i32| shape.contains(cx, cy) && map.is_occupied(Cell::new(cx as u16, cy as u16));
@@ -93,7 +79,7 @@ pub fn map_fix_bench(meter: &mut impl Meter) -> Result<(), ()> {
     for run in 0..SWEEPS {
         // One simulated tenth of a second between sweeps (flow and height keep the filter as in flight).
         for k in 0..100u32 {
-            est.on_imu(&rest, 0.001);
+            est.on_imu(&IMU_AT_REST, 0.001);
             if k % 10 == 0 {
                 est.on_flow(&STILL_FLOW);
             }

@@ -17,15 +17,13 @@ use core::mem::size_of;
 use core::panic::PanicInfo;
 use core::sync::atomic::{Ordering, compiler_fence};
 
-use cfnav::flight::estimator::{Estimator, EstimatorConfig};
 use cfnav::nav::dstar::ArenaPlanner;
 use cfnav::nav::grid::OccupancyGrid;
 use cfnav::nav::map::ARENA_CELLS;
-use cfnav::types::{GRAVITY_M_S2, ImuSample};
 use cortex_m_semihosting::{debug, hprintln};
 use qemu_bench::{
-    BOX_CELLS, MAX_STEPS, Meter, Report, SEED_MAP, SENSE_RADIUS, STILL_FLOW, Step, Summary, WALLS_AT_1M, World, run,
-    summarize,
+    BOX_CELLS, IMU_AT_REST, MAX_STEPS, Meter, Report, SEED_MAP, SENSE_RADIUS, STILL_FLOW, Step, Summary, WALLS_AT_1M,
+    World, estimator_calibrated_at_rest, run, summarize,
 };
 
 /// The CMSDK APB timer 0 of mps2-an386, clocked at 25 MHz.
@@ -301,30 +299,17 @@ fn bench() -> Result<(), ()> {
 /// kind in the proportions the MCU sees (10 IMU samples per flow reading, 100 per Multi-ranger sweep).
 fn estimator_bench(meter: &mut Icount) -> Result<(), ()> {
     const RUNS: usize = 20;
-    let mut est = Estimator::new(EstimatorConfig::default());
-    est.reset([1.0, 1.0, 0.0], 0.0);
-    let rest = ImuSample {
-        gyro_rad_s: [0.0; 3],
-        accel_m_s2: [0.0, 0.0, GRAVITY_M_S2],
-    };
-    for k in 0..1500u32 {
-        est.on_imu(&rest, 0.001);
-        if k % 25 == 0 {
-            est.on_zrange(Some(0.0));
-        }
-    }
-    if !est.is_calibrated() {
+    let Some(mut est) = estimator_calibrated_at_rest([1.0, 1.0, 0.0], 0.0) else {
         hprintln!("error=estimator_not_calibrated");
         return Err(());
-    }
-    est.set_flying(true);
+    };
     let flow = STILL_FLOW;
     let walls = WALLS_AT_1M;
     let mut flow_counts = [0u32; RUNS];
     let mut wall_counts = [0u32; RUNS];
     for run in 0..RUNS {
         for k in 0..100u32 {
-            est.on_imu(&rest, 0.001);
+            est.on_imu(&IMU_AT_REST, 0.001);
             if k % 10 == 0 {
                 let ((), n) = meter.measure(|| est.on_flow(&flow));
                 if k == 0 {

@@ -267,7 +267,7 @@ impl<S: LogSource> LogService<S> {
                     return packet(CH_TOC, &[TOC_GET_ITEM_V2]);
                 };
                 let mut out: Vec<u8, MAX_DATA> = Vec::new();
-                toc_item(&mut out, TOC_GET_ITEM_V2, id, e.ty.code(), e.group, e.name)?;
+                toc_item(&mut out, TOC_GET_ITEM_V2, id, e.ty.log_code(), e.group, e.name)?;
                 packet(CH_TOC, &out)
             }
             _ => None,
@@ -285,7 +285,7 @@ impl<S: LogSource> LogService<S> {
         let mut len = block.data_len();
         let mut new_ops: Vec<Op, MAX_BLOCK_DATA> = block.ops.clone();
         for raw in ops_bytes.chunks_exact(3) {
-            let fetch = LogType::from_code(raw[0] & 0x0F).ok_or(EINVAL)?;
+            let fetch = LogType::from_log_code(raw[0] & 0x0F).ok_or(EINVAL)?;
             if len + fetch.size() > MAX_BLOCK_DATA {
                 return Err(E2BIG);
             }

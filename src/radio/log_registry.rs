@@ -46,86 +46,16 @@ use crate::flight::control::ControlOutput;
 use crate::types::{Setpoint, StateEstimate};
 
 use super::registry::{Value, assert_toc_name, crc32_toc_entry, crc32_update, str_eq};
+pub use super::wire_type::WireType;
 
 /// Bytes before `group\0name\0` in a TOC item reply: command, id u16, type (§4.6).
 pub const TOC_ITEM_HEADER: usize = 4;
 /// Bytes the log CRC starts with, so that it differs from the param TOC CRC.
 pub const LOG_CRC_SEED: &[u8] = b"cfnav/log-toc/v1";
 
-/// A log type with its wire code (§4.6): the storage type of a variable or the fetch type of a block op.
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
-pub enum LogType {
-    /// `uint8_t`, code 1.
-    U8,
-    /// `uint16_t`, code 2.
-    U16,
-    /// `uint32_t`, code 3.
-    U32,
-    /// `int8_t`, code 4.
-    I8,
-    /// `int16_t`, code 5.
-    I16,
-    /// `int32_t`, code 6.
-    I32,
-    /// `float`, code 7.
-    F32,
-    /// IEEE half float, code 8 (fetch type only).
-    Fp16,
-}
-
-impl LogType {
-    /// The wire code.
-    pub const fn code(self) -> u8 {
-        match self {
-            Self::U8 => 1,
-            Self::U16 => 2,
-            Self::U32 => 3,
-            Self::I8 => 4,
-            Self::I16 => 5,
-            Self::I32 => 6,
-            Self::F32 => 7,
-            Self::Fp16 => 8,
-        }
-    }
-
-    /// The type for a code (exact, no flag bits); `None` for 0 and 9..=255.
-    pub const fn from_code(code: u8) -> Option<Self> {
-        Some(match code {
-            1 => Self::U8,
-            2 => Self::U16,
-            3 => Self::U32,
-            4 => Self::I8,
-            5 => Self::I16,
-            6 => Self::I32,
-            7 => Self::F32,
-            8 => Self::Fp16,
-            _ => return None,
-        })
-    }
-
-    /// Size on the wire, bytes.
-    pub const fn size(self) -> usize {
-        match self {
-            Self::U8 | Self::I8 => 1,
-            Self::U16 | Self::I16 | Self::Fp16 => 2,
-            Self::U32 | Self::I32 | Self::F32 => 4,
-        }
-    }
-
-    /// The name interfaces.md §5 and the README use (`uint8`, `float`, ...).
-    pub const fn name(self) -> &'static str {
-        match self {
-            Self::U8 => "uint8",
-            Self::U16 => "uint16",
-            Self::U32 => "uint32",
-            Self::I8 => "int8",
-            Self::I16 => "int16",
-            Self::I32 => "int32",
-            Self::F32 => "float",
-            Self::Fp16 => "fp16",
-        }
-    }
-}
+/// A log type: the shared [`WireType`] (log code [`WireType::log_code`], §4.6), the storage type of a
+/// variable or the fetch type of a block op.
+pub type LogType = WireType;
 
 /// A variable's value as the source holds it: the same values as parameters.
 pub type LogValue = Value;
@@ -230,7 +160,7 @@ pub const fn log_toc_crc(table: &[LogEntry]) -> u32 {
     let mut i = 0;
     while i < table.len() {
         let e = &table[i];
-        crc = crc32_toc_entry(crc, e.ty.code(), e.group, e.name);
+        crc = crc32_toc_entry(crc, e.ty.log_code(), e.group, e.name);
         i += 1;
     }
     crc ^ 0xFFFF_FFFF

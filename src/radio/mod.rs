@@ -37,3 +37,4 @@ pub mod registry;
 pub mod supervisor_port;
 pub mod syslink;
 pub mod syslink_tx;
+pub mod wire_type;

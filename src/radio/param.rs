@@ -198,7 +198,7 @@ impl<S: ParamStore> ParamService<S> {
                 .iter()
                 .enumerate()
                 .find(|(_, e)| crate::system::persistent_params::param_key(e.group, e.name) == record.key);
-            let Some((i, e)) = found.filter(|(_, e)| e.is_persistent() && e.ty.code() == record.type_code) else {
+            let Some((i, e)) = found.filter(|(_, e)| e.is_persistent() && e.ty.param_code() == record.type_code) else {
                 summary.unknown += 1;
                 continue;
             };
@@ -387,7 +387,7 @@ impl<S: ParamStore> ParamService<S> {
             Some(i) => {
                 let e = &S::TABLE[i];
                 let id = u16::try_from(i).ok()?;
-                if ParamType::from_code(ty) != Some(e.ty) {
+                if ParamType::from_param_code(ty) != Some(e.ty) {
                     EINVAL
                 } else if e.read_only() {
                     EACCES

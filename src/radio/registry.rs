@@ -55,6 +55,7 @@ use crate::nav::avoidance::{AvoidanceMethod, SpeedClamp};
 use crate::system::persistent_params::{PendingWrite, PersistentParams, param_key};
 
 use super::crtp::MAX_DATA;
+pub use super::wire_type::WireType;
 
 /// Type byte flag: the entry has an extended type (cflib then asks misc command 7), §4.5.
 pub const FLAG_EXTENDED: u8 = 0x10;
@@ -65,75 +66,9 @@ pub const TOC_ITEM_HEADER: usize = 4;
 /// Bytes the parameter CRC starts with, so that it differs from a log TOC CRC over the same entries.
 pub const PARAM_CRC_SEED: &[u8] = b"cfnav/param-toc/v1";
 
-/// A parameter's value type with its wire type code (§4.5, low nibble).
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
-pub enum ParamType {
-    /// `uint8_t`, code 0x08.
-    U8,
-    /// `uint16_t`, code 0x09.
-    U16,
-    /// `uint32_t`, code 0x0A.
-    U32,
-    /// `int8_t`, code 0x00.
-    I8,
-    /// `int16_t`, code 0x01.
-    I16,
-    /// `int32_t`, code 0x02.
-    I32,
-    /// `float`, code 0x06.
-    F32,
-}
-
-impl ParamType {
-    /// The wire type code (low nibble of the type byte).
-    pub const fn code(self) -> u8 {
-        match self {
-            Self::U8 => 0x08,
-            Self::U16 => 0x09,
-            Self::U32 => 0x0A,
-            Self::I8 => 0x00,
-            Self::I16 => 0x01,
-            Self::I32 => 0x02,
-            Self::F32 => 0x06,
-        }
-    }
-
-    /// The type for a wire code (flags in the high nibble ignored); `None` for types this registry lacks.
-    pub const fn from_code(code: u8) -> Option<Self> {
-        match code & 0x0F {
-            0x08 => Some(Self::U8),
-            0x09 => Some(Self::U16),
-            0x0A => Some(Self::U32),
-            0x00 => Some(Self::I8),
-            0x01 => Some(Self::I16),
-            0x02 => Some(Self::I32),
-            0x06 => Some(Self::F32),
-            _ => None,
-        }
-    }
-
-    /// Size of a value on the wire, bytes.
-    pub const fn size(self) -> usize {
-        match self {
-            Self::U8 | Self::I8 => 1,
-            Self::U16 | Self::I16 => 2,
-            Self::U32 | Self::I32 | Self::F32 => 4,
-        }
-    }
-
-    /// The name interfaces.md §5 and the README use (`uint8`, `float`, ...).
-    pub const fn name(self) -> &'static str {
-        match self {
-            Self::U8 => "uint8",
-            Self::U16 => "uint16",
-            Self::U32 => "uint32",
-            Self::I8 => "int8",
-            Self::I16 => "int16",
-            Self::I32 => "int32",
-            Self::F32 => "float",
-        }
-    }
-}
+/// A parameter's value type: the shared [`WireType`] (param code [`WireType::param_code`], §4.5); never
+/// [`WireType::Fp16`] ([`ParamEntry::new`] refuses it).
+pub type ParamType = WireType;
 
 /// A parameter value.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -197,7 +132,8 @@ impl Value {
         (out, n)
     }
 
-    /// Decodes exactly `ty.size()` little-endian bytes; `None` for any other length.
+    /// Decodes exactly `ty.size()` little-endian bytes; `None` for any other length and for FP16 (no value is
+    /// stored as one).
     pub fn from_le(ty: ParamType, bytes: &[u8]) -> Option<Self> {
         Some(match ty {
             ParamType::U8 => Self::U8(u8::from_le_bytes(bytes.try_into().ok()?)),
@@ -207,6 +143,7 @@ impl Value {
             ParamType::U32 => Self::U32(u32::from_le_bytes(bytes.try_into().ok()?)),
             ParamType::I32 => Self::I32(i32::from_le_bytes(bytes.try_into().ok()?)),
             ParamType::F32 => Self::F32(f32::from_le_bytes(bytes.try_into().ok()?)),
+            ParamType::Fp16 => return None,
         })
     }
 }
@@ -348,6 +285,7 @@ impl ParamEntry {
     pub const fn new(group: &'static str, name: &'static str, ty: ParamType, flags: u8) -> Self {
         assert_toc_name(group, name, TOC_ITEM_HEADER);
         assert!(flags & !(FLAG_READ_ONLY | FLAG_EXTENDED) == 0, "unknown param flag");
+        assert!(!matches!(ty, ParamType::Fp16), "FP16 is not a parameter type");
         Self {
             group,
             name,
@@ -397,7 +335,7 @@ impl ParamEntry {
 
     /// The wire type byte: type code | flags.
     pub const fn type_byte(&self) -> u8 {
-        self.ty.code() | self.flags
+        self.ty.param_code() | self.flags
     }
 
     /// True if radio writes are not allowed.
@@ -1355,7 +1293,7 @@ impl ParamStore for MissionParamState {
     fn stored_value(&self, id: u16) -> Option<Value> {
         let e = PARAM_TABLE.get(usize::from(id)).filter(|e| e.is_persistent())?;
         let r = self.persistent.get(param_key(e.group, e.name))?;
-        if r.type_code != e.ty.code() {
+        if r.type_code != e.ty.param_code() {
             return None;
         }
         Value::from_le(e.ty, &r.value[..e.ty.size()])
@@ -1371,7 +1309,7 @@ impl ParamStore for MissionParamState {
         }
         let (bytes, _) = self.read(id).ok_or(Refusal::UnknownId)?.to_le();
         self.persistent
-            .prepare_store(param_key(e.group, e.name), e.ty.code(), bytes)
+            .prepare_store(param_key(e.group, e.name), e.ty.param_code(), bytes)
             .map_err(|_| Refusal::StoreFull)
     }
 

@@ -14,7 +14,7 @@ use cfnav::radio::log_registry::{
     LOG_TABLE, LogEntry, LogSource, LogType, LogValue, log_toc_crc, single_to_half,
 };
 use cfnav::radio::param::ParamService;
-use cfnav::radio::registry::{MissionParamState, PARAM_CRC_SEED, PARAM_TABLE, toc_crc};
+use cfnav::radio::registry::{MissionParamState, PARAM_CRC_SEED, PARAM_TABLE, ParamType, Value, toc_crc};
 use rand::rngs::SmallRng;
 use rand::{Rng, SeedableRng};
 
@@ -276,6 +276,37 @@ fn flight_block_end_to_end_through_router() {
     assert_eq!(up(&mut router, &mut log, &hex("FF")), Some(expect));
 }
 
+#[test]
+fn wire_types_carry_both_protocols_codes() {
+    // One enum serves both TOCs: §4.6's log codes and §4.5's param type nibble, written out here by hand.
+    let want: [(LogType, u8, Option<u8>, usize, &str); 8] = [
+        (LogType::U8, 1, Some(0x08), 1, "uint8"),
+        (LogType::U16, 2, Some(0x09), 2, "uint16"),
+        (LogType::U32, 3, Some(0x0A), 4, "uint32"),
+        (LogType::I8, 4, Some(0x00), 1, "int8"),
+        (LogType::I16, 5, Some(0x01), 2, "int16"),
+        (LogType::I32, 6, Some(0x02), 4, "int32"),
+        (LogType::F32, 7, Some(0x06), 4, "float"),
+        (LogType::Fp16, 8, None, 2, "fp16"),
+    ];
+    for (t, log_code, param_code, size, name) in want {
+        assert_eq!(t.log_code(), log_code, "{t:?}");
+        assert_eq!(LogType::from_log_code(log_code), Some(t));
+        assert_eq!(t.size(), size, "{t:?}");
+        assert_eq!(t.name(), name);
+        if let Some(code) = param_code {
+            assert_eq!(t.param_code(), code, "{t:?}");
+            assert_eq!(ParamType::from_param_code(code | 0x40), Some(t));
+        }
+    }
+    // FP16 is a fetch type only: no parameter decodes as it, and no value is decoded from it.
+    assert_eq!(ParamType::from_param_code(LogType::Fp16.param_code()), None);
+    assert_eq!(Value::from_le(LogType::Fp16, &[0, 0x3C]), None);
+    for code in (0..=255u8).filter(|c| !(1..=8).contains(c)) {
+        assert_eq!(LogType::from_log_code(code), None, "{code}");
+    }
+}
+
 // ---------------------------------------------------------------------------------------------------------
 // Limits and error codes.
 // ---------------------------------------------------------------------------------------------------------
@@ -432,8 +463,8 @@ fn conv(v: LogValue, fetch: LogType) -> Vec<u8> {
 
 #[test]
 fn type_conversion_follows_stock() {
-    use LogType::*;
     use LogValue as V;
+    use cfnav::radio::wire_type::WireType::*;
     // Same type: plain LE.
     assert_eq!(conv(V::F32(1.5), F32), 1.5f32.to_le_bytes());
     assert_eq!(conv(V::U16(0x1234), U16), [0x34, 0x12]);

@@ -325,10 +325,10 @@ fn connect_sequence_param_steps_through_the_router() {
     for (id, ty, _) in &toc {
         let b = id.to_le_bytes();
         let reply = up(&[0x2D, b[0], b[1]], &mut m).unwrap();
-        let size = ParamType::from_code(*ty).unwrap().size();
+        let size = ParamType::from_param_code(*ty).unwrap().size();
         assert_eq!(reply.len(), 1 + 3 + size);
         assert_eq!(reply[..4], [0x2D, b[0], b[1], 0]);
-        let v = Value::from_le(ParamType::from_code(*ty).unwrap(), &reply[4..]).unwrap();
+        let v = Value::from_le(ParamType::from_param_code(*ty).unwrap(), &reply[4..]).unwrap();
         if let Some(want) = expected.get(usize::from(*id)) {
             assert_eq!(v, *want);
         }
@@ -733,10 +733,10 @@ fn values_round_trip_with_their_type_codes() {
         (Value::F32(-2.5), 0x06, 4),
     ];
     for (v, code, size) in values {
-        assert_eq!(v.ty().code(), code);
+        assert_eq!(v.ty().param_code(), code);
         assert_eq!(v.ty().size(), size);
-        assert_eq!(ParamType::from_code(code), Some(v.ty()));
-        assert_eq!(ParamType::from_code(code | 0x50), Some(v.ty()));
+        assert_eq!(ParamType::from_param_code(code), Some(v.ty()));
+        assert_eq!(ParamType::from_param_code(code | 0x50), Some(v.ty()));
         let (bytes, n) = v.to_le();
         assert_eq!(n, size);
         assert_eq!(Value::from_le(v.ty(), &bytes[..n]), Some(v));
@@ -744,7 +744,7 @@ fn values_round_trip_with_their_type_codes() {
         assert_eq!(Value::from_le(v.ty(), &bytes[..]).is_some(), size == 4);
     }
     for code in [0x03, 0x04, 0x05, 0x07, 0x0B, 0x0C, 0x0F] {
-        assert_eq!(ParamType::from_code(code), None);
+        assert_eq!(ParamType::from_param_code(code), None);
     }
 }
 
@@ -787,7 +787,7 @@ fn may_change<S: ParamStore>(p: &CrtpPacket) -> bool {
                 e.group.as_bytes() == g
                     && e.name.as_bytes() == n
                     && !e.read_only()
-                    && rest.first().and_then(|&t| ParamType::from_code(t)) == Some(e.ty)
+                    && rest.first().and_then(|&t| ParamType::from_param_code(t)) == Some(e.ty)
                     && rest.len() == 1 + e.ty.size()
             })
         }

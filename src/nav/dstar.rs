@@ -255,6 +255,51 @@ fn diagonal_open_into(side_free: &[bool; 4], a: usize, b: usize) -> bool {
     side_free[OPPOSITE[a]] && side_free[OPPOSITE[b]]
 }
 
+/// A predecessor `s = u - (dx, dy)` of an expanded cell `u`: its index and coordinates, and the cost and
+/// [`MOVES`] side indices of the move `s → u`.
+struct Predecessor {
+    s: usize,
+    x: i32,
+    y: i32,
+    cost: u16,
+    a: usize,
+    b: usize,
+}
+
+impl Predecessor {
+    /// Whether the move into `u` is open, given `u`'s [`straight_free`] (a straight move always is: `u` is free).
+    #[inline(always)]
+    fn open_into(&self, side_free: &[bool; 4]) -> bool {
+        self.cost != DIAGONAL_COST || diagonal_open_into(side_free, self.a, self.b)
+    }
+}
+
+/// The predecessors of `u` at `(ux, uy)` inside the grid, in [`NEIGHBOURS`] order, without the goal (its rhs
+/// is fixed at 0): the one neighbour walk both of [`DStarLite::compute`]'s expansion cases use. `back` holds
+/// the index offset of each predecessor; `interior` (every neighbour inside the grid) skips the bounds test.
+#[inline(always)]
+fn predecessors(
+    shape: GridShape,
+    back: [isize; 8],
+    goal: usize,
+    u: usize,
+    (ux, uy): (i32, i32),
+    interior: bool,
+) -> impl Iterator<Item = Predecessor> {
+    NEIGHBOURS
+        .into_iter()
+        .zip(MOVES)
+        .zip(back)
+        .filter_map(move |(((dx, dy), (cost, a, b)), offset)| {
+            let (x, y) = (ux - dx, uy - dy);
+            if !interior && !shape.contains(x, y) {
+                return None;
+            }
+            let s = u.wrapping_add_signed(offset);
+            (s != goal).then_some(Predecessor { s, x, y, cost, a, b })
+        })
+}
+
 impl<const CELLS: usize, const QUEUE: usize> DStarLite<CELLS, QUEUE> {
     /// A planner with no plan; call [`DStarLite::reset`] before anything else.
     pub const fn new() -> Self {
@@ -416,25 +461,13 @@ impl<const CELLS: usize, const QUEUE: usize> DStarLite<CELLS, QUEUE> {
                     continue;
                 }
                 let side_free = straight_free(map, ux, uy);
-                for (k, (dx, dy)) in NEIGHBOURS.into_iter().enumerate() {
-                    let (sx, sy) = (ux - dx, uy - dy);
-                    if !interior && !self.shape.contains(sx, sy) {
-                        continue;
-                    }
-                    let s = u.wrapping_add_signed(back[k]);
-                    if s == goal {
-                        continue;
-                    }
+                for p in predecessors(self.shape, back, goal, u, (ux, uy), interior) {
                     // The cheap test first: only a cell whose rhs would drop needs its move checked.
-                    let (c, a, b) = MOVES[k];
-                    let through_u = add_cost(c, rhs_u);
-                    if through_u >= self.rhs(s) {
+                    let through_u = add_cost(p.cost, rhs_u);
+                    if through_u >= self.rhs(p.s) || !p.open_into(&side_free) {
                         continue;
                     }
-                    if c == DIAGONAL_COST && !diagonal_open_into(&side_free, a, b) {
-                        continue;
-                    }
-                    self.update_vertex(s, sx, sy, through_u)?;
+                    self.update_vertex(p.s, p.x, p.y, through_u)?;
                 }
             } else {
                 // Under-consistent: raise u to infinity; every cell whose rhs came through u recomputes it.
@@ -442,25 +475,13 @@ impl<const CELLS: usize, const QUEUE: usize> DStarLite<CELLS, QUEUE> {
                 self.g[u] = INFINITE;
                 if !map.is_blocked(ux, uy) {
                     let side_free = straight_free(map, ux, uy);
-                    for (k, (dx, dy)) in NEIGHBOURS.into_iter().enumerate() {
-                        let (sx, sy) = (ux - dx, uy - dy);
-                        if !interior && !self.shape.contains(sx, sy) {
+                    for p in predecessors(self.shape, back, goal, u, (ux, uy), interior) {
+                        let rhs_s = self.rhs(p.s);
+                        if rhs_s == INFINITE || rhs_s != add_cost(p.cost, g_old) || !p.open_into(&side_free) {
                             continue;
                         }
-                        let s = u.wrapping_add_signed(back[k]);
-                        if s == goal {
-                            continue;
-                        }
-                        let (c, a, b) = MOVES[k];
-                        let rhs_s = self.rhs(s);
-                        if rhs_s == INFINITE || rhs_s != add_cost(c, g_old) {
-                            continue;
-                        }
-                        if c == DIAGONAL_COST && !diagonal_open_into(&side_free, a, b) {
-                            continue;
-                        }
-                        let best = self.best_successor_cost(map, sx, sy);
-                        self.update_vertex(s, sx, sy, best)?;
+                        let best = self.best_successor_cost(map, p.x, p.y);
+                        self.update_vertex(p.s, p.x, p.y, best)?;
                     }
                 }
                 // u's own rhs does not depend on g(u); it only changes consistency.

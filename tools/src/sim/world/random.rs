@@ -97,60 +97,10 @@ fn candidate(rng: &mut SmallRng, seed: u64) -> World {
     // Walls across the arena, each with one gap, between the two ends.
     let (x_lo, x_hi) = (start[0].min(goal[0]) + 0.9, start[0].max(goal[0]) - 0.9);
     let walls = rng.random_range(1..=3);
-    let mut wall_xs: Vec<(f32, f32)> = Vec::new();
-    for _ in 0..walls {
-        for _ in 0..20 {
-            let t = cm(rng.random_range(0.05..=0.25));
-            if x_hi - t <= x_lo {
-                break;
-            }
-            let x = cm(rng.random_range(x_lo..=x_hi - t));
-            if wall_xs.iter().any(|&(a, b)| x < b + 0.7 && a < x + t + 0.7) {
-                continue;
-            }
-            let gap = cm(rng.random_range(0.6..=1.0));
-            let gy = cm(rng.random_range(0.0..=h - gap));
-            let mut segments = Vec::new();
-            if gy > 0.05 {
-                segments.push(BoxObstacle {
-                    min: [x, 0.0],
-                    max: [cm(x + t), gy],
-                    height: ceiling,
-                });
-            }
-            if gy + gap < h - 0.05 {
-                segments.push(BoxObstacle {
-                    min: [x, gy + gap],
-                    max: [cm(x + t), h],
-                    height: ceiling,
-                });
-            }
-            if segments.iter().all(|b| keep.allows_rect(b.footprint())) {
-                boxes.extend(segments);
-                wall_xs.push((x, x + t));
-                break;
-            }
-        }
-    }
+    walls_with_gaps(rng, walls, (x_lo, x_hi), h, ceiling, &keep, &mut boxes);
 
-    for _ in 0..rng.random_range(0..=4) {
-        for _ in 0..20 {
-            let size = [cm(rng.random_range(0.1..=0.6)), cm(rng.random_range(0.1..=0.6))];
-            let min = [
-                cm(rng.random_range(0.0..=w - size[0])),
-                cm(rng.random_range(0.0..=h - size[1])),
-            ];
-            let b = BoxObstacle {
-                min,
-                max: [cm(min[0] + size[0]).min(w), cm(min[1] + size[1]).min(h)],
-                height: obstacle_height(rng, ceiling),
-            };
-            if keep.allows_rect(b.footprint()) {
-                boxes.push(b);
-                break;
-            }
-        }
-    }
+    let count = rng.random_range(0..=4);
+    scatter_boxes(rng, count, [w, h], ceiling, &keep, &mut boxes);
 
     let count = rng.random_range(0..=4);
     let mut cylinders = Vec::new();
@@ -192,6 +142,85 @@ fn scatter_cylinders(
                     radius: r,
                     height: obstacle_height(rng, ceiling),
                 });
+                break;
+            }
+        }
+    }
+}
+
+/// Up to `count` walls across the arena between `x_lo` and `x_hi` (20 tries each), 5–25 cm thick, 0.7 m
+/// apart, each with one 0.6–1 m gap anywhere along its height `h` (a segment shorter than 5 cm is left out),
+/// where `keep` allows both segments; appended to `out`. The classic and the widened generator both use it.
+fn walls_with_gaps(
+    rng: &mut SmallRng,
+    count: u32,
+    (x_lo, x_hi): (f32, f32),
+    h: f32,
+    ceiling: f32,
+    keep: &KeepOut,
+    out: &mut Vec<BoxObstacle>,
+) {
+    let mut wall_xs: Vec<(f32, f32)> = Vec::new();
+    for _ in 0..count {
+        for _ in 0..20 {
+            let t = cm(rng.random_range(0.05..=0.25));
+            if x_hi - t <= x_lo {
+                break;
+            }
+            let x = cm(rng.random_range(x_lo..=x_hi - t));
+            if wall_xs.iter().any(|&(a, b)| x < b + 0.7 && a < x + t + 0.7) {
+                continue;
+            }
+            let gap = cm(rng.random_range(0.6..=1.0));
+            let gy = cm(rng.random_range(0.0..=(h - gap).max(0.0)));
+            let mut segments = Vec::new();
+            if gy > 0.05 {
+                segments.push(BoxObstacle {
+                    min: [x, 0.0],
+                    max: [cm(x + t), gy],
+                    height: ceiling,
+                });
+            }
+            if gy + gap < h - 0.05 {
+                segments.push(BoxObstacle {
+                    min: [x, gy + gap],
+                    max: [cm(x + t), h],
+                    height: ceiling,
+                });
+            }
+            if segments.iter().all(|b| keep.allows_rect(b.footprint())) {
+                out.extend(segments);
+                wall_xs.push((x, x + t));
+                break;
+            }
+        }
+    }
+}
+
+/// Up to `count` boxes of 10–60 cm sides anywhere in the arena where `keep` allows them (20 tries each),
+/// appended to `out`.
+fn scatter_boxes(
+    rng: &mut SmallRng,
+    count: u32,
+    [w, h]: [f32; 2],
+    ceiling: f32,
+    keep: &KeepOut,
+    out: &mut Vec<BoxObstacle>,
+) {
+    for _ in 0..count {
+        for _ in 0..20 {
+            let size = [cm(rng.random_range(0.1..=0.6)), cm(rng.random_range(0.1..=0.6))];
+            let min = [
+                cm(rng.random_range(0.0..=w - size[0])),
+                cm(rng.random_range(0.0..=h - size[1])),
+            ];
+            let b = BoxObstacle {
+                min,
+                max: [cm(min[0] + size[0]).min(w), cm(min[1] + size[1]).min(h)],
+                height: obstacle_height(rng, ceiling),
+            };
+            if keep.allows_rect(b.footprint()) {
+                out.push(b);
                 break;
             }
         }
@@ -376,41 +405,8 @@ fn candidate_wide(rng: &mut SmallRng, seed: u64) -> World {
         }
     } else {
         // Walls across the arena, each with one gap anywhere.
-        let mut wall_xs: Vec<(f32, f32)> = Vec::new();
-        for _ in 0..rng.random_range(0..=3) {
-            for _ in 0..20 {
-                let t = cm(rng.random_range(0.05..=0.25));
-                if x_hi - t <= x_lo {
-                    break;
-                }
-                let x = cm(rng.random_range(x_lo..=x_hi - t));
-                if wall_xs.iter().any(|&(a, b)| x < b + 0.7 && a < x + t + 0.7) {
-                    continue;
-                }
-                let gap = cm(rng.random_range(0.6..=1.0));
-                let gy = cm(rng.random_range(0.0..=(h - gap).max(0.0)));
-                let mut segments = Vec::new();
-                if gy > 0.05 {
-                    segments.push(BoxObstacle {
-                        min: [x, 0.0],
-                        max: [cm(x + t), gy],
-                        height: ceiling,
-                    });
-                }
-                if gy + gap < h - 0.05 {
-                    segments.push(BoxObstacle {
-                        min: [x, gy + gap],
-                        max: [cm(x + t), h],
-                        height: ceiling,
-                    });
-                }
-                if segments.iter().all(|b| keep.allows_rect(b.footprint())) {
-                    boxes.extend(segments);
-                    wall_xs.push((x, x + t));
-                    break;
-                }
-            }
-        }
+        let walls = rng.random_range(0..=3);
+        walls_with_gaps(rng, walls, (x_lo, x_hi), h, ceiling, &keep, &mut boxes);
     }
 
     // An obstacle 0.1–0.25 m from the goal pad (one world in three).
@@ -466,24 +462,8 @@ fn candidate_wide(rng: &mut SmallRng, seed: u64) -> World {
     }
 
     // Filler: up to three boxes and three cylinders anywhere, with the classic keep-out.
-    for _ in 0..rng.random_range(0..=3) {
-        for _ in 0..20 {
-            let size = [cm(rng.random_range(0.1..=0.6)), cm(rng.random_range(0.1..=0.6))];
-            let min = [
-                cm(rng.random_range(0.0..=w - size[0])),
-                cm(rng.random_range(0.0..=h - size[1])),
-            ];
-            let b = BoxObstacle {
-                min,
-                max: [cm(min[0] + size[0]).min(w), cm(min[1] + size[1]).min(h)],
-                height: obstacle_height(rng, ceiling),
-            };
-            if keep.allows_rect(b.footprint()) {
-                boxes.push(b);
-                break;
-            }
-        }
-    }
+    let count = rng.random_range(0..=3);
+    scatter_boxes(rng, count, [w, h], ceiling, &keep, &mut boxes);
     let count = rng.random_range(0..=3);
     scatter_cylinders(rng, count, [w, h], ceiling, &keep, &mut cylinders);
 

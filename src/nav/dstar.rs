@@ -247,6 +247,24 @@ fn straight_free(map: &impl Traversability, x: i32, y: i32) -> [bool; 4] {
     ]
 }
 
+/// Whether the move from a cell with [`straight_free`] `side_free` to its neighbour `(nx, ny)`, the [`MOVES`]
+/// entry `(cost, a, b)`, is open: a straight move needs its target (side `a`) free, a diagonal one both sides
+/// and the target.
+#[inline(always)]
+fn move_open(
+    map: &impl Traversability,
+    side_free: &[bool; 4],
+    (cost, a, b): (u16, usize, usize),
+    nx: i32,
+    ny: i32,
+) -> bool {
+    if cost == STRAIGHT_COST {
+        side_free[a]
+    } else {
+        side_free[a] && side_free[b] && !map.is_blocked(nx, ny)
+    }
+}
+
 /// Whether the diagonal move from `u - (dx, dy)` into a free `u` is open, given `u`'s [`straight_free`]
 /// and the [`MOVES`] side indices `a`, `b` of `(dx, dy)`: it passes `u`'s straight neighbours at `(-dx, 0)`
 /// and `(0, -dy)`, the opposites of `a` and `b`.
@@ -542,14 +560,9 @@ impl<const CELLS: usize, const QUEUE: usize> DStarLite<CELLS, QUEUE> {
         let side_free = straight_free(map, x, y);
         let mut best: Option<(u16, Cell)> = None;
         for (k, (dx, dy)) in NEIGHBOURS.into_iter().enumerate() {
-            let (c, a, b) = MOVES[k];
+            let (c, _, _) = MOVES[k];
             let (nx, ny) = (x + dx, y + dy);
-            let open = if c == STRAIGHT_COST {
-                side_free[a]
-            } else {
-                side_free[a] && side_free[b] && !map.is_blocked(nx, ny)
-            };
-            if !open || !self.shape.contains(nx, ny) {
+            if !move_open(map, &side_free, MOVES[k], nx, ny) || !self.shape.contains(nx, ny) {
                 continue;
             }
             let total = add_cost(c, self.g[self.index_of(nx, ny)]);
@@ -629,16 +642,10 @@ impl<const CELLS: usize, const QUEUE: usize> DStarLite<CELLS, QUEUE> {
         let here = self.index_of(x, y);
         let mut best = INFINITE;
         for (k, (dx, dy)) in NEIGHBOURS.into_iter().enumerate() {
-            let (c, a, b) = MOVES[k];
+            let (c, _, _) = MOVES[k];
             let (nx, ny) = (x + dx, y + dy);
-            // Straight: the target is that straight neighbour. Diagonal: both sides and the target.
-            let open = if c == STRAIGHT_COST {
-                side_free[a]
-            } else {
-                side_free[a] && side_free[b] && !map.is_blocked(nx, ny)
-            };
             // `is_blocked` is true outside the map, but the map's shape is the caller's: check ours too.
-            if open && (interior || self.shape.contains(nx, ny)) {
+            if move_open(map, &side_free, MOVES[k], nx, ny) && (interior || self.shape.contains(nx, ny)) {
                 let n = here.wrapping_add_signed(dy as isize * width as isize + dx as isize);
                 best = best.min(add_cost(c, self.g[n]));
             }

@@ -3,45 +3,16 @@
 //! value in effect, the state is unchanged, a console line says why), the defaults, and what a start passes
 //! on to the mission.
 
+use super::param::{assert_refused, service, write_f32};
 use super::send;
 use cfnav::mission::{MissionMode, MissionParams};
-use cfnav::radio::param::{ParamService, RefusalNote};
-use cfnav::radio::registry::{
-    ID_COVERAGE, ID_HOVER_TIME, ID_MODE, ID_START, MissionParamState, ParamStore, Refusal, Value,
-};
-
-type Service = ParamService<MissionParamState>;
-
-fn service() -> Service {
-    ParamService::new(MissionParamState::new(MissionParams::SEED, 128 * 64))
-}
+use cfnav::radio::registry::{ID_COVERAGE, ID_HOVER_TIME, ID_MODE, ID_START, ParamStore, Refusal, Value};
 
 fn write_u8(id: u16, v: u8) -> Vec<u8> {
     let mut out = vec![0x2E];
     out.extend_from_slice(&id.to_le_bytes());
     out.push(v);
     out
-}
-
-fn write_f32(id: u16, v: f32) -> Vec<u8> {
-    let mut out = vec![0x2E];
-    out.extend_from_slice(&id.to_le_bytes());
-    out.extend_from_slice(&v.to_le_bytes());
-    out
-}
-
-/// The write is refused: the echo carries the value in effect, nothing changed, one console line.
-fn assert_refused(m: &mut Service, req: &[u8], refusal: Refusal, line: &str) {
-    let before = *m.store();
-    let id = u16::from_le_bytes([req[1], req[2]]);
-    let mut echo = req[..3].to_vec();
-    let (bytes, n) = before.read(id).unwrap().to_le();
-    echo.extend_from_slice(&bytes[..n]);
-    assert_eq!(send(m, req), Some(echo), "echo carries the value in effect");
-    assert_eq!(*m.store(), before, "state unchanged");
-    let note = m.take_refusal().expect("a refusal is recorded");
-    assert_eq!(note, RefusalNote { id, refusal });
-    assert_eq!(Service::console_line(&note).as_str(), line);
 }
 
 #[test]

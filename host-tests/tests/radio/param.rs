@@ -17,9 +17,10 @@ use rand::{Rng, SeedableRng};
 
 const CAPACITY: usize = 128 * 64;
 
-type Mission = ParamService<MissionParamState>;
+pub(super) type Mission = ParamService<MissionParamState>;
 
-fn service() -> Mission {
+/// The mission's parameter service over the seed parameters (also the mode tests').
+pub(super) fn service() -> Mission {
     ParamService::new(MissionParamState::new(MissionParams::SEED, CAPACITY))
 }
 
@@ -28,7 +29,7 @@ fn f32_le(v: f32) -> [u8; 4] {
 }
 
 /// `[hdr, id u16, value]` for a float write on 2/2.
-fn write_f32(id: u16, v: f32) -> Vec<u8> {
+pub(super) fn write_f32(id: u16, v: f32) -> Vec<u8> {
     let mut out = vec![0x2E];
     out.extend_from_slice(&id.to_le_bytes());
     out.extend_from_slice(&f32_le(v));
@@ -342,8 +343,9 @@ fn connect_sequence_param_steps_through_the_router() {
 // Refusals (interfaces.md §5)
 // ---------------------------------------------------------------------------------------------------------
 
-/// Sends a write, checks the echo carries the value in effect, the state is unchanged and the reason.
-fn assert_refused(m: &mut Mission, req: &[u8], refusal: Refusal, line: &str) {
+/// Sends a write, checks the echo carries the value in effect, the state is unchanged and the reason (also
+/// the mode tests').
+pub(super) fn assert_refused(m: &mut Mission, req: &[u8], refusal: Refusal, line: &str) {
     let before = *m.store();
     let id = u16::from_le_bytes([req[1], req[2]]);
     let mut echo = req[..3].to_vec();

@@ -20,11 +20,10 @@ use std::time::{Duration, Instant};
 
 use clap::Args;
 use crazyflie_lib::Crazyflie;
-use crazyflie_lib::crazyflie_link::{Connection, LinkContext};
 use crazyflie_lib::subsystems::memory::{MemoryType, RawMemory};
 
+use crate::radio::connect::{ConnectError, connect_uri};
 use crate::radio::toc_cache::DirTocCache;
-use crate::radio::udp_link::UdpLink;
 use crate::sim::plot::{Labels, draw_labelled};
 use crate::sim::runner::{RunReport, RunResult};
 use crate::sim::world::World;
@@ -164,36 +163,23 @@ async fn connect(args: &MapArgs) -> Result<Crazyflie, String> {
     } else {
         DirTocCache::default_dir().map_or_else(DirTocCache::disabled, DirTocCache::new)
     };
-    let timeout = Duration::from_secs_f64(args.connect_timeout);
-    let connected = if uri.starts_with("udp://") {
-        let link = UdpLink::open(uri, timeout.min(Duration::from_secs(3))).await?;
-        tokio::time::timeout(
-            timeout,
-            Crazyflie::connect_from_link(Connection::new(Box::new(link)), cache),
-        )
-        .await
-    } else if uri.starts_with("radio://") || uri.starts_with("usb://") {
-        // rusb panics if its global libusb context cannot start: ask libusb first.
-        if let Err(e) = rusb::Context::new() {
-            return Err(format!(
-                "{uri}: USB is not available here (libusb: {e}); a radio:// link needs a Crazyradio on USB"
-            ));
-        }
-        let context = LinkContext::new();
-        tokio::time::timeout(timeout, Crazyflie::connect_from_uri(&context, uri, cache)).await
-    } else {
+    if !["udp://", "radio://", "usb://"]
+        .iter()
+        .any(|scheme| uri.starts_with(scheme))
+    {
         return Err(format!(
             "{uri}: not a link URI this tool knows: radio://N/CHANNEL/RATE/ADDRESS, usb://N or udp://HOST:PORT"
         ));
-    };
-    match connected {
-        Ok(Ok(cf)) => Ok(cf),
-        Ok(Err(e)) => Err(format!("{uri}: {e}")),
-        Err(_) => Err(format!(
+    }
+    let timeout = Duration::from_secs_f64(args.connect_timeout);
+    connect_uri(uri, timeout, cache).await.map_err(|e| match e {
+        ConnectError::Open(text) => text,
+        ConnectError::Link(e) => format!("{uri}: {e}"),
+        ConnectError::TimedOut => format!(
             "{uri}: the connection did not complete within {:.0} s",
             args.connect_timeout
-        )),
-    }
+        ),
+    })
 }
 
 async fn connect_and_download(args: &MapArgs) -> Result<MapSnapshot, String> {

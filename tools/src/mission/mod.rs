@@ -32,14 +32,14 @@ use std::sync::{Arc, Mutex};
 use std::time::{Duration, Instant};
 
 use clap::{Args, Subcommand};
-use crazyflie_lib::crazyflie_link::{self, Connection, LinkContext};
+use crazyflie_lib::crazyflie_link;
 use crazyflie_lib::subsystems::log::{LogPeriod, LogStream};
 use crazyflie_lib::{Crazyflie, Value};
 use futures::StreamExt;
 use tokio::sync::{mpsc, watch};
 
+use crate::radio::connect::{ConnectError, connect_uri};
 use crate::radio::toc_cache::DirTocCache;
-use crate::radio::udp_link::UdpLink;
 use progress::{MissionTracker, Outcome, state_name};
 
 /// Exit status: bad input, connection failure, refused write, link lost.
@@ -402,34 +402,17 @@ async fn connect(args: &StartArgs, printer: &Printer) -> Result<Arc<Crazyflie>, 
     let timeout = Duration::from_secs_f64(args.connect_timeout);
     let began = Instant::now();
     printer.line(&format!("connecting to {uri} ..."));
-    let connected = if uri.starts_with("udp://") {
-        let link = UdpLink::open(uri, timeout.min(Duration::from_secs(3))).await?;
-        tokio::time::timeout(
-            timeout,
-            Crazyflie::connect_from_link(Connection::new(Box::new(link)), cache),
-        )
-        .await
-    } else {
-        // rusb panics if its global libusb context cannot start: ask libusb first, with a context of our own.
-        if let Err(e) = rusb::Context::new() {
-            return Err(Failure(format!(
-                "{uri}: USB is not available here (libusb: {e}); a radio:// link needs a Crazyradio on USB"
-            )));
-        }
-        let context = LinkContext::new();
-        tokio::time::timeout(timeout, Crazyflie::connect_from_uri(&context, uri, cache)).await
-    };
-    let cf = match connected {
-        Ok(Ok(cf)) => cf,
-        Ok(Err(e)) => return Err(Failure(link_error_text(uri, &e))),
-        Err(_) => {
-            return Err(Failure(format!(
+    let cf = connect_uri(uri, timeout, cache).await.map_err(|e| {
+        Failure(match e {
+            ConnectError::Open(text) => text,
+            ConnectError::Link(e) => link_error_text(uri, &e),
+            ConnectError::TimedOut => format!(
                 "{uri}: the connection did not complete within {:.0} s (drone off, wrong channel or address, \
                  or no CRTP firmware answering?)",
                 args.connect_timeout
-            )));
-        }
-    };
+            ),
+        })
+    })?;
     printer.line(&format!(
         "connected in {:.2} s: {} parameters, {} log variables",
         began.elapsed().as_secs_f64(),

@@ -11,7 +11,8 @@
 //! Sequences (`--client`): `toc` = link source, protocol version, log reset, log TOC info, every log TOC item,
 //! param TOC info, every param TOC item, then every parameter's value (what `SyncCrazyflie` does with no
 //! cache, crtp-over-udp.md §3), optionally repeated (`toc:N`) so a long run shows a stall; `early` = the same,
-//! but queued before RADIO_READY (as cflib's first requests were when the script connected at boot).
+//! `burst:N` = N log TOC item requests handed over at once (pipelined, as a raw-UDP probe sends them), so the
+//! nRF forwards one per ms: the image answers back to back.
 
 use serde::Serialize;
 
@@ -59,6 +60,8 @@ pub struct Client {
     next: usize,
     waiting: Option<usize>,
     phase: u32,
+    /// `burst:N`: requests handed over at once, answers counted as they come.
+    burst: u16,
     /// Counters.
     pub stats: ClientStats,
 }
@@ -67,8 +70,25 @@ impl Client {
     /// Parses `toc`, `toc:N` (N rounds) with a start time in virtual ms.
     pub fn new(spec: &str, start_ms: u64) -> Result<Self, String> {
         let (name, rounds) = spec.split_once(':').unwrap_or((spec, "1"));
+        if name == "burst" {
+            let n: u16 = rounds
+                .parse()
+                .ok()
+                .filter(|&n| (1..=1000).contains(&n))
+                .ok_or_else(|| format!("--client {spec}: N must be 1..=1000"))?;
+            return Ok(Self {
+                start_ms,
+                repeat: 1,
+                queue: Vec::new(),
+                next: 0,
+                waiting: None,
+                phase: 0,
+                burst: n,
+                stats: ClientStats::default(),
+            });
+        }
         if name != "toc" {
-            return Err(format!("unknown --client `{spec}` (known: toc, toc:N)"));
+            return Err(format!("unknown --client `{spec}` (known: toc, toc:N, burst:N)"));
         }
         let repeat: u32 = rounds
             .parse()
@@ -82,6 +102,7 @@ impl Client {
             next: 0,
             waiting: None,
             phase: 0,
+            burst: 0,
             stats: ClientStats::default(),
         };
         c.queue = Self::opening();
@@ -107,6 +128,17 @@ impl Client {
 
     /// Called once per host slice: the request to send now, if one is due.
     pub fn poll(&mut self, now_ms: u64) -> Option<Vec<u8>> {
+        if self.burst > 0 {
+            // One request per call until all N are out (the caller calls once per 1 ms slice and the nRF queues
+            // them: the image sees them back to back once its receiver is on).
+            if now_ms < self.start_ms || self.stats.sent >= u64::from(self.burst) {
+                return None;
+            }
+            let [lo, hi] = (self.stats.sent as u16 % 50).to_le_bytes();
+            self.stats.sent += 1;
+            self.stats.first_request_ms.get_or_insert(now_ms);
+            return Some(vec![header(5, 0), 2, lo, hi]);
+        }
         if now_ms < self.start_ms || self.waiting.is_some() || self.stats.done {
             return None;
         }
@@ -129,6 +161,14 @@ impl Client {
 
     /// A CRTP packet the image sent to the host.
     pub fn on_downlink(&mut self, crtp: &[u8], now_ms: u64) {
+        if self.burst > 0 {
+            if crtp.first().is_some_and(|&h| h & 0xF3 == header(5, 0) & 0xF3) {
+                self.stats.answered += 1;
+                self.stats.last_answer_ms = Some(now_ms);
+                self.stats.done = self.stats.answered >= u64::from(self.burst);
+            }
+            return;
+        }
         let Some(i) = self.waiting else { return };
         let r = &self.queue[i];
         let Some((&h, data)) = crtp.split_first() else { return };

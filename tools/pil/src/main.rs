@@ -459,7 +459,23 @@ fn run(args: &Args) -> Result<(Report, bool)> {
 /// One `--probe` sample, printed as it is taken.
 fn probe_sample(board: &mut Board, why: &str) -> Option<probe::Sample> {
     let at_ms = board.now_ns() / 1_000_000;
-    let s = probe::sample(&mut board.machine, at_ms, why, 0x0800_4000..0x0810_0000)?;
+    let mut s = probe::sample(&mut board.machine, at_ms, why, 0x0800_4000..0x0810_0000)?;
+    // DMA1 (I2C1/I2C3 streams 0, 2, 4, 6: CR, NDTR, PAR, M0AR) and the whole of .bss, for reading by hand.
+    for stream in [0u64, 2, 4, 6] {
+        let at = 0x4002_6010 + 0x18 * stream;
+        let regs: Vec<String> = (0..4)
+            .map(|k| format!("{:#x}", board.peek32(at + 4 * k).unwrap_or(0)))
+            .collect();
+        s.stack_code.push(format!("dma1.s{stream}={}", regs.join("/")));
+    }
+    if let Ok(dir) = std::env::var("CFNAV_PIL_DUMP") {
+        let words: Vec<u32> = (0x2000_0000u64..0x2000_6648)
+            .step_by(4)
+            .map(|a| board.peek32(a).unwrap_or(0))
+            .collect();
+        let bytes: Vec<u8> = words.iter().flat_map(|w| w.to_le_bytes()).collect();
+        let _ = std::fs::write(format!("{dir}/ram-{at_ms}.bin"), bytes);
+    }
     println!(
         "probe at {at_ms} ms ({why}): pc={} lr={} sp={}; stack code: {}",
         s.regs[15],

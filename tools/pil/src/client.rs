@@ -251,7 +251,7 @@ mod tests {
         assert_eq!(c.poll(5), None, "not before start");
         assert_eq!(c.poll(10), Some(vec![0xFD, 0]));
         assert_eq!(c.poll(11), None, "waits for the answer");
-        c.on_downlink(&[0xF1, 0], 12); // wrong channel: not the answer
+        c.on_downlink(&[0xF0, 0], 12); // port 15 channel 0: not the answer
         assert_eq!(c.poll(12), None);
         c.on_downlink(&[0xFD, b'B'], 12);
         assert_eq!(c.poll(13), Some(vec![0xDD, 0]));

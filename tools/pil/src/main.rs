@@ -460,7 +460,8 @@ fn run(args: &Args) -> Result<(Report, bool)> {
 fn probe_sample(board: &mut Board, why: &str) -> Option<probe::Sample> {
     let at_ms = board.now_ns() / 1_000_000;
     let mut s = probe::sample(&mut board.machine, at_ms, why, 0x0800_4000..0x0810_0000)?;
-    // DMA1 (I2C1/I2C3 streams 0, 2, 4, 6: CR, NDTR, PAR, M0AR) and the whole of .bss, for reading by hand.
+    // DMA1 (I2C1/I2C3 streams 0, 2, 4, 6: CR, NDTR, PAR, M0AR) and, with CFNAV_PIL_DUMP=DIR, the whole SRAM
+    // (.data, .bss and the stack) to DIR/ram-MS.bin, for reading by hand.
     for stream in [0u64, 2, 4, 6] {
         let at = 0x4002_6010 + 0x18 * stream;
         let regs: Vec<String> = (0..4)
@@ -469,7 +470,7 @@ fn probe_sample(board: &mut Board, why: &str) -> Option<probe::Sample> {
         s.stack_code.push(format!("dma1.s{stream}={}", regs.join("/")));
     }
     if let Ok(dir) = std::env::var("CFNAV_PIL_DUMP") {
-        let words: Vec<u32> = (0x2000_0000u64..0x2000_6648)
+        let words: Vec<u32> = (0x2000_0000u64..0x2002_0000)
             .step_by(4)
             .map(|a| board.peek32(a).unwrap_or(0))
             .collect();
@@ -477,11 +478,12 @@ fn probe_sample(board: &mut Board, why: &str) -> Option<probe::Sample> {
         let _ = std::fs::write(format!("{dir}/ram-{at_ms}.bin"), bytes);
     }
     println!(
-        "probe at {at_ms} ms ({why}): pc={} lr={} sp={}; stack code: {}",
+        "probe at {at_ms} ms ({why}): pc={} lr={} sp={}; stack code: {}; stack words: {}",
         s.regs[15],
         s.regs[14],
         s.regs[13],
-        s.stack_code.join(" ")
+        s.stack_code.join(" "),
+        s.stack_words.join(" ")
     );
     Some(s)
 }

@@ -27,7 +27,12 @@ pub struct Sample {
     /// Code addresses found on the stack above SP, innermost first (Thumb bit cleared, minus 1 for a BL's
     /// return address would be the call itself; left as stored).
     pub stack_code: Vec<String>,
+    /// The first [`RAW_WORDS`] words above SP as they are (arguments spilled by the callers).
+    pub stack_words: Vec<String>,
 }
+
+/// Raw stack words kept in a sample.
+pub const RAW_WORDS: u32 = 64;
 
 /// Reads the core's registers (cpu 0) and scans the stack for return-address candidates.
 pub fn sample(machine: &mut Machine, at_ms: u64, why: &str, code: std::ops::Range<u32>) -> Option<Sample> {
@@ -39,12 +44,16 @@ pub fn sample(machine: &mut Machine, at_ms: u64, why: &str, code: std::ops::Rang
     }
     let sp = regs[13];
     let mut stack_code = Vec::new();
+    let mut stack_words = Vec::new();
     for k in 0..STACK_WORDS {
         let mut w = [0u8; 4];
         if target.read_memory(0, u64::from(sp) + u64::from(k) * 4, &mut w).is_err() {
             break;
         }
         let v = u32::from_le_bytes(w);
+        if k < RAW_WORDS {
+            stack_words.push(format!("{v:#x}"));
+        }
         if v & 1 == 1 && code.contains(&(v & !1)) {
             stack_code.push(format!("{:#010x}@sp+{:#x}", v & !1, k * 4));
         }
@@ -54,5 +63,6 @@ pub fn sample(machine: &mut Machine, at_ms: u64, why: &str, code: std::ops::Rang
         why: why.to_string(),
         regs: regs.iter().map(|r| format!("{r:#010x}")).collect(),
         stack_code,
+        stack_words,
     })
 }

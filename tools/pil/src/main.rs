@@ -10,7 +10,10 @@
 //! Milestone 2 (partly landed, docs/pil.md): the nRF51 end of the syslink (`nrf51.rs`: setting echoes,
 //! SYS_NRF_VERSION, the 100 Hz battery/RSSI stream, RADIO_RAW both ways) and, with `--serve [ADDR]`, its radio
 //! host as a UDP socket with `cfnav sim --serve`'s framing (`udp_bridge.rs`), so cflib's `udp://` link reaches
-//! the image. A served run depends on when datagrams arrive (wall clock): it is not deterministic.
+//! the image. A served run depends on when datagrams arrive (wall clock): it is not deterministic; its budget
+//! can start at the client's first packet (`--serve-seconds`). `--client` (`client.rs`) is a scripted host on
+//! virtual time instead (cflib's connect requests, deterministic); `--probe` (`probe.rs`) samples the core's
+//! registers and stack at a panic line.
 //!
 //! Determinism: the machine is a pure function of the image and the options (no host clock reaches it); the
 //! report's `fingerprint` hashes the LED samples, the log and the syslink bytes so two runs can be compared.

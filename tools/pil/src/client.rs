@@ -11,6 +11,7 @@
 //! Sequences (`--client`): `toc` = link source, protocol version, log reset, log TOC info, every log TOC item,
 //! param TOC info, every param TOC item, then every parameter's value (what `SyncCrazyflie` does with no
 //! cache, crtp-over-udp.md §3), optionally repeated (`toc:N`) so a long run shows a stall; `early` = the same,
+//! `toc:N:GAP` waits GAP virtual ms after each answer before the next request (cflib's pacing over a slow link).
 //! `burst:N` = N log TOC item requests handed over at once (pipelined, as a raw-UDP probe sends them), so the
 //! nRF forwards one per ms: the image answers back to back.
 
@@ -62,6 +63,9 @@ pub struct Client {
     phase: u32,
     /// `burst:N`: requests handed over at once, answers counted as they come.
     burst: u16,
+    /// `toc:N:GAP`: virtual ms between an answer and the next request (cflib's wall-clock pacing).
+    gap_ms: u64,
+    next_at_ms: u64,
     /// Counters.
     pub stats: ClientStats,
 }
@@ -69,7 +73,13 @@ pub struct Client {
 impl Client {
     /// Parses `toc`, `toc:N` (N rounds) with a start time in virtual ms.
     pub fn new(spec: &str, start_ms: u64) -> Result<Self, String> {
-        let (name, rounds) = spec.split_once(':').unwrap_or((spec, "1"));
+        let (name, rest) = spec.split_once(':').unwrap_or((spec, "1"));
+        let (rounds, gap) = rest.split_once(':').unwrap_or((rest, "0"));
+        let gap_ms: u64 = gap
+            .parse()
+            .ok()
+            .filter(|&g| g <= 1000)
+            .ok_or_else(|| format!("--client {spec}: GAP must be 0..=1000 ms"))?;
         if name == "burst" {
             let n: u16 = rounds
                 .parse()
@@ -84,11 +94,15 @@ impl Client {
                 waiting: None,
                 phase: 0,
                 burst: n,
+                gap_ms: 0,
+                next_at_ms: 0,
                 stats: ClientStats::default(),
             });
         }
         if name != "toc" {
-            return Err(format!("unknown --client `{spec}` (known: toc, toc:N, burst:N)"));
+            return Err(format!(
+                "unknown --client `{spec}` (known: toc, toc:N, toc:N:GAP, burst:N)"
+            ));
         }
         let repeat: u32 = rounds
             .parse()
@@ -103,6 +117,8 @@ impl Client {
             waiting: None,
             phase: 0,
             burst: 0,
+            gap_ms,
+            next_at_ms: 0,
             stats: ClientStats::default(),
         };
         c.queue = Self::opening();
@@ -139,7 +155,7 @@ impl Client {
             self.stats.first_request_ms.get_or_insert(now_ms);
             return Some(vec![header(5, 0), 2, lo, hi]);
         }
-        if now_ms < self.start_ms || self.waiting.is_some() || self.stats.done {
+        if now_ms < self.start_ms.max(self.next_at_ms) || self.waiting.is_some() || self.stats.done {
             return None;
         }
         if self.next >= self.queue.len() {
@@ -177,6 +193,7 @@ impl Client {
         }
         let what = r.what;
         self.waiting = None;
+        self.next_at_ms = now_ms + self.gap_ms;
         self.stats.answered += 1;
         self.stats.last_answer_ms = Some(now_ms);
         let count = || data.get(1..3).map(|b| u16::from_le_bytes([b[0], b[1]]));

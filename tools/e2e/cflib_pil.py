@@ -16,10 +16,14 @@ cflib (no patch, no cache: every TOC entry is read through the emulated syslink)
      battery stream reached the image's power manager and came back through its log service.
 Prints what it saw with wall times. Exit 0 iff every step passed; 1 on any failure or the timeout.
 
---reduced (what CI runs, docs/pil.md milestone 2): the full connect above stalls today (the image stops
-answering after about 20 requests); the reduced check uses cflib's own UdpDriver, unmodified, to ask the
-link source, the protocol version, the log and param TOC infos, walk the param TOC to mission.startX, write
-1.25 and read it back; cfnav-pil then runs to 3 s virtual and must show the "ready" LEDs with no IWDG reset.
+cfnav-pil's virtual-time budget (--virtual-seconds, passed as --serve-seconds) starts at cflib's first request,
+not at boot, so cflib's wall-clock pacing cannot race it; the wall-clock limit is --timeout.
+
+--reduced (what CI runs, docs/pil.md milestone 2): the full connect above now gets through both TOCs (the
+stall was the USART6 model) but the image can still panic under it (a zero-length DMA on the IMU bus); the
+reduced check uses cflib's own UdpDriver, unmodified, to ask the link source, the protocol version, the log
+and param TOC infos, walk the param TOC to mission.startX, write 1.25 and read it back; cfnav-pil then runs
+3 s virtual past the first request and must show the "ready" LEDs with no IWDG reset.
 """
 
 import argparse
@@ -129,17 +133,25 @@ def main():
     ap.add_argument('--port', type=int, default=19860)
     ap.add_argument('--timeout', type=float, default=230.0)
     ap.add_argument('--samples', type=int, default=5)
-    ap.add_argument('--virtual-seconds', type=float, default=600.0)
+    ap.add_argument('--virtual-seconds', type=float, default=None,
+                    help="cfnav-pil's virtual-time budget, counted from cflib's first request (--serve-seconds), "
+                         "so cflib's wall-clock pacing cannot race a budget that started at boot; default 120 "
+                         "(full: the run ends when the checks are done), 3 (reduced: then the LEDs are checked)")
+    ap.add_argument('--settle', type=float, default=0.0,
+                    help='wall seconds to wait after RADIO_READY before the first request (0: at once)')
+    ap.add_argument('--probe', action='store_true', help='pass --probe to cfnav-pil (registers at a panic)')
     ap.add_argument('--json', default=None)
     ap.add_argument('--reduced', action='store_true',
                     help="CI's reduced check: cflib's own UdpDriver (unmodified) asks the link source, the "
                          "protocol version and both TOCs' sizes, then reads and writes one parameter by id")
     args = ap.parse_args()
-    if args.reduced and args.virtual_seconds == 600.0:
-        args.virtual_seconds = 3.0
+    if args.virtual_seconds is None:
+        args.virtual_seconds = 3.0 if args.reduced else 120.0
 
-    cmd = [args.pil, '--elf', args.elf, '--serve', f'127.0.0.1:{args.port}', '--seconds',
-           str(args.virtual_seconds), '--no-stop', '--until-stdin-eof']
+    cmd = [args.pil, '--elf', args.elf, '--serve', f'127.0.0.1:{args.port}', '--seconds', '600',
+           '--serve-seconds', str(args.virtual_seconds), '--no-stop', '--until-stdin-eof']
+    if args.probe:
+        cmd += ['--probe']
     if args.json:
         cmd += ['--json', args.json]
     say('starting ' + ' '.join(cmd))
@@ -188,9 +200,8 @@ def main():
         if not ready_line.wait(120):
             failures.append('the image never sent RADIO_READY')
             raise RuntimeError('no RADIO_READY')
-        # Requests that reach the image in the same ms as its control loop's first steps have made it panic
-        # (docs/pil.md, milestone 2): let it settle for a few wall seconds (a few hundred virtual ms) first.
-        time.sleep(3)
+        if args.settle > 0:
+            time.sleep(args.settle)
         cflib.crtp.init_drivers()
         if args.reduced:
             reduced(args.port, failures)

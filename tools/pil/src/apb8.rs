@@ -14,8 +14,20 @@
 //! that the last byte is NACKed. Without it the model ACKs one byte too many, and that byte stays in DR with
 //! RXNE set, where the next transaction's stream picks it up as its first byte.
 //!
-//! Non-goals: no timing of its own, no change to what the CPU sees (its space maps the peripheral directly).
+//! For the CPU's view of a USART (`usart-cpu = 1`, USART6's CPU-side bridge) it keeps a received byte for the
+//! DMA: while `CR3.DMAR` is set and `SR.RXNE` shows a byte waiting, a CPU read of DR returns that byte's value
+//! without taking it (an ordinary read when an error flag is up, so the SR-then-DR clear still works). On the
+//! part a receive stream takes the byte a few bus cycles after RXNE sets (RM0090 §10.3.x: the request is served
+//! at the next arbitration), so the CPU's DR read in embassy's `check_idle_and_errors` (the IDLE/error clear
+//! sequence, run on every ring-buffer read) finds the byte already gone and reads the same value again. In
+//! rsemu 0.0.7 the byte waits for the DMA's next scheduling quantum, and a CPU read of SR even pulls the next
+//! host byte in at once (`st.usart` `poll_receiver` on every register read): the DR read then took a byte
+//! from the DMA's stream, one corrupted syslink frame in about twenty uplinks (docs/pil.md, milestone 2).
+//! [`USART_RX_KEPT`] counts those reads; [`set_usart_cpu_steals`] restores the 0.0.7 behaviour for comparison.
+//!
+//! Non-goals: no timing of its own; apart from the above, no change to what the CPU sees.
 
+use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
 use std::sync::{Arc, OnceLock};
 
 use rsemu::core::device::{Device, DeviceClass, PropertySpec, RealizeCtx, ResetKind};
@@ -29,9 +41,33 @@ use rsemu::machine::{BindCtx, Instance};
 /// The class name a machine file writes.
 pub const CLASS_NAME: &str = "pil.apb8";
 
+/// CPU reads of a USART's DR that left the waiting byte to the receive DMA (see the module doc).
+pub static USART_RX_KEPT: AtomicU64 = AtomicU64::new(0);
+/// CPU reads of a USART's DR that took a byte the receive DMA was due to take (the 0.0.7 behaviour, when
+/// [`set_usart_cpu_steals`] asked for it).
+pub static USART_RX_STOLEN: AtomicU64 = AtomicU64::new(0);
+static USART_CPU_STEALS: AtomicBool = AtomicBool::new(false);
+
+/// `true`: CPU DR reads take the byte as rsemu 0.0.7 does (to show the stall); `false` (default): the part's
+/// behaviour.
+pub fn set_usart_cpu_steals(on: bool) {
+    USART_CPU_STEALS.store(on, Ordering::Relaxed);
+}
+
+/// USART (F4 layout, RM0090 §30.6) offsets and bits.
+const USART_SR: u64 = 0x00;
+const USART_DR: u64 = 0x04;
+const USART_CR3: u64 = 0x14;
+const SR_RXNE: u64 = 1 << 5;
+/// PE, FE, NF, ORE, IDLE: cleared by the SR-then-DR sequence.
+const SR_CLEARED_BY_DR: u64 = 0x1F;
+const CR3_DMAR: u64 = 1 << 6;
+
 #[derive(Debug)]
 struct Ops {
     base: u64,
+    /// This is the CPU's view of a USART: keep a waiting byte for the receive DMA.
+    usart_cpu: bool,
     /// The I2C receive stream's NDTR register, for the LAST emulation.
     rx_ndtr: Option<u64>,
     space: OnceLock<Arc<AddressSpace>>,
@@ -61,6 +97,23 @@ impl Ops {
     }
 }
 
+impl Ops {
+    /// A CPU read of a USART's DR that must not take the byte the receive DMA is due to take.
+    fn keep_for_dma(&self, space: &AddressSpace) -> MemResult<bool> {
+        let sr = space.read(self.base + USART_SR, Width::U32, MemAttrs::DEBUG)?;
+        let cr3 = space.read(self.base + USART_CR3, Width::U32, MemAttrs::DEBUG)?;
+        let waiting = cr3 & CR3_DMAR != 0 && sr & SR_RXNE != 0 && sr & SR_CLEARED_BY_DR == 0;
+        if waiting && USART_CPU_STEALS.load(Ordering::Relaxed) {
+            USART_RX_STOLEN.fetch_add(1, Ordering::Relaxed);
+            return Ok(false);
+        }
+        if waiting {
+            USART_RX_KEPT.fetch_add(1, Ordering::Relaxed);
+        }
+        Ok(waiting)
+    }
+}
+
 impl MemOps for Ops {
     fn read(&self, offset: u64, dst: &mut [u8], attrs: MemAttrs) -> MemResult {
         let space = self.space.get().ok_or(BusError::BadAccess)?;
@@ -69,9 +122,14 @@ impl MemOps for Ops {
         if lane + dst.len() > 4 {
             return Err(BusError::BadAccess);
         }
-        if offset == I2C_DR && !attrs.debug {
+        if offset == I2C_DR && !attrs.debug && !self.usart_cpu {
             self.emulate_last(space, attrs)?;
         }
+        let attrs = if self.usart_cpu && aligned == USART_DR && !attrs.debug && self.keep_for_dma(space)? {
+            MemAttrs::DEBUG
+        } else {
+            attrs
+        };
         let word = space.read(self.base + aligned, Width::U32, attrs)? as u32;
         let bytes = word.to_le_bytes();
         dst.copy_from_slice(&bytes[lane..lane + dst.len()]);
@@ -128,8 +186,13 @@ impl Apb8 {
             Some(v) => Some(v.as_uint().ok_or_else(|| bad("`rx-ndtr` must be an address"))?),
             None => None,
         };
+        let usart_cpu = match props.get("usart-cpu") {
+            Some(v) => v.as_uint().ok_or_else(|| bad("`usart-cpu` must be 0 or 1"))? != 0,
+            None => false,
+        };
         let ops = Arc::new(Ops {
             base,
+            usart_cpu,
             rx_ndtr,
             space: OnceLock::new(),
         });
@@ -189,6 +252,12 @@ pub static CLASS: DeviceClass = DeviceClass {
             required: false,
             summary: "I2C only: the receive stream's NDTR address, to emulate CR2.LAST",
         },
+        PropertySpec {
+            name: "usart-cpu",
+            kind: ValueKind::Uint,
+            required: false,
+            summary: "1: the CPU's view of a USART; a DR read leaves a byte the receive DMA is due to take",
+        },
     ],
     construct: |props| Ok(Box::new(Apb8::new(props)?)),
 };
@@ -199,6 +268,7 @@ pub fn schema() -> ClassSchema {
         .prop(PropSchema::new("base", ValueKind::Uint))
         .prop(PropSchema::new("size", ValueKind::Uint))
         .prop(PropSchema::new("rx-ndtr", ValueKind::Uint))
+        .prop(PropSchema::new("usart-cpu", ValueKind::Uint))
         .region("")
         .region("regs")
 }

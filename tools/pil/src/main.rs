@@ -10,18 +10,23 @@
 //! Milestone 2 (partly landed, docs/pil.md): the nRF51 end of the syslink (`nrf51.rs`: setting echoes,
 //! SYS_NRF_VERSION, the 100 Hz battery/RSSI stream, RADIO_RAW both ways) and, with `--serve [ADDR]`, its radio
 //! host as a UDP socket with `cfnav sim --serve`'s framing (`udp_bridge.rs`), so cflib's `udp://` link reaches
-//! the image. A served run depends on when datagrams arrive (wall clock): it is not deterministic.
+//! the image. A served run depends on when datagrams arrive (wall clock): it is not deterministic; its budget
+//! can start at the client's first packet (`--serve-seconds`). `--client` (`client.rs`) is a scripted host on
+//! virtual time instead (cflib's connect requests, deterministic); `--probe` (`probe.rs`) samples the core's
+//! registers and stack at a panic line.
 //!
 //! Determinism: the machine is a pure function of the image and the options (no host clock reaches it); the
 //! report's `fingerprint` hashes the LED samples, the log and the syslink bytes so two runs can be compared.
 
 mod apb8;
 mod board;
+mod client;
 mod devices;
 mod dreq;
 mod leds;
 mod nrf51;
 mod pin;
+mod probe;
 mod rtt;
 mod udp_bridge;
 
@@ -78,6 +83,26 @@ struct Args {
     /// Print the decoded defmt log as it arrives.
     #[arg(long)]
     log: bool,
+    /// A scripted radio host on virtual time instead of UDP (deterministic): `toc` = cflib's connect
+    /// requests (link source, version, log reset, both TOCs item by item, every parameter value), each sent
+    /// once the last was answered; `toc:N` repeats it N times. Implies --no-stop until it is done.
+    #[arg(long, value_name = "SEQUENCE")]
+    client: Option<String>,
+    /// Virtual ms at which `--client` sends its first request (the nRF queues it until RADIO_READY).
+    #[arg(long, default_value_t = 0)]
+    client_at_ms: u64,
+    /// With --serve: end the run this many virtual seconds after the client's first CRTP packet (a budget
+    /// that cflib's wall-clock pacing cannot race; --seconds still caps the whole run).
+    #[arg(long, value_name = "S")]
+    serve_seconds: Option<f64>,
+    /// Model USART6 as rsemu 0.0.7 does: a CPU read of DR takes a byte the receive DMA was due to take (the
+    /// cause of the milestone-2 stall, kept to show it; docs/pil.md).
+    #[arg(long)]
+    usart_cpu_steals: bool,
+    /// Sample the core's registers and stack (return-address candidates) at the first panic line of the log
+    /// and at the end of the run (for `arm-none-eabi-addr2line`).
+    #[arg(long)]
+    probe: bool,
     /// Reserved for milestone 3 (sensors fed by a simulator world); refused today.
     #[arg(long)]
     world: Option<PathBuf>,
@@ -131,6 +156,15 @@ struct Report {
     imu_drdy_pulses: u64,
     /// The nRF51 end's counters (battery/RSSI stream, RADIO_RAW both ways).
     nrf: nrf51::NrfStats,
+    /// The scripted host's counters (`--client`).
+    client: Option<client::ClientStats>,
+    /// Virtual ms of the served client's first CRTP packet (`--serve`).
+    first_request_ms: Option<u64>,
+    /// CPU reads of USART6 DR that left the byte to the receive DMA, and (with --usart-cpu-steals) that took it.
+    usart6_rx_kept_for_dma: u64,
+    usart6_rx_stolen_from_dma: u64,
+    /// `--probe` samples.
+    probes: Vec<probe::Sample>,
     /// UDP datagrams received and sent (`--serve`).
     udp_received: u64,
     udp_sent: u64,
@@ -218,6 +252,13 @@ fn run(args: &Args) -> Result<(Report, bool)> {
         None => None,
     };
     let mut rtt = rtt::Rtt::new(rtt_address, &table);
+    let mut client = match &args.client {
+        Some(spec) => Some(client::Client::new(spec, args.client_at_ms).map_err(anyhow::Error::msg)?),
+        None => None,
+    };
+    let mut first_request_ms: Option<u64> = None;
+    apb8::set_usart_cpu_steals(args.usart_cpu_steals);
+    let mut probes = Vec::new();
 
     let stdin_closed = std::sync::Arc::new(std::sync::atomic::AtomicBool::new(false));
     if args.until_stdin_eof {
@@ -241,7 +282,7 @@ fn run(args: &Args) -> Result<(Report, bool)> {
     let mut out = [0u8; cfnav::radio::syslink::MAX_FRAME];
     let pulse_ns = 50_000u64;
     let mut drdy_pulses = 0u64;
-    while board.now_ns() < end_ns {
+    while board.now_ns() < end_ns && !served_budget_spent(args, first_request_ms, board.now_ns()) {
         // The gyroscope's 1 kHz data-ready pulse on INT3, once the firmware has enabled and mapped it.
         if board.imu.int3_drdy_enabled() {
             board.imu_int3.set(true);
@@ -290,6 +331,9 @@ fn run(args: &Args) -> Result<(Report, bool)> {
         }
         for line in rtt.poll(&board) {
             fp.bytes(line.text.as_bytes());
+            if args.probe && probes.is_empty() && line.text.contains("panicked") {
+                probes.extend(probe_sample(&mut board, &line.text));
+            }
             if args.log {
                 println!("{:>9.3} | {}", line.read_at_ns as f64 / 1e9, line.text);
             }
@@ -310,17 +354,25 @@ fn run(args: &Args) -> Result<(Report, bool)> {
                         board.syslink.feed(&out[..n]);
                     }
                 }
-                if let (Some(crtp), Some(bridge)) = (to_host, bridge.as_mut()) {
-                    bridge.send(&crtp);
+                if let (Some(crtp), Some(bridge)) = (to_host.as_ref(), bridge.as_mut()) {
+                    bridge.send(crtp);
+                }
+                if let (Some(crtp), Some(c)) = (to_host, client.as_mut()) {
+                    c.on_downlink(&crtp, now_ns / 1_000_000);
                 }
             }
         }
         if let Some(bridge) = bridge.as_mut() {
             for crtp in bridge.receive() {
+                first_request_ms.get_or_insert(now_ns / 1_000_000);
                 nrf.host_packet(&crtp);
             }
         }
-        let polling = bridge.as_ref().is_some_and(udp_bridge::UdpBridge::has_client);
+        if let Some(p) = client.as_mut().and_then(|c| c.poll(now_ns / 1_000_000)) {
+            nrf.host_packet(&p);
+        }
+        let polling = bridge.as_ref().is_some_and(udp_bridge::UdpBridge::has_client)
+            || client.as_ref().is_some_and(|c| c.stats.sent > 0);
         for packet in nrf.tick(now_ns, polling) {
             if let Ok(n) = encode(&packet, &mut out) {
                 board.syslink.feed(&out[..n]);
@@ -329,9 +381,19 @@ fn run(args: &Args) -> Result<(Report, bool)> {
         if stdin_closed.load(std::sync::atomic::Ordering::Acquire) {
             break;
         }
-        if expected_at_ms.is_some() && !args.no_stop && args.serve.is_none() {
+        if expected_at_ms.is_some()
+            && !args.no_stop
+            && args.serve.is_none()
+            && client.as_ref().is_none_or(|c| c.stats.done)
+        {
             break;
         }
+    }
+    if let Some(c) = client.as_mut() {
+        c.finish();
+    }
+    if args.probe {
+        probes.extend(probe_sample(&mut board, "end of run"));
     }
     let acr = board.peek32(FLASH_ACR).map(|raw| Acr {
         raw,
@@ -350,7 +412,7 @@ fn run(args: &Args) -> Result<(Report, bool)> {
         .map(|l| l.text.clone())
         .collect();
     let ready = ready_at_ms.is_some();
-    let passed = expected_at_ms.is_some() && !iwdg_reset_flag;
+    let passed = expected_at_ms.is_some() && !iwdg_reset_flag && client.as_ref().is_none_or(|c| c.stats.done);
     let report = Report {
         elf: elf_path.display().to_string(),
         elf_fnv: {
@@ -384,12 +446,57 @@ fn run(args: &Args) -> Result<(Report, bool)> {
         imu_bus: board.imu.stats(),
         imu_drdy_pulses: drdy_pulses,
         nrf: nrf.stats.clone(),
+        client: client.map(|c| c.stats),
+        first_request_ms,
+        usart6_rx_kept_for_dma: apb8::USART_RX_KEPT.load(std::sync::atomic::Ordering::Relaxed),
+        usart6_rx_stolen_from_dma: apb8::USART_RX_STOLEN.load(std::sync::atomic::Ordering::Relaxed),
+        probes,
         udp_received: bridge.as_ref().map_or(0, |b| b.received),
         udp_sent: bridge.as_ref().map_or(0, |b| b.sent),
         fingerprint: format!("{:016x}", fp.0),
         log,
     };
     Ok((report, passed))
+}
+
+/// One `--probe` sample, printed as it is taken.
+fn probe_sample(board: &mut Board, why: &str) -> Option<probe::Sample> {
+    let at_ms = board.now_ns() / 1_000_000;
+    let mut s = probe::sample(&mut board.machine, at_ms, why, 0x0800_4000..0x0810_0000)?;
+    // DMA1 (I2C1/I2C3 streams 0, 2, 4, 6: CR, NDTR, PAR, M0AR) and, with CFNAV_PIL_DUMP=DIR, the whole SRAM
+    // (.data, .bss and the stack) to DIR/ram-MS.bin, for reading by hand.
+    for stream in [0u64, 2, 4, 6] {
+        let at = 0x4002_6010 + 0x18 * stream;
+        let regs: Vec<String> = (0..4)
+            .map(|k| format!("{:#x}", board.peek32(at + 4 * k).unwrap_or(0)))
+            .collect();
+        s.stack_code.push(format!("dma1.s{stream}={}", regs.join("/")));
+    }
+    if let Ok(dir) = std::env::var("CFNAV_PIL_DUMP") {
+        let words: Vec<u32> = (0x2000_0000u64..0x2002_0000)
+            .step_by(4)
+            .map(|a| board.peek32(a).unwrap_or(0))
+            .collect();
+        let bytes: Vec<u8> = words.iter().flat_map(|w| w.to_le_bytes()).collect();
+        let _ = std::fs::write(format!("{dir}/ram-{at_ms}.bin"), bytes);
+    }
+    println!(
+        "probe at {at_ms} ms ({why}): pc={} lr={} sp={}; stack code: {}; stack words: {}",
+        s.regs[15],
+        s.regs[14],
+        s.regs[13],
+        s.stack_code.join(" "),
+        s.stack_words.join(" ")
+    );
+    Some(s)
+}
+
+/// `--serve-seconds`: the served run's virtual budget, counted from the client's first CRTP packet, is spent.
+fn served_budget_spent(args: &Args, first_request_ms: Option<u64>, now_ns: u64) -> bool {
+    match (args.serve_seconds, first_request_ms) {
+        (Some(s), Some(t0)) => now_ns >= t0 * 1_000_000 + (s * 1e9) as u64,
+        _ => false,
+    }
 }
 
 fn main() -> ExitCode {
@@ -418,6 +525,24 @@ fn main() -> ExitCode {
                 report.syslink_packets_from_image.len(),
                 report.fingerprint,
             );
+            if let Some(c) = &report.client {
+                println!(
+                    "client: sent={} answered={} done={} first_request_ms={:?} last_answer_ms={:?} log_toc={:?} \
+                     param_toc={:?} stalled_on={:?} nrf_radio_raw_down={} usart6_rx_kept_for_dma={} \
+                     usart6_rx_stolen_from_dma={}",
+                    c.sent,
+                    c.answered,
+                    c.done,
+                    c.first_request_ms,
+                    c.last_answer_ms,
+                    c.log_toc,
+                    c.param_toc,
+                    c.stalled_on,
+                    report.nrf.radio_raw_down,
+                    report.usart6_rx_kept_for_dma,
+                    report.usart6_rx_stolen_from_dma
+                );
+            }
             for f in &report.faults_logged {
                 println!("firmware fault: {f}");
             }

@@ -17,8 +17,10 @@
 
 mod apb8;
 mod board;
+mod deck;
 mod devices;
 mod dreq;
+mod flow;
 mod leds;
 mod nrf51;
 mod pin;
@@ -78,6 +80,12 @@ struct Args {
     /// Print the decoded defmt log as it arrives.
     #[arg(long)]
     log: bool,
+    /// The Multi-ranger deck is not fitted (milestone 3 models it by default).
+    #[arg(long)]
+    no_multiranger: bool,
+    /// The Flow deck v2 is not fitted (PMW3901 and its VL53L1x).
+    #[arg(long)]
+    no_flow: bool,
     /// Reserved for milestone 3 (sensors fed by a simulator world); refused today.
     #[arg(long)]
     world: Option<PathBuf>,
@@ -129,6 +137,15 @@ struct Report {
     syslink_packets_from_image: Vec<String>,
     imu_bus: BusStats,
     imu_drdy_pulses: u64,
+    /// The image's deck flags (`deck.bcMultiranger`, `deck.bcFlow2`) read from its RAM at the end.
+    deck_multiranger: Option<bool>,
+    deck_flow2: Option<bool>,
+    /// The deck bus rangers and expander (milestone 3 models).
+    deck_bus: deck::DeckStats,
+    /// Each ranger's I2C address at the end (front, back, up, left, right, down; null = powered off).
+    ranger_addresses: [Option<u8>; 6],
+    /// The PMW3901 model's counters.
+    flow_sensor: flow::FlowStats,
     /// The nRF51 end's counters (battery/RSSI stream, RADIO_RAW both ways).
     nrf: nrf51::NrfStats,
     /// UDP datagrams received and sent (`--serve`).
@@ -204,7 +221,11 @@ fn run(args: &Args) -> Result<(Report, bool)> {
         .context("reading the .defmt table")?
         .context("the ELF has no .defmt table")?;
     let rtt_address = image.rtt_address.context("the ELF has no _SEGGER_RTT symbol")?;
-    let mut board = Board::new(image.flash, faults)?;
+    let fitted = deck::Fitted {
+        multiranger: !args.no_multiranger,
+        flow: !args.no_flow,
+    };
+    let mut board = Board::new(image.flash.clone(), faults, fitted)?;
     let mut nrf = nrf51::Nrf51::new(args.silent_nrf);
     let mut bridge = match &args.serve {
         Some(addr) => {
@@ -242,6 +263,7 @@ fn run(args: &Args) -> Result<(Report, bool)> {
     let pulse_ns = 50_000u64;
     let mut drdy_pulses = 0u64;
     while board.now_ns() < end_ns {
+        board.deck.advance(board.now_ns());
         // The gyroscope's 1 kHz data-ready pulse on INT3, once the firmware has enabled and mapped it.
         if board.imu.int3_drdy_enabled() {
             board.imu_int3.set(true);
@@ -383,6 +405,11 @@ fn run(args: &Args) -> Result<(Report, bool)> {
         syslink_packets_from_image: from_image,
         imu_bus: board.imu.stats(),
         imu_drdy_pulses: drdy_pulses,
+        deck_multiranger: read_flag(&board, &image.statics, "DECK_MULTIRANGER"),
+        deck_flow2: read_flag(&board, &image.statics, "DECK_FLOW2"),
+        deck_bus: board.deck.stats(),
+        ranger_addresses: board.deck.addresses(),
+        flow_sensor: board.flow.stats(),
         nrf: nrf.stats.clone(),
         udp_received: bridge.as_ref().map_or(0, |b| b.received),
         udp_sent: bridge.as_ref().map_or(0, |b| b.sent),
@@ -392,6 +419,12 @@ fn run(args: &Args) -> Result<(Report, bool)> {
     Ok((report, passed))
 }
 
+/// An `AtomicBool` static of the image, by its symbol substring.
+fn read_flag(board: &Board, statics: &[(&'static str, u64)], name: &str) -> Option<bool> {
+    let &(_, addr) = statics.iter().find(|(n, _)| *n == name)?;
+    board.peek8(addr).map(|b| b != 0)
+}
+
 fn main() -> ExitCode {
     let args = Args::parse();
     match run(&args) {
@@ -399,7 +432,7 @@ fn main() -> ExitCode {
             println!(
                 "outcome={} ready_at_ms={} expected={} expected_at_ms={} final_status={} virtual_s={:.3} wall_s={:.2} acr_caches_on={} \
                  acr_latency_ws={} iwdg_reset_flag={} boots_logged={} log_lines={} log_errors={} \
-                 imu_soft_resets={} imu_nacked_bytes={} syslink_packets={} fingerprint={}",
+                 imu_soft_resets={} imu_nacked_bytes={} syslink_packets={} deck_multiranger={} deck_flow2={} fingerprint={}",
                 report.outcome,
                 report.ready_at_ms.map_or_else(|| "-".to_string(), |t| t.to_string()),
                 report.expected,
@@ -416,6 +449,8 @@ fn main() -> ExitCode {
                 report.imu_bus.soft_resets,
                 report.imu_bus.nacked_bytes,
                 report.syslink_packets_from_image.len(),
+                report.deck_multiranger.map_or(-1, i32::from),
+                report.deck_flow2.map_or(-1, i32::from),
                 report.fingerprint,
             );
             for f in &report.faults_logged {

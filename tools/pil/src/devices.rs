@@ -468,9 +468,13 @@ mod tests {
             assert!((back.gyro_rad_s[i] - gyro[i]).abs() <= cfnav::drivers::bmi088::GYRO_RAD_S_PER_LSB);
             assert!((back.accel_m_s2[i] - accel[i]).abs() <= cfnav::drivers::bmi088::ACCEL_M_S2_PER_LSB);
         }
-        // A driver that left the gyro at ±250 °/s would read 8× the counts (saturating at 3 rad/s).
+        // A driver that left the gyro at ±250 °/s (GYRO_RANGE 0x03) reads 8× the counts, saturating past
+        // 250 °/s (4.36 rad/s).
         write_reg(&dev, GYRO_ADDR, 0x0F, 0x03);
         dev.set_sample(gyro, accel);
+        let at_250 = read_burst(&dev, GYRO_ADDR, 0x02);
+        assert!((i32::from(at_250[2]) - 8 * i32::from(raw.gyro[2])).abs() <= 8);
+        dev.set_sample([0.0, 0.0, 5.0], accel);
         assert_eq!(read_burst(&dev, GYRO_ADDR, 0x02)[2], i16::MAX);
     }
 

@@ -52,6 +52,8 @@ struct State {
     delta: [i32; 2],
     /// The vendor table's last write was seen since the last power-up reset.
     configured: bool,
+    /// The simulator's flow model sees texture at a usable height ([`Pmw3901::set_tracking`]).
+    tracking: bool,
     burst: [u8; 12],
 }
 
@@ -83,6 +85,7 @@ impl Pmw3901 {
             address: 0,
             delta: [0; 2],
             configured: false,
+            tracking: true,
             burst: [0; 12],
         };
         power_up(&mut s);
@@ -110,6 +113,12 @@ impl Pmw3901 {
             s.delta[0] -= dpixel[1].round() as i32;
             s.delta[1] -= dpixel[0].round() as i32;
         });
+    }
+
+    /// Whether the chip tracks (the simulator's flow model says its reading is valid: height within the
+    /// sensor's range, light); while it does not, the burst reports no motion and SQUAL 0.
+    pub fn set_tracking(&self, tracking: bool) {
+        self.with(|s| s.tracking = tracking);
     }
 
     pub fn stats(&self) -> FlowStats {
@@ -161,10 +170,11 @@ impl SpiSlave for Pmw3901 {
                 if byte & 0x80 == 0 {
                     let reg = byte & 0x7F;
                     if reg == 0x16 {
-                        let motion = if s.configured { MOTION_VALID } else { 0x20 };
+                        let tracking = s.configured && s.tracking;
+                        let motion = if tracking { MOTION_VALID } else { 0x20 };
                         let dx = clamp16(s.delta[0]);
                         let dy = clamp16(s.delta[1]);
-                        let squal = if s.configured { SQUAL } else { 0 };
+                        let squal = if tracking { SQUAL } else { 0 };
                         s.burst = [
                             motion, 0xBF, dx[0], dx[1], dy[0], dy[1], squal, 0x40, 0x80, 0x10, 0x00, 0x40,
                         ];
@@ -348,6 +358,11 @@ mod tests {
         let b: [u8; 12] = access(&dev, &[0x16; 13])[1..].try_into().unwrap();
         let s = cfnav::drivers::pmw3901::MotionBurst::parse(&b).to_sample(0.01);
         assert_eq!((s.dpixel_x, s.dpixel_y), (0, 0));
+        // Not tracking (too low or dark in the simulator): no valid motion.
+        dev.set_tracking(false);
+        let b: [u8; 12] = access(&dev, &[0x16; 13])[1..].try_into().unwrap();
+        assert!(!cfnav::drivers::pmw3901::MotionBurst::parse(&b).is_valid());
+        dev.set_tracking(true);
         // Power_Up_Reset forgets the configuration.
         access(&dev, &[0x3A | 0x80, 0x5A]);
         assert!(!dev.stats().configured);

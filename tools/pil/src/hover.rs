@@ -25,6 +25,8 @@ pub const SCRIPT_DELAY_NS: u64 = 500_000_000;
 pub const SCRIPT_GAP_NS: u64 = 50_000_000;
 /// How long the nRF keeps polling after the last write, ns.
 pub const POLL_AFTER_NS: u64 = 200_000_000;
+/// `MissionState::Completed` (`src/mission/mod.rs`).
+pub const COMPLETED: u32 = 100;
 /// Rise that counts as a take-off, m.
 pub const TAKEOFF_M: f32 = 0.10;
 /// Band around the target height that counts as holding it, m.
@@ -121,6 +123,8 @@ pub struct HoverReport {
     pub landed_at_s: Option<f64>,
     /// Horizontal distance of the landing point from the take-off point, m.
     pub landing_offset_m: Option<f32>,
+    /// The mission's end state as the image logged it ("mission ended: state N"; 100 = completed).
+    pub mission_end_state: Option<u32>,
     pub passed: bool,
 }
 
@@ -165,6 +169,16 @@ impl HoverJudge {
         }
     }
 
+    /// A defmt line of the image: remembers the mission's end state.
+    pub fn log_line(&mut self, text: &str) {
+        if let Some(at) = text.find("mission ended: state ") {
+            self.report.mission_end_state = text[at + 21..]
+                .split(|c: char| !c.is_ascii_digit())
+                .next()
+                .and_then(|n| n.parse().ok());
+        }
+    }
+
     /// Whether the drone has landed after flying.
     pub fn landed(&self) -> bool {
         self.report.landed
@@ -197,8 +211,12 @@ impl HoverJudge {
             }
             r.hold_rms_xy_m = (sum / (b - a + 1) as f64).sqrt() as f32;
         }
-        // Held the hover for its time (less the margin the band's edges take) and landed.
-        r.passed = r.took_off && r.landed && r.held_s + 0.5 >= f64::from(r.hover_time_s);
+        // Held the hover for its time (less the margin the band's edges take), landed, and the image's
+        // mission says it completed (100: `MissionState::Completed`).
+        r.passed = r.took_off
+            && r.landed
+            && r.held_s + 0.5 >= f64::from(r.hover_time_s)
+            && r.mission_end_state == Some(COMPLETED);
         self.report
     }
 }
@@ -266,6 +284,27 @@ mod tests {
         j.sample(4.2, [1.0, 1.0, 0.5], false, on);
         j.sample(5.0, [1.0, 1.0, 0.2], false, on);
         j.sample(6.0, [1.02, 1.0, 0.0], true, MotorDuty::default());
+        let mut j2 = HoverJudge::new(0.5, 2.0);
+        std::mem::swap(&mut j, &mut j2);
+        // The same flight ended by the image in an estimator fault does not pass.
+        j2.log_line("mission ended: state 204");
+        let r2 = j2.finish();
+        assert_eq!(r2.mission_end_state, Some(204));
+        assert!(r2.took_off && r2.landed && !r2.passed);
+        let _ = j;
+        let mut j = HoverJudge::new(0.5, 2.0);
+        for (t, p, g, d) in [
+            (0.0, [1.0, 1.0, 0.0], true, MotorDuty::default()),
+            (1.0, [1.0, 1.0, 0.3], false, on),
+            (2.0, [1.1, 1.0, 0.48], false, on),
+            (3.0, [1.0, 1.05, 0.53], false, on),
+            (4.2, [1.0, 1.0, 0.5], false, on),
+            (5.0, [1.0, 1.0, 0.2], false, on),
+            (6.0, [1.02, 1.0, 0.0], true, MotorDuty::default()),
+        ] {
+            j.sample(t, p, g, d);
+        }
+        j.log_line("1.2 INFO mission ended: state 100");
         let r = j.finish();
         assert!(r.took_off && r.landed && r.passed);
         assert!((r.held_s - 2.2).abs() < 1e-9);
@@ -281,7 +320,9 @@ mod tests {
 
     #[test]
     fn the_load_line_parses() {
-        let l = LoadLine::parse("load 23% (control 12%, io 5%, mission 6%), control 1000 Hz, jitter 14 us, step max 310 us");
+        let l = LoadLine::parse(
+            "load 23% (control 12%, io 5%, mission 6%), control 1000 Hz, jitter 14 us, step max 310 us",
+        );
         assert_eq!(
             l,
             Some(LoadLine {

@@ -22,9 +22,9 @@ mod devices;
 mod dreq;
 mod flow;
 mod hover;
-mod physics;
 mod leds;
 mod nrf51;
+mod physics;
 mod pin;
 mod rtt;
 mod udp_bridge;
@@ -234,7 +234,10 @@ fn parse_status(name: &str) -> Result<BoardStatus> {
 }
 
 fn run(args: &Args) -> Result<(Report, bool)> {
-    if args.hover.is_some_and(|h| !(h.is_finite() && (1.0..=60.0).contains(&h))) {
+    if args
+        .hover
+        .is_some_and(|h| !(h.is_finite() && (1.0..=60.0).contains(&h)))
+    {
         bail!("--hover SECONDS must be in [1, 60]");
     }
     let mut physics = if args.world.is_some() || args.hover.is_some() {
@@ -360,7 +363,12 @@ fn run(args: &Args) -> Result<(Report, bool)> {
                 );
             }
             if let Some(j) = judge.as_mut() {
-                j.sample(board.now_ns() as f64 * 1e-9, p.quad.position(), p.quad.on_ground(), p.duty);
+                j.sample(
+                    board.now_ns() as f64 * 1e-9,
+                    p.quad.position(),
+                    p.quad.on_ground(),
+                    p.duty,
+                );
             }
         }
         let t_ms = board.now_ns() / 1_000_000;
@@ -405,6 +413,9 @@ fn run(args: &Args) -> Result<(Report, bool)> {
             fp.bytes(line.text.as_bytes());
             if let Some(l) = hover::LoadLine::parse(&line.text) {
                 load = Some(l);
+            }
+            if let Some(j) = judge.as_mut() {
+                j.log_line(&line.text);
             }
             if args.log {
                 println!("{:>9.3} | {}", line.read_at_ns as f64 / 1e9, line.text);

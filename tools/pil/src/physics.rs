@@ -107,10 +107,12 @@ impl Physics {
         }
         board.deck.set_ranges(self.ranges_m);
         if now >= self.next_flow_ns {
-            if let Some(f) = self.flow.sample(&self.quad, &self.world, &mut self.rng_flow)
-                && f.motion_valid
-            {
-                board.flow.add_motion([f32::from(f.dpixel_x), f32::from(f.dpixel_y)]);
+            match self.flow.sample(&self.quad, &self.world, &mut self.rng_flow) {
+                Some(f) if f.motion_valid => {
+                    board.flow.set_tracking(true);
+                    board.flow.add_motion([f32::from(f.dpixel_x), f32::from(f.dpixel_y)]);
+                }
+                _ => board.flow.set_tracking(false),
             }
             self.next_flow_ns = now + FLOW_PERIOD_NS;
         }

@@ -175,11 +175,8 @@ impl Vl53 {
                 self.regs[0x0001] = value & 0x7F;
                 stats.address_changes += 1;
             }
-            0x0086 => {
-                if value & 0x01 != 0 {
-                    self.ready = false;
-                }
-            }
+            0x0086 if value & 0x01 != 0 => self.ready = false,
+            0x0086 => {}
             0x0087 => {
                 self.regs[0x87] = value;
                 if value == 0x40 {

@@ -208,8 +208,11 @@ impl SpiSlave for Pmw3901 {
             }
             match reg {
                 0x02 => {
-                    let motion = if s.configured && s.delta != [0, 0] { 0x80 } else { 0x00 };
-                    motion
+                    if s.configured && s.delta != [0, 0] {
+                        0x80
+                    } else {
+                        0x00
+                    }
                 }
                 0x03 => clamp16(s.delta[0])[0],
                 0x04 => clamp16(s.delta[0])[1],

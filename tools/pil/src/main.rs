@@ -32,7 +32,7 @@ mod udp_bridge;
 /// The simulator's own models (`cfnav sim`), compiled in unchanged from `tools/src/sim` (milestone 3): the
 /// rigid body and battery, the sensor noise models, the world files and their stress sections.
 #[path = "../../src/sim"]
-#[allow(dead_code, unused_imports)]
+#[allow(dead_code, unused_imports, clippy::wrong_self_convention)]
 mod sim {
     pub mod physics;
     pub mod sensors;

@@ -152,6 +152,9 @@ struct Report {
     usart6_sr_cr1_cr3: [u32; 3],
     /// DMA2 LISR, HISR, then stream 1 (USART6 RX) CR, NDTR and stream 7 (USART6 TX) CR, NDTR (RM0090 §10.5).
     usart6_dma: [u32; 6],
+    /// SPI1 CR1, CR2, SR (RM0090 §28.5), then DMA2 stream 0 (SPI1 RX) CR, NDTR and stream 3 (SPI1 TX) CR,
+    /// NDTR, and DMA2 LISR (streams 0–3 flags): where a stuck flow read waits.
+    spi1_dma: [u32; 8],
     /// GPIOA IDR (PA4 = the nRF's flow control, bit 4).
     gpioa_idr: u32,
     boots_logged: usize,
@@ -522,6 +525,16 @@ fn run(args: &Args) -> Result<(Report, bool)> {
         usart6_sr_cr1_cr3: [0x00, 0x0C, 0x14].map(|off| board.peek32(0x4001_1400 + off).unwrap_or(0)),
         usart6_dma: [0x00, 0x04, 0x10 + 0x18, 0x14 + 0x18, 0x10 + 0x18 * 7, 0x14 + 0x18 * 7]
             .map(|off| board.peek32(0x4002_6400 + off).unwrap_or(0)),
+        spi1_dma: [
+            board.peek32(0x4001_3000).unwrap_or(0),
+            board.peek32(0x4001_3004).unwrap_or(0),
+            board.peek32(0x4001_3008).unwrap_or(0),
+            board.peek32(0x4002_6410).unwrap_or(0),
+            board.peek32(0x4002_6414).unwrap_or(0),
+            board.peek32(0x4002_6410 + 0x18 * 3).unwrap_or(0),
+            board.peek32(0x4002_6414 + 0x18 * 3).unwrap_or(0),
+            board.peek32(0x4002_6400).unwrap_or(0),
+        ],
         gpioa_idr: board.peek32(0x4002_0010).unwrap_or(0),
         boots_logged,
         faults_logged,

@@ -20,7 +20,9 @@ use rsemu::core::value::Width;
 use rsemu::host::chardev::{CharPort, ports};
 use rsemu::machine::{Machine, catalog};
 
+use crate::deck::{DeckSensors, Fitted};
 use crate::devices::{Bmi088, Eeprom, Faults, default_config_block};
+use crate::flow::{self, CsTarget, Pmw3901};
 use crate::pin::{self, PinHandle};
 use crate::{apb8, dreq};
 
@@ -45,7 +47,13 @@ pub const GPIOD_ODR: u64 = 0x4002_0C14;
 pub struct Image {
     pub flash: Vec<u8>,
     pub rtt_address: Option<u64>,
+    /// Named statics of the image the report reads (deck flags, ...): (substring of the symbol, address).
+    pub statics: Vec<(&'static str, u64)>,
 }
+
+/// The image's statics the report reads, by a substring of their (mangled) symbol names: the deck flags
+/// behind the `deck.bcMultiranger` / `deck.bcFlow2` parameters (`src/board/mod.rs`).
+pub const STATICS: [&str; 2] = ["DECK_MULTIRANGER", "DECK_FLOW2"];
 
 /// Builds the 1 MiB flash image from the ELF's LOAD segments (erased bytes are 0xFF) and the two-word vector
 /// table at the flash base.
@@ -81,7 +89,19 @@ pub fn load_image(elf: &[u8]) -> Result<Image> {
         .symbols()
         .find(|s| s.name() == Ok("_SEGGER_RTT"))
         .map(|s| s.address());
-    Ok(Image { flash, rtt_address })
+    let statics = STATICS
+        .iter()
+        .filter_map(|&name| {
+            file.symbols()
+                .find(|s| s.name().is_ok_and(|n| n.contains(name)))
+                .map(|s| (name, s.address()))
+        })
+        .collect();
+    Ok(Image {
+        flash,
+        rtt_address,
+        statics,
+    })
 }
 
 /// The physical address of the program header whose file range starts at `offset` (ELF32 little-endian;
@@ -114,12 +134,16 @@ pub struct Board {
     pub imu: Arc<Bmi088>,
     /// The gyroscope's data-ready line (PC14).
     pub imu_int3: PinHandle,
+    /// The Multi-ranger and the Flow deck's height ranger on I2C1.
+    pub deck: Arc<DeckSensors>,
+    /// The Flow deck's PMW3901 on SPI1.
+    pub flow: Arc<Pmw3901>,
     mem: Arc<AddressSpace>,
 }
 
 impl Board {
     /// Builds the machine around `flash` with the device models and faults.
-    pub fn new(flash: Vec<u8>, faults: Faults) -> Result<Self> {
+    pub fn new(flash: Vec<u8>, faults: Faults, fitted: Fitted) -> Result<Self> {
         let mut registry = catalog::registry().map_err(|e| anyhow!("rsemu registry: {e}"))?;
         registry
             .add(&dreq::CLASS)
@@ -130,10 +154,22 @@ impl Board {
         registry
             .add(&pin::CLASS)
             .map_err(|e| anyhow!("registering pil.pin: {e}"))?;
+        registry
+            .add(&flow::CS_CLASS)
+            .map_err(|e| anyhow!("registering pil.cs: {e}"))?;
         let mut options = catalog::build_options().map_err(|e| anyhow!("rsemu build options: {e}"))?;
         options.classes.insert(dreq::schema());
         options.classes.insert(apb8::schema());
         options.classes.insert(pin::schema());
+        options.classes.insert(flow::cs_schema());
+        let cs_target = CsTarget::default();
+        let cs_handle = cs_target.clone();
+        options
+            .bindings
+            .bind(flow::CS_CLASS_NAME, move |_props| {
+                Ok(Arc::new(flow::Cs::new(cs_handle.clone())))
+            })
+            .map_err(|e| anyhow!("binding pil.cs: {e}"))?;
         let imu_int3 = PinHandle::default();
         let handle = imu_int3.clone();
         options
@@ -159,6 +195,14 @@ impl Board {
         let deck = buses::open(&hosts, "deck").map_err(|e| anyhow!("I2C1 bus: {e}"))?;
         deck.attach(Arc::new(Eeprom::new(&default_config_block())))
             .map_err(|e| anyhow!("attaching the EEPROM: {e}"))?;
+        let deck_sensors = Arc::new(DeckSensors::new(fitted));
+        deck.attach(Arc::clone(&deck_sensors) as _)
+            .map_err(|e| anyhow!("attaching the deck rangers: {e}"))?;
+        let spi = rsemu::bus::spi::buses::open(&hosts, "flowdeck").map_err(|e| anyhow!("SPI1 bus: {e}"))?;
+        let pmw = Arc::new(Pmw3901::new(fitted.flow));
+        spi.attach(rsemu::bus::spi::ChipSelect(0), Arc::clone(&pmw) as _)
+            .map_err(|e| anyhow!("attaching the PMW3901: {e}"))?;
+        cs_target.set(spi);
         let syslink = ports::open(&hosts, "syslink").map_err(|e| anyhow!("USART6 port: {e}"))?;
         options.realize.media.insert("firmware", flash);
         let machine = rsemu::machine::build("crazyflie21", MACHINE_TEXT, &registry, &options)
@@ -173,6 +217,8 @@ impl Board {
             syslink,
             imu,
             imu_int3,
+            deck: deck_sensors,
+            flow: pmw,
             mem,
         })
     }

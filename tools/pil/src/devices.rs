@@ -127,6 +127,48 @@ impl Bmi088 {
             })
     }
 
+    /// The gyroscope's data-ready period from GYRO_BANDWIDTH (datasheet §5.5.6: ODR 2000 Hz for 0x00/0x01,
+    /// 1000 Hz for 0x02, 400 Hz for 0x03, 200 Hz for 0x04/0x06, 100 Hz for 0x05/0x07), ns.
+    pub fn gyro_period_ns(&self) -> u64 {
+        let bw = self.with_halves(|h| h[1].regs[0x10] & 0x07);
+        match bw {
+            0 | 1 => 500_000,
+            2 => 1_000_000,
+            3 => 2_500_000,
+            4 | 6 => 5_000_000,
+            _ => 10_000_000,
+        }
+    }
+
+    /// A new sample from the simulator (body = chip axes on the Crazyflie): rad/s and m/s², written as
+    /// counts at the ranges the image configured (gyro GYRO_RANGE 0x0F: ±2000·2^-n °/s; accelerometer
+    /// ACC_RANGE 0x41: ±3·2^n g, datasheet §5.3.4 with the ·1.5 of rev ≥ 1.4), saturating like the ADC, with
+    /// the data-ready flags. The accelerometer converts only while powered and active (ACC_PWR_CTRL 0x04,
+    /// ACC_PWR_CONF 0x00); otherwise its registers keep what they had (stale, as the chip).
+    pub fn set_sample(&self, gyro_rad_s: [f32; 3], accel_m_s2: [f32; 3]) {
+        self.with_halves(|h| {
+            let gyro = &mut h[1];
+            let range = gyro.regs[0x0F].min(4);
+            let dps_full = 2000.0 / f32::from(1u16 << range);
+            let lsb = dps_full * 2.0 / 65536.0 * core::f32::consts::PI / 180.0;
+            for (i, v) in gyro_rad_s.iter().enumerate() {
+                let c = (v / lsb).round().clamp(-32768.0, 32767.0) as i16;
+                gyro.regs[0x02 + 2 * i..0x04 + 2 * i].copy_from_slice(&c.to_le_bytes());
+            }
+            gyro.regs[0x0A] |= 0x80;
+            let acc = &mut h[0];
+            if acc.regs[0x7D] == 0x04 && acc.regs[0x7C] == 0x00 {
+                let g_full = 3.0 * f32::from(1u16 << (acc.regs[0x41] & 0x03));
+                let lsb = g_full * 2.0 / 65536.0 * cfnav::types::GRAVITY_M_S2;
+                for (i, v) in accel_m_s2.iter().enumerate() {
+                    let c = (v / lsb).round().clamp(-32768.0, 32767.0) as i16;
+                    acc.regs[0x12 + 2 * i..0x14 + 2 * i].copy_from_slice(&c.to_le_bytes());
+                }
+                acc.regs[0x03] |= 0x80;
+            }
+        });
+    }
+
     pub fn stats(&self) -> BusStats {
         *self.stats.lock().unwrap_or_else(|e| e.into_inner())
     }
@@ -387,6 +429,53 @@ mod tests {
         assert_eq!(write_reg(&dev, ACCEL_ADDR, ACC_SOFTRESET, SOFTRESET_CMD), Ack::Ack);
         assert_eq!(read_reg(&dev, ACCEL_ADDR, 0x40), 0xA8, "reset value after a soft reset");
         assert_eq!(dev.address(Address::Seven(0x42), Direction::Write), Ack::Nack);
+    }
+
+    fn read_burst(dev: &Bmi088, addr: u8, reg: u8) -> [i16; 3] {
+        assert_eq!(dev.address(Address::Seven(addr), Direction::Write), Ack::Ack);
+        dev.write(reg);
+        assert_eq!(dev.address(Address::Seven(addr), Direction::Read), Ack::Ack);
+        let mut b = [0u8; 6];
+        for x in b.iter_mut() {
+            *x = dev.read();
+            dev.read_ack(Ack::Ack);
+        }
+        dev.stop();
+        [0, 1, 2].map(|i| i16::from_le_bytes([b[2 * i], b[2 * i + 1]]))
+    }
+
+    #[test]
+    fn a_simulator_sample_reads_back_through_the_firmwares_own_conversion() {
+        use cfnav::drivers::bmi088::RawImu;
+        let dev = Bmi088::new(Faults::default());
+        // The firmware's configuration: gyro ±2000 °/s (0x00), accelerometer ±24 g (0x03), powered, active.
+        write_reg(&dev, GYRO_ADDR, 0x0F, 0x00);
+        write_reg(&dev, ACCEL_ADDR, 0x41, 0x03);
+        let gyro = [0.5, -1.25, 3.0];
+        let accel = [0.3, -0.2, 9.81];
+        dev.set_sample(gyro, accel);
+        // Accelerometer still suspended: its registers keep the power-on sample.
+        assert_eq!(read_burst(&dev, ACCEL_ADDR, 0x12), [0, 0, 1365]);
+        write_reg(&dev, ACCEL_ADDR, 0x7D, 0x04);
+        write_reg(&dev, ACCEL_ADDR, 0x7C, 0x00);
+        dev.set_sample(gyro, accel);
+        let raw = RawImu {
+            gyro: read_burst(&dev, GYRO_ADDR, 0x02),
+            accel: read_burst(&dev, ACCEL_ADDR, 0x12),
+        };
+        let back = raw.to_sample();
+        for i in 0..3 {
+            assert!((back.gyro_rad_s[i] - gyro[i]).abs() <= cfnav::drivers::bmi088::GYRO_RAD_S_PER_LSB);
+            assert!((back.accel_m_s2[i] - accel[i]).abs() <= cfnav::drivers::bmi088::ACCEL_M_S2_PER_LSB);
+        }
+        // A driver that left the gyro at ±250 °/s (GYRO_RANGE 0x03) reads 8× the counts, saturating past
+        // 250 °/s (4.36 rad/s).
+        write_reg(&dev, GYRO_ADDR, 0x0F, 0x03);
+        dev.set_sample(gyro, accel);
+        let at_250 = read_burst(&dev, GYRO_ADDR, 0x02);
+        assert!((i32::from(at_250[2]) - 8 * i32::from(raw.gyro[2])).abs() <= 8);
+        dev.set_sample([0.0, 0.0, 5.0], accel);
+        assert_eq!(read_burst(&dev, GYRO_ADDR, 0x02)[2], i16::MAX);
     }
 
     #[test]

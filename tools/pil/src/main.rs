@@ -21,14 +21,29 @@
 mod apb8;
 mod board;
 mod client;
+mod deck;
 mod devices;
 mod dreq;
+mod flow;
+mod hover;
 mod leds;
 mod nrf51;
+mod physics;
 mod pin;
 mod probe;
 mod rtt;
 mod udp_bridge;
+
+/// The simulator's own models (`cfnav sim`), compiled in unchanged from `tools/src/sim` (milestone 3): the
+/// rigid body and battery, the sensor noise models, the world files and their stress sections.
+#[path = "../../src/sim"]
+#[allow(dead_code, unused_imports, clippy::wrong_self_convention)]
+mod sim {
+    pub mod physics;
+    pub mod sensors;
+    pub mod stress;
+    pub mod world;
+}
 
 use std::path::PathBuf;
 use std::process::ExitCode;
@@ -103,9 +118,27 @@ struct Args {
     /// and at the end of the run (for `arm-none-eabi-addr2line`).
     #[arg(long)]
     probe: bool,
-    /// Reserved for milestone 3 (sensors fed by a simulator world); refused today.
+    /// The Multi-ranger deck is not fitted (milestone 3 models it by default).
+    #[arg(long)]
+    no_multiranger: bool,
+    /// The Flow deck v2 is not fitted (PMW3901 and its VL53L1x).
+    #[arg(long)]
+    no_flow: bool,
+    /// A simulator world file (`worlds/*.toml`): the sensors see it and the motors fly the simulator's body
+    /// in it (milestone 3). Without it (and without --hover) the board sits on a bench: a level, motionless
+    /// IMU and fixed ranges.
     #[arg(long)]
     world: Option<PathBuf>,
+    /// Hover test without cflib: the nRF51 injects `mission.mode` = 1, `mission.hoverTime` = SECONDS,
+    /// `mission.height` (the world's) and `mission.start` = 1 after RADIO_READY; the run ends once the drone
+    /// has landed (and the image's 10 s load line came) or at --seconds. Exit 0 when it took off, held the
+    /// height for SECONDS and landed, with no watchdog reset. Implies the physics (the default world without
+    /// --world).
+    #[arg(long, num_args = 0..=1, default_missing_value = "10", value_name = "SECONDS")]
+    hover: Option<f32>,
+    /// Seed of the sensor noise streams (as `cfnav sim --seed`).
+    #[arg(long, default_value_t = 1)]
+    seed: u64,
 }
 
 #[derive(Debug, Serialize)]
@@ -144,6 +177,9 @@ struct Report {
     usart6_sr_cr1_cr3: [u32; 3],
     /// DMA2 LISR, HISR, then stream 1 (USART6 RX) CR, NDTR and stream 7 (USART6 TX) CR, NDTR (RM0090 §10.5).
     usart6_dma: [u32; 6],
+    /// SPI1 CR1, CR2, SR (RM0090 §28.5), then DMA2 stream 0 (SPI1 RX) CR, NDTR and stream 3 (SPI1 TX) CR,
+    /// NDTR, and DMA2 LISR (streams 0–3 flags): where a stuck flow read waits.
+    spi1_dma: [u32; 8],
     /// GPIOA IDR (PA4 = the nRF's flow control, bit 4).
     gpioa_idr: u32,
     boots_logged: usize,
@@ -154,6 +190,23 @@ struct Report {
     syslink_packets_from_image: Vec<String>,
     imu_bus: BusStats,
     imu_drdy_pulses: u64,
+    /// The image's deck flags (`deck.bcMultiranger`, `deck.bcFlow2`) read from its RAM at the end.
+    deck_multiranger: Option<bool>,
+    deck_flow2: Option<bool>,
+    /// The deck bus rangers and expander (milestone 3 models).
+    deck_bus: deck::DeckStats,
+    /// Each ranger's I2C address at the end (front, back, up, left, right, down; null = powered off).
+    ranger_addresses: [Option<u8>; 6],
+    /// The PMW3901 model's counters.
+    flow_sensor: flow::FlowStats,
+    /// The world flown in (milestone 3), if the physics ran.
+    world: Option<String>,
+    /// The hover test's verdict on the truth (`--hover`).
+    hover: Option<hover::HoverReport>,
+    /// When the scripted parameter writes went in, virtual ms.
+    script_sent_at_ms: Vec<u64>,
+    /// The image's load figures from its defmt log (the last "load" line), if one came.
+    load: Option<hover::LoadLine>,
     /// The nRF51 end's counters (battery/RSSI stream, RADIO_RAW both ways).
     nrf: nrf51::NrfStats,
     /// The scripted host's counters (`--client`).
@@ -218,9 +271,30 @@ fn parse_status(name: &str) -> Result<BoardStatus> {
 }
 
 fn run(args: &Args) -> Result<(Report, bool)> {
-    if args.world.is_some() {
-        bail!("--world: the simulator's sensors are milestone 3 (docs/pil.md); milestone 1 boots on a bench");
+    if args
+        .hover
+        .is_some_and(|h| !(h.is_finite() && (1.0..=60.0).contains(&h)))
+    {
+        bail!("--hover SECONDS must be in [1, 60]");
     }
+    let mut physics = if args.world.is_some() || args.hover.is_some() {
+        let world = match &args.world {
+            Some(p) => sim::world::World::load(p).map_err(|e| anyhow::anyhow!("{}: {e}", p.display()))?,
+            None => sim::world::World::default_world(),
+        };
+        Some(physics::Physics::new(world, args.seed))
+    } else {
+        None
+    };
+    let mut script = args.hover.map(|h| {
+        let height = physics.as_ref().map_or(0.5, |p| p.world.mission.height);
+        hover::Script::hover(h, height)
+    });
+    let mut judge = args.hover.map(|h| {
+        let height = physics.as_ref().map_or(0.5, |p| p.world.mission.height);
+        hover::HoverJudge::new(height, h)
+    });
+    let mut load = None;
     if !(args.seconds > 0.0 && args.seconds <= 600.0) {
         bail!("--seconds must be in (0, 600]");
     }
@@ -238,7 +312,11 @@ fn run(args: &Args) -> Result<(Report, bool)> {
         .context("reading the .defmt table")?
         .context("the ELF has no .defmt table")?;
     let rtt_address = image.rtt_address.context("the ELF has no _SEGGER_RTT symbol")?;
-    let mut board = Board::new(image.flash, faults)?;
+    let fitted = deck::Fitted {
+        multiranger: !args.no_multiranger,
+        flow: !args.no_flow,
+    };
+    let mut board = Board::new(image.flash.clone(), faults, fitted)?;
     let mut nrf = nrf51::Nrf51::new(args.silent_nrf);
     let mut bridge = match &args.serve {
         Some(addr) => {
@@ -270,7 +348,12 @@ fn run(args: &Args) -> Result<(Report, bool)> {
     }
     let wall = Instant::now();
     let step_ns = 1_000_000u64;
-    let end_ns = (args.seconds * 1e9) as u64;
+    // A hover run needs the boot, the take-off, the hold and the landing: at least SECONDS + 15 s.
+    let seconds = match args.hover {
+        Some(h) => args.seconds.max(f64::from(h) + 15.0),
+        None => args.seconds,
+    };
+    let end_ns = (seconds * 1e9) as u64;
     let mut samples: std::collections::VecDeque<(u64, LedFrame)> = Default::default();
     let mut timeline: Vec<(u64, &'static str)> = Vec::new();
     let mut ready_at_ms = None;
@@ -282,16 +365,55 @@ fn run(args: &Args) -> Result<(Report, bool)> {
     let mut out = [0u8; cfnav::radio::syslink::MAX_FRAME];
     let pulse_ns = 50_000u64;
     let mut drdy_pulses = 0u64;
+    let mut last_ms = u64::MAX;
+    let mut landed_at_ns: Option<u64> = None;
     while board.now_ns() < end_ns && !served_budget_spent(args, first_request_ms, board.now_ns()) {
-        // The gyroscope's 1 kHz data-ready pulse on INT3, once the firmware has enabled and mapped it.
-        if board.imu.int3_drdy_enabled() {
+        board.deck.advance(board.now_ns());
+        if let Some(p) = physics.as_mut() {
+            p.sensors_out(&board);
+            nrf.vbat_v = p.battery_v();
+        }
+        // The gyroscope's data-ready pulse on INT3 at its ODR (1 kHz as the image configures it), once the
+        // firmware has enabled and mapped it; the physics steps in the same slices.
+        let slice_ns = if board.imu.int3_drdy_enabled() {
+            let period = board.imu.gyro_period_ns();
             board.imu_int3.set(true);
             board.run_ns(pulse_ns)?;
             board.imu_int3.set(false);
-            board.run_ns(step_ns - pulse_ns)?;
+            board.run_ns(period - pulse_ns)?;
             drdy_pulses += 1;
+            period
         } else {
             board.run_ns(step_ns)?;
+            step_ns
+        };
+        if let Some(p) = physics.as_mut() {
+            p.step_to(&board, board.now_ns());
+            let t_ns = board.now_ns();
+            if args.log && t_ns % 250_000_000 < slice_ns {
+                let pos = p.quad.position();
+                let att = p.quad.attitude_rad();
+                println!(
+                    "{:>9.3} | truth x {:.3} y {:.3} z {:.3} roll {:.1} pitch {:.1} yaw {:.1} deg, duty {:?}, vbat {:.2}",
+                    t_ns as f64 / 1e9,
+                    pos[0],
+                    pos[1],
+                    pos[2],
+                    att[0].to_degrees(),
+                    att[1].to_degrees(),
+                    att[2].to_degrees(),
+                    p.duty.0,
+                    p.battery_v()
+                );
+            }
+            if let Some(j) = judge.as_mut() {
+                j.sample(
+                    board.now_ns() as f64 * 1e-9,
+                    p.quad.position(),
+                    p.quad.on_ground(),
+                    p.duty,
+                );
+            }
         }
         let t_ms = board.now_ns() / 1_000_000;
         let pins = leds::Pins {
@@ -313,7 +435,9 @@ fn run(args: &Args) -> Result<(Report, bool)> {
             samples.pop_front();
         }
         // The LED task redraws every 25 ms: classifying every 25th sample sees every change.
-        if t_ms % 25 == 0 {
+        let new_ms = t_ms != last_ms;
+        last_ms = t_ms;
+        if new_ms && t_ms % 25 == 0 {
             let window: Vec<_> = samples.iter().copied().collect();
             final_status = leds::classify(&window);
             if let Some(s) = final_status {
@@ -333,6 +457,12 @@ fn run(args: &Args) -> Result<(Report, bool)> {
             fp.bytes(line.text.as_bytes());
             if args.probe && probes.is_empty() && line.text.contains("panicked") {
                 probes.extend(probe_sample(&mut board, &line.text));
+            }
+            if let Some(l) = hover::LoadLine::parse(&line.text) {
+                load = Some(l);
+            }
+            if let Some(j) = judge.as_mut() {
+                j.log_line(&line.text);
             }
             if args.log {
                 println!("{:>9.3} | {}", line.read_at_ns as f64 / 1e9, line.text);
@@ -371,8 +501,15 @@ fn run(args: &Args) -> Result<(Report, bool)> {
         if let Some(p) = client.as_mut().and_then(|c| c.poll(now_ns / 1_000_000)) {
             nrf.host_packet(&p);
         }
+        let ready_ns = nrf.stats.radio_ready_at_ms.map(|ms| ms * 1_000_000);
+        if let Some(s) = script.as_mut() {
+            for crtp in s.due(now_ns, ready_ns) {
+                nrf.host_packet(&crtp);
+            }
+        }
         let polling = bridge.as_ref().is_some_and(udp_bridge::UdpBridge::has_client)
-            || client.as_ref().is_some_and(|c| c.stats.sent > 0);
+            || client.as_ref().is_some_and(|c| c.stats.sent > 0)
+            || script.as_ref().is_some_and(|s| s.polling(now_ns));
         for packet in nrf.tick(now_ns, polling) {
             if let Ok(n) = encode(&packet, &mut out) {
                 board.syslink.feed(&out[..n]);
@@ -380,6 +517,16 @@ fn run(args: &Args) -> Result<(Report, bool)> {
         }
         if stdin_closed.load(std::sync::atomic::Ordering::Acquire) {
             break;
+        }
+        if let Some(j) = judge.as_ref() {
+            // The hover run ends 1 s after the landing once the image's load line came (or at --seconds).
+            if j.landed() {
+                let t = *landed_at_ns.get_or_insert(now_ns);
+                if load.is_some() && now_ns >= t + 1_000_000_000 {
+                    break;
+                }
+            }
+            continue;
         }
         if expected_at_ms.is_some()
             && !args.no_stop
@@ -412,7 +559,11 @@ fn run(args: &Args) -> Result<(Report, bool)> {
         .map(|l| l.text.clone())
         .collect();
     let ready = ready_at_ms.is_some();
-    let passed = expected_at_ms.is_some() && !iwdg_reset_flag && client.as_ref().is_none_or(|c| c.stats.done);
+    let hover_report = judge.map(hover::HoverJudge::finish);
+    let passed = match &hover_report {
+        Some(h) => h.passed && !iwdg_reset_flag,
+        None => expected_at_ms.is_some() && !iwdg_reset_flag && client.as_ref().is_none_or(|c| c.stats.done),
+    };
     let report = Report {
         elf: elf_path.display().to_string(),
         elf_fnv: {
@@ -436,6 +587,16 @@ fn run(args: &Args) -> Result<(Report, bool)> {
         usart6_sr_cr1_cr3: [0x00, 0x0C, 0x14].map(|off| board.peek32(0x4001_1400 + off).unwrap_or(0)),
         usart6_dma: [0x00, 0x04, 0x10 + 0x18, 0x14 + 0x18, 0x10 + 0x18 * 7, 0x14 + 0x18 * 7]
             .map(|off| board.peek32(0x4002_6400 + off).unwrap_or(0)),
+        spi1_dma: [
+            board.peek32(0x4001_3000).unwrap_or(0),
+            board.peek32(0x4001_3004).unwrap_or(0),
+            board.peek32(0x4001_3008).unwrap_or(0),
+            board.peek32(0x4002_6410).unwrap_or(0),
+            board.peek32(0x4002_6414).unwrap_or(0),
+            board.peek32(0x4002_6410 + 0x18 * 3).unwrap_or(0),
+            board.peek32(0x4002_6414 + 0x18 * 3).unwrap_or(0),
+            board.peek32(0x4002_6400).unwrap_or(0),
+        ],
         gpioa_idr: board.peek32(0x4002_0010).unwrap_or(0),
         boots_logged,
         faults_logged,
@@ -445,6 +606,19 @@ fn run(args: &Args) -> Result<(Report, bool)> {
         syslink_packets_from_image: from_image,
         imu_bus: board.imu.stats(),
         imu_drdy_pulses: drdy_pulses,
+        deck_multiranger: read_flag(&board, &image.statics, "DECK_MULTIRANGER"),
+        deck_flow2: read_flag(&board, &image.statics, "DECK_FLOW2"),
+        deck_bus: board.deck.stats(),
+        ranger_addresses: board.deck.addresses(),
+        flow_sensor: board.flow.stats(),
+        world: physics.as_ref().map(|_| {
+            args.world
+                .as_ref()
+                .map_or_else(|| "default".to_string(), |p| p.display().to_string())
+        }),
+        hover: hover_report,
+        script_sent_at_ms: script.map(|s| s.sent_at_ms).unwrap_or_default(),
+        load,
         nrf: nrf.stats.clone(),
         client: client.map(|c| c.stats),
         first_request_ms,
@@ -499,6 +673,12 @@ fn served_budget_spent(args: &Args, first_request_ms: Option<u64>, now_ns: u64) 
     }
 }
 
+/// An `AtomicBool` static of the image, by its symbol substring.
+fn read_flag(board: &Board, statics: &[(&'static str, u64)], name: &str) -> Option<bool> {
+    let &(_, addr) = statics.iter().find(|(n, _)| *n == name)?;
+    board.peek8(addr).map(|b| b != 0)
+}
+
 fn main() -> ExitCode {
     let args = Args::parse();
     match run(&args) {
@@ -506,7 +686,7 @@ fn main() -> ExitCode {
             println!(
                 "outcome={} ready_at_ms={} expected={} expected_at_ms={} final_status={} virtual_s={:.3} wall_s={:.2} acr_caches_on={} \
                  acr_latency_ws={} iwdg_reset_flag={} boots_logged={} log_lines={} log_errors={} \
-                 imu_soft_resets={} imu_nacked_bytes={} syslink_packets={} fingerprint={}",
+                 imu_soft_resets={} imu_nacked_bytes={} syslink_packets={} deck_multiranger={} deck_flow2={} fingerprint={}",
                 report.outcome,
                 report.ready_at_ms.map_or_else(|| "-".to_string(), |t| t.to_string()),
                 report.expected,
@@ -523,6 +703,8 @@ fn main() -> ExitCode {
                 report.imu_bus.soft_resets,
                 report.imu_bus.nacked_bytes,
                 report.syslink_packets_from_image.len(),
+                report.deck_multiranger.map_or(-1, i32::from),
+                report.deck_flow2.map_or(-1, i32::from),
                 report.fingerprint,
             );
             if let Some(c) = &report.client {

@@ -70,6 +70,9 @@ pub struct Nrf51 {
     radio_ready: bool,
     /// Host packets waiting for the ESB receiver (it is off until RADIO_READY).
     host_queue: VecDeque<Vec<u8>>,
+    /// The battery voltage the PM packets carry, V ([`VBAT_V`] on the bench; the simulator's battery with
+    /// `--world`/`--hover`).
+    pub vbat_v: f32,
     /// Counters.
     pub stats: NrfStats,
 }
@@ -86,6 +89,7 @@ impl Nrf51 {
             next_pm_ns: None,
             radio_ready: false,
             host_queue: VecDeque::new(),
+            vbat_v: VBAT_V,
             stats: NrfStats::default(),
         }
     }
@@ -155,7 +159,7 @@ impl Nrf51 {
             && now_ns >= due
         {
             let mut state = [0u8; 9];
-            state[1..5].copy_from_slice(&VBAT_V.to_le_bytes());
+            state[1..5].copy_from_slice(&self.vbat_v.to_le_bytes());
             state[5..9].copy_from_slice(&0.0f32.to_le_bytes());
             out.extend(SyslinkPacket::new(kind::PM_BATTERY_STATE, &state).ok());
             out.extend(SyslinkPacket::new(kind::RADIO_RSSI, &[RSSI]).ok());

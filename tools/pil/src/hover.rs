@@ -1,0 +1,337 @@
+//! A hover test without cflib (issue 15 milestone 3): the scripted CRTP parameter writes the nRF51 model
+//! injects at a virtual time ([`Script`]), and the judge of the flight on the simulator's truth
+//! ([`HoverJudge`]), plus the image's own load figures from its defmt log ([`LoadLine`]).
+//!
+//! Script: once the image has sent RADIO_READY and [`SCRIPT_DELAY_NS`] more have passed (the boot's last
+//! tasks settle), one CRTP param write (port 2, channel 2: `[id u16 LE, value]`, the ids are the firmware's
+//! own `cfnav::radio::registry` constants) per [`SCRIPT_GAP_NS`]: `mission.mode` = 1 (hover test),
+//! `mission.hoverTime`, `mission.height`, then `mission.start` = 1. The nRF keeps polling (null packets,
+//! as cflib's radio driver does when idle) so the image's answers leave it.
+//!
+//! Judge (truth, arena frame, metres): took off = the body rose [`TAKEOFF_M`] above where it stood; the
+//! hold = from the first time it came within [`AT_HEIGHT_M`] of the target height to the last time it
+//! was; the deviation over the hold: horizontal from the take-off point, vertical from the target height;
+//! landed = back on a surface with all four duties 0 after having flown.
+
+use cfnav::radio::crtp::CrtpPacket;
+use cfnav::radio::param::{CH_WRITE, PORT_PARAM};
+use cfnav::radio::registry::{ID_HEIGHT, ID_HOVER_TIME, ID_MODE, ID_START};
+use cfnav::types::MotorDuty;
+use serde::Serialize;
+
+/// After RADIO_READY, before the first scripted write, ns.
+pub const SCRIPT_DELAY_NS: u64 = 500_000_000;
+/// Between scripted writes, ns.
+pub const SCRIPT_GAP_NS: u64 = 50_000_000;
+/// How long the nRF keeps polling after the last write, ns.
+pub const POLL_AFTER_NS: u64 = 200_000_000;
+/// `MissionState::Completed` (`src/mission/mod.rs`).
+pub const COMPLETED: u32 = 100;
+/// Rise that counts as a take-off, m.
+pub const TAKEOFF_M: f32 = 0.10;
+/// Band around the target height that counts as holding it, m.
+pub const AT_HEIGHT_M: f32 = 0.05;
+
+/// The scripted writes.
+#[derive(Debug)]
+pub struct Script {
+    packets: Vec<Vec<u8>>,
+    next: usize,
+    next_at_ns: Option<u64>,
+    last_at_ns: u64,
+    /// When each write went in, virtual ms.
+    pub sent_at_ms: Vec<u64>,
+}
+
+fn write_packet(id: u16, value: &[u8]) -> Vec<u8> {
+    let mut data = id.to_le_bytes().to_vec();
+    data.extend_from_slice(value);
+    let mut out = [0u8; 32];
+    match CrtpPacket::new(PORT_PARAM, CH_WRITE, &data) {
+        Ok(p) => {
+            let n = p.to_bytes(&mut out);
+            out[..n].to_vec()
+        }
+        Err(_) => Vec::new(),
+    }
+}
+
+impl Script {
+    /// The hover test: hold `hover_s` at `height_m`.
+    pub fn hover(hover_s: f32, height_m: f32) -> Self {
+        Self {
+            packets: vec![
+                write_packet(ID_MODE, &[1]),
+                write_packet(ID_HOVER_TIME, &hover_s.to_le_bytes()),
+                write_packet(ID_HEIGHT, &height_m.to_le_bytes()),
+                write_packet(ID_START, &[1]),
+            ],
+            next: 0,
+            next_at_ns: None,
+            last_at_ns: 0,
+            sent_at_ms: Vec::new(),
+        }
+    }
+
+    /// The packets due at `now_ns` (RADIO_READY seen at `radio_ready_ns`).
+    pub fn due(&mut self, now_ns: u64, radio_ready_ns: Option<u64>) -> Vec<Vec<u8>> {
+        let Some(ready) = radio_ready_ns else {
+            return Vec::new();
+        };
+        let at = *self.next_at_ns.get_or_insert(ready + SCRIPT_DELAY_NS);
+        if self.next >= self.packets.len() || now_ns < at {
+            return Vec::new();
+        }
+        let p = self.packets[self.next].clone();
+        self.next += 1;
+        self.next_at_ns = Some(now_ns + SCRIPT_GAP_NS);
+        self.last_at_ns = now_ns;
+        self.sent_at_ms.push(now_ns / 1_000_000);
+        vec![p]
+    }
+
+    /// Whether the nRF should poll for the image's answers now.
+    pub fn polling(&self, now_ns: u64) -> bool {
+        self.next > 0 && now_ns < self.last_at_ns + POLL_AFTER_NS
+    }
+
+    #[cfg(test)]
+    pub fn done(&self) -> bool {
+        self.next >= self.packets.len()
+    }
+}
+
+/// The flight as the truth saw it.
+#[derive(Debug, Clone, Default, Serialize)]
+pub struct HoverReport {
+    pub target_height_m: f32,
+    pub hover_time_s: f32,
+    pub took_off: bool,
+    pub took_off_at_s: Option<f64>,
+    pub max_height_m: f32,
+    /// The hold: first and last time within the band of the target height.
+    pub hold_start_s: Option<f64>,
+    pub hold_end_s: Option<f64>,
+    pub held_s: f64,
+    /// Worst horizontal distance from the take-off point during the hold, m.
+    pub hold_dev_xy_m: f32,
+    /// Worst |z − target| during the hold (between its first and last time in the band), m.
+    pub hold_dev_z_m: f32,
+    /// RMS horizontal deviation over the hold, m.
+    pub hold_rms_xy_m: f32,
+    pub landed: bool,
+    pub landed_at_s: Option<f64>,
+    /// Horizontal distance of the landing point from the take-off point, m.
+    pub landing_offset_m: Option<f32>,
+    /// The mission's end state as the image logged it ("mission ended: state N"; 100 = completed).
+    pub mission_end_state: Option<u32>,
+    pub passed: bool,
+}
+
+/// Judges the hover from truth samples.
+#[derive(Debug)]
+pub struct HoverJudge {
+    start: Option<[f32; 3]>,
+    /// (t, x, y, z) while airborne.
+    track: Vec<(f64, [f32; 3])>,
+    report: HoverReport,
+}
+
+impl HoverJudge {
+    pub fn new(target_height_m: f32, hover_time_s: f32) -> Self {
+        Self {
+            start: None,
+            track: Vec::new(),
+            report: HoverReport {
+                target_height_m,
+                hover_time_s,
+                ..HoverReport::default()
+            },
+        }
+    }
+
+    /// One truth sample.
+    pub fn sample(&mut self, t_s: f64, pos: [f32; 3], on_ground: bool, duty: MotorDuty) {
+        let start = *self.start.get_or_insert(pos);
+        let r = &mut self.report;
+        if !r.took_off && pos[2] > start[2] + TAKEOFF_M {
+            r.took_off = true;
+            r.took_off_at_s = Some(t_s);
+        }
+        if r.took_off && !r.landed {
+            self.track.push((t_s, pos));
+            r.max_height_m = r.max_height_m.max(pos[2] - start[2]);
+            if on_ground && duty.0 == [0; 4] && pos[2] < start[2] + TAKEOFF_M {
+                r.landed = true;
+                r.landed_at_s = Some(t_s);
+                r.landing_offset_m = Some(((pos[0] - start[0]).powi(2) + (pos[1] - start[1]).powi(2)).sqrt());
+            }
+        }
+    }
+
+    /// A defmt line of the image: remembers the mission's end state.
+    pub fn log_line(&mut self, text: &str) {
+        if let Some(at) = text.find("mission ended: state ") {
+            self.report.mission_end_state = text[at + 21..]
+                .split(|c: char| !c.is_ascii_digit())
+                .next()
+                .and_then(|n| n.parse().ok());
+        }
+    }
+
+    /// Whether the drone has landed after flying.
+    pub fn landed(&self) -> bool {
+        self.report.landed
+    }
+
+    /// The verdict.
+    pub fn finish(mut self) -> HoverReport {
+        let Some(start) = self.start else {
+            return self.report;
+        };
+        let r = &mut self.report;
+        let target_z = start[2] + r.target_height_m;
+        let in_band: Vec<usize> = self
+            .track
+            .iter()
+            .enumerate()
+            .filter(|(_, (_, p))| (p[2] - target_z).abs() <= AT_HEIGHT_M)
+            .map(|(i, _)| i)
+            .collect();
+        if let (Some(&a), Some(&b)) = (in_band.first(), in_band.last()) {
+            r.hold_start_s = Some(self.track[a].0);
+            r.hold_end_s = Some(self.track[b].0);
+            r.held_s = self.track[b].0 - self.track[a].0;
+            let mut sum = 0.0f64;
+            for (_, p) in &self.track[a..=b] {
+                let dxy = ((p[0] - start[0]).powi(2) + (p[1] - start[1]).powi(2)).sqrt();
+                r.hold_dev_xy_m = r.hold_dev_xy_m.max(dxy);
+                r.hold_dev_z_m = r.hold_dev_z_m.max((p[2] - target_z).abs());
+                sum += f64::from(dxy * dxy);
+            }
+            r.hold_rms_xy_m = (sum / (b - a + 1) as f64).sqrt() as f32;
+        }
+        // Held the hover for its time (less the margin the band's edges take), landed, and the image's
+        // mission says it completed (100: `MissionState::Completed`).
+        r.passed = r.took_off
+            && r.landed
+            && r.held_s + 0.5 >= f64::from(r.hover_time_s)
+            && r.mission_end_state == Some(COMPLETED);
+        self.report
+    }
+}
+
+/// The image's load figures from its once-every-10-s defmt line (`src/board/system.rs` `stats_task`):
+/// "load {}% (control {}%, io {}%, mission {}%), control {} Hz, jitter {} us, step max {} us".
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq, Serialize)]
+pub struct LoadLine {
+    pub cpu_load_pct: u32,
+    pub loop_rate_hz: u32,
+    pub loop_jitter_us: u32,
+    pub step_max_us: u32,
+}
+
+impl LoadLine {
+    /// Parses the line's text (after the defmt timestamp and level); `None` for any other line.
+    pub fn parse(text: &str) -> Option<Self> {
+        let rest = &text[text.find("load ")? + 5..];
+        let nums: Vec<u32> = rest
+            .split(|c: char| !c.is_ascii_digit())
+            .filter(|s| !s.is_empty())
+            .filter_map(|s| s.parse().ok())
+            .collect();
+        // load, control %, io %, mission %, rate, jitter, step max
+        (nums.len() == 7 && rest.contains(" Hz, jitter ")).then(|| Self {
+            cpu_load_pct: nums[0],
+            loop_rate_hz: nums[4],
+            loop_jitter_us: nums[5],
+            step_max_us: nums[6],
+        })
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn the_script_writes_the_firmwares_param_ids_after_radio_ready() {
+        let mut s = Script::hover(10.0, 0.5);
+        assert!(s.due(5_000_000_000, None).is_empty(), "nothing before RADIO_READY");
+        assert!(s.due(1_100_000_000, Some(1_000_000_000)).is_empty());
+        let p = s.due(1_500_000_000, Some(1_000_000_000));
+        // The firmware's own decoder reads it as a write of mission.mode = 1.
+        let crtp = CrtpPacket::from_bytes(&p[0]).unwrap();
+        assert_eq!((crtp.port, crtp.channel), (PORT_PARAM, CH_WRITE));
+        assert_eq!(&crtp.data[..], &[ID_MODE.to_le_bytes()[0], ID_MODE.to_le_bytes()[1], 1]);
+        assert!(s.due(1_520_000_000, Some(1_000_000_000)).is_empty(), "one per gap");
+        for t in [1_550, 1_600, 1_650] {
+            assert_eq!(s.due(t * 1_000_000, Some(1_000_000_000)).len(), 1);
+        }
+        assert!(s.done());
+        let last = CrtpPacket::from_bytes(&s.packets[3]).unwrap();
+        assert_eq!(&last.data[..2], &ID_START.to_le_bytes());
+    }
+
+    #[test]
+    fn the_judge_measures_the_hold_against_the_truth() {
+        let mut j = HoverJudge::new(0.5, 2.0);
+        let on = MotorDuty([150; 4]);
+        j.sample(0.0, [1.0, 1.0, 0.0], true, MotorDuty::default());
+        j.sample(1.0, [1.0, 1.0, 0.3], false, on);
+        j.sample(2.0, [1.1, 1.0, 0.48], false, on);
+        j.sample(3.0, [1.0, 1.05, 0.53], false, on);
+        j.sample(4.2, [1.0, 1.0, 0.5], false, on);
+        j.sample(5.0, [1.0, 1.0, 0.2], false, on);
+        j.sample(6.0, [1.02, 1.0, 0.0], true, MotorDuty::default());
+        let mut j2 = HoverJudge::new(0.5, 2.0);
+        std::mem::swap(&mut j, &mut j2);
+        // The same flight ended by the image in an estimator fault does not pass.
+        j2.log_line("mission ended: state 204");
+        let r2 = j2.finish();
+        assert_eq!(r2.mission_end_state, Some(204));
+        assert!(r2.took_off && r2.landed && !r2.passed);
+        let _ = j;
+        let mut j = HoverJudge::new(0.5, 2.0);
+        for (t, p, g, d) in [
+            (0.0, [1.0, 1.0, 0.0], true, MotorDuty::default()),
+            (1.0, [1.0, 1.0, 0.3], false, on),
+            (2.0, [1.1, 1.0, 0.48], false, on),
+            (3.0, [1.0, 1.05, 0.53], false, on),
+            (4.2, [1.0, 1.0, 0.5], false, on),
+            (5.0, [1.0, 1.0, 0.2], false, on),
+            (6.0, [1.02, 1.0, 0.0], true, MotorDuty::default()),
+        ] {
+            j.sample(t, p, g, d);
+        }
+        j.log_line("1.2 INFO mission ended: state 100");
+        let r = j.finish();
+        assert!(r.took_off && r.landed && r.passed);
+        assert!((r.held_s - 2.2).abs() < 1e-9);
+        assert!((r.hold_dev_xy_m - 0.1).abs() < 1e-6);
+        assert!((r.hold_dev_z_m - 0.03).abs() < 1e-6);
+        assert!((r.landing_offset_m.unwrap() - 0.02).abs() < 1e-6);
+        // Never took off: fails.
+        let mut j = HoverJudge::new(0.5, 2.0);
+        j.sample(0.0, [1.0, 1.0, 0.0], true, MotorDuty::default());
+        j.sample(9.0, [1.0, 1.0, 0.0], true, MotorDuty::default());
+        assert!(!j.finish().passed);
+    }
+
+    #[test]
+    fn the_load_line_parses() {
+        let l = LoadLine::parse(
+            "load 23% (control 12%, io 5%, mission 6%), control 1000 Hz, jitter 14 us, step max 310 us",
+        );
+        assert_eq!(
+            l,
+            Some(LoadLine {
+                cpu_load_pct: 23,
+                loop_rate_hz: 1000,
+                loop_jitter_us: 14,
+                step_max_us: 310
+            })
+        );
+        assert_eq!(LoadLine::parse("booted in 1078 ms"), None);
+    }
+}

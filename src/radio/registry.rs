@@ -30,7 +30,8 @@
 //! `multiranger.c`, `zranger*.c`, `lighthouse.c`, `locodeck.c`, `ledring12.c`, `color_led_deck.c`);
 //! `kalman.resetEstimation` uint8 (`estimator_kalman.c`); `stabilizer.controller` uint8, 0 auto-select, 1 PID,
 //! 2 Mellinger, 3 INDI, 4 Brescianini, 5 Lee (`stabilizer.c`, `controller.h`); `commander.enHighLevel` uint8
-//! (`commander.c`). The deck names are every `deck.*` name the stock cfclient 2026.8.1 reads (Flight, LED-ring,
+//! (`commander.c`); `firmware.revision0` uint32, `revision1` uint16, `modified` uint8, all read-only
+//! (`version.tmpl`, values from git as `tools/make/versionTemplate.py` cuts them). The deck names are every `deck.*` name the stock cfclient 2026.8.1 reads (Flight, LED-ring,
 //! Color LED, Lighthouse and Loco tabs): a name it misses stalls its parameter callback.
 //!
 //! Design choices: the TOC CRC is CRC-32 over [`PARAM_CRC_SEED`] followed by, for every entry in id order, the
@@ -53,6 +54,7 @@ use crate::mission::{
 };
 use crate::nav::avoidance::{AvoidanceMethod, SpeedClamp};
 use crate::system::persistent_params::{PendingWrite, PersistentParams, param_key};
+use crate::system::version;
 
 use super::crtp::MAX_DATA;
 
@@ -896,6 +898,34 @@ pub const PARAM_TABLE: &[ParamEntry] = &[
         "s",
         "radio silence that counts as a lost link during a mission (default 2)",
     ),
+    // The build's revision (stock `version.tmpl`; values from git via build.rs, `crate::system::version`)
+    ParamEntry::declare(
+        "firmware",
+        "revision0",
+        ParamType::U32,
+        RO,
+        Range::Any,
+        "",
+        "the build's git commit, first 8 hex digits as a number (stock; cfclient shows it in hex)",
+    ),
+    ParamEntry::declare(
+        "firmware",
+        "revision1",
+        ParamType::U16,
+        RO,
+        Range::Any,
+        "",
+        "the build's git commit, hex digits 9 to 12 as a number (stock)",
+    ),
+    ParamEntry::declare(
+        "firmware",
+        "modified",
+        ParamType::U8,
+        RO,
+        SWITCH,
+        "",
+        "1 when the firmware's tracked sources differed from that commit at build time (stock)",
+    ),
 ];
 
 /// Id of `mission.start` (uint8).
@@ -932,6 +962,12 @@ pub const ID_COVERAGE: u16 = param_id(PARAM_TABLE, "mission", "coverage");
 pub const ID_LINK_LOSS: u16 = param_id(PARAM_TABLE, "mission", "linkLoss");
 /// Id of `mission.linkTimeout` (float).
 pub const ID_LINK_TIMEOUT: u16 = param_id(PARAM_TABLE, "mission", "linkTimeout");
+/// Id of `firmware.revision0` (uint32, read-only).
+pub const ID_FW_REVISION0: u16 = param_id(PARAM_TABLE, "firmware", "revision0");
+/// Id of `firmware.revision1` (uint16, read-only).
+pub const ID_FW_REVISION1: u16 = param_id(PARAM_TABLE, "firmware", "revision1");
+/// Id of `firmware.modified` (uint8, read-only).
+pub const ID_FW_MODIFIED: u16 = param_id(PARAM_TABLE, "firmware", "modified");
 
 /// Writes the README's parameter table for `table`: one Markdown row per declaration.
 pub fn write_param_table(out: &mut impl core::fmt::Write, table: &[ParamEntry]) -> core::fmt::Result {
@@ -1321,6 +1357,9 @@ impl ParamStore for MissionParamState {
             ID_COVERAGE => Value::F32(p.coverage_target),
             ID_LINK_LOSS => Value::U8(self.link_loss.policy.code()),
             ID_LINK_TIMEOUT => Value::F32(self.link_loss.timeout_s),
+            ID_FW_REVISION0 => Value::U32(version::REVISION0),
+            ID_FW_REVISION1 => Value::U16(version::REVISION1),
+            ID_FW_MODIFIED => Value::U8(version::MODIFIED),
             // The other deck.* entries: decks cfnav never drives.
             _ if PARAM_TABLE.get(usize::from(id))?.group == "deck" => flag(false),
             _ => return None,

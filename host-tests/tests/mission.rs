@@ -203,3 +203,31 @@ fn state_codes_follow_the_documented_ranges() {
         assert!(s.code() >= 200 && s.is_final(), "{s:?}");
     }
 }
+
+/// Explore's discharge watch (`cfnav::mission::reserve`): on a synthetic linear discharge with noise it
+/// measures the slope (least squares against the known one), only after settling and a minimum span, and
+/// the remaining time is the straight-line extrapolation to the threshold.
+#[test]
+fn the_discharge_watch_measures_a_linear_discharge() {
+    use cfnav::mission::reserve::{DischargeWatch, MIN_SPAN_S, SETTLE_US, needed_s, remaining_s};
+    let mut w = DischargeWatch::new();
+    let rate = 4e-3f32; // V/s
+    let mut seen_at = None;
+    for ms in (0..60_000u64).step_by(20) {
+        let t = ms as f32 * 1e-3;
+        // ±5 mV of deterministic "noise".
+        let noise = 5e-3 * ((ms / 20) % 7) as f32 / 6.0 - 2.5e-3;
+        w.on_sample(ms * 1000, 3.9 - rate * t + noise);
+        w.on_sample(ms * 1000, f32::NAN);
+        if seen_at.is_none() && w.rate_v_per_s().is_some() {
+            seen_at = Some(t);
+        }
+    }
+    let first = seen_at.expect("a rate");
+    assert!(first >= SETTLE_US as f32 * 1e-6 + MIN_SPAN_S - 0.1, "trusted at {first} s");
+    let measured = w.rate_v_per_s().unwrap();
+    assert!((measured - rate).abs() < 0.1e-3, "{measured} V/s");
+    assert!((remaining_s(3.4, 3.2, rate) - 50.0).abs() < 1e-3);
+    // 3 m home at 0.5 m/s + 15 s of search and landing, times 1.5.
+    assert!((needed_s(3.0, 0.5, 1.5) - 31.5).abs() < 1e-3);
+}

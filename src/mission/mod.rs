@@ -73,13 +73,14 @@ mod hover;
 mod landing;
 pub mod link_loss;
 mod navigate;
+pub mod reserve;
 mod search;
 
 pub use config::{
     COVERAGE_RANGE, HOVER_TIME_RANGE_S, MAX_HEIGHT_M, MAX_SPEED_M_S, MIN_HEIGHT_M, MissionConfig, MissionConfigError,
     MissionInputs, MissionMode, MissionParams, StartRefusal, write_mode_table,
 };
-pub use explore::ExploreEnd;
+pub use explore::{ExploreEnd, MissionNote};
 
 use crate::landing::pad::PadDetector;
 use crate::landing::sweep::LawnmowerSweep;
@@ -477,6 +478,12 @@ impl<const CELLS: usize, const QUEUE: usize> Mission<CELLS, QUEUE> {
         }
     }
 
+    /// A decision the user should hear about on the console (explore turned home for its battery
+    /// reserve), once: the firmware's radio task and `cfnav sim --serve` print it.
+    pub fn take_note(&mut self) -> Option<MissionNote> {
+        self.explorer.note.take()
+    }
+
     /// Whether a mission is running (started, not ended).
     pub fn is_running(&self) -> bool {
         !matches!(self.phase, Phase::Idle | Phase::Ended(_))
@@ -686,6 +693,9 @@ impl<const CELLS: usize, const QUEUE: usize> Mission<CELLS, QUEUE> {
         };
         self.last_tick = Some(now);
         let (x, y, z) = (state.position_m[0], state.position_m[1], state.position_m[2]);
+        if self.leg == Leg::Explore && self.is_running() {
+            self.explore_battery(now, state, inputs);
+        }
 
         // Conditions that end or divert any flying phase.
         if self.is_running() && !matches!(self.phase, Phase::Preflight | Phase::OnPad { .. }) {

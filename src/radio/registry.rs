@@ -879,6 +879,7 @@ pub const PARAM_TABLE: &[ParamEntry] = &[
     ParamEntry::declare("mission", "padTol", ParamType::F32, 0, Range::Closed(0.01, 0.3), "m", "horizontal error to the pad centre accepted before descending").persistent(),
     ParamEntry::declare("mission", "padPause", ParamType::F32, 0, Range::Closed(0.0, 30.0), "s", "pause on the goal pad, motors off").persistent(),
     ParamEntry::declare("mission", "sweepSpacing", ParamType::F32, 0, Range::Closed(0.05, 0.5), "m", "spacing of the pad search's sweep lines").persistent(),
+    ParamEntry::declare("mission", "batReserve", ParamType::F32, 0, Range::Closed(1.0, 5.0), "", "explore turns home once the battery, at the discharge rate measured in flight, no longer lasts this many times the flight home (planned path at cruise speed + 15 s for the pad search and landing)").persistent(),
     // Link loss (issue 13 part 5)
     ParamEntry::declare(
         "mission",
@@ -1115,6 +1116,7 @@ pub fn tune_field<'a>(t: &'a mut Tuning, group: &str, name: &str) -> Option<Tune
         ("mission", "padTol") => TuneField::F32(&mut t.mission.settle_tolerance_m),
         ("mission", "padPause") => TuneField::F32(&mut t.mission.pause_s),
         ("mission", "sweepSpacing") => TuneField::F32(&mut t.mission.sweep.spacing_m),
+        ("mission", "batReserve") => TuneField::F32(&mut t.mission.battery_reserve),
         _ => return None,
     })
 }

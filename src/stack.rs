@@ -46,8 +46,7 @@ use crate::flight::supervisor::{
 };
 use crate::mission::link_loss::{LinkLossConfig, LinkWatch};
 use crate::mission::{
-    Mission, MissionConfig, MissionInputs, MissionNote, MissionPadDetector, MissionParams, MissionState,
-    StartRefusal,
+    Mission, MissionConfig, MissionInputs, MissionNote, MissionPadDetector, MissionParams, MissionState, StartRefusal,
 };
 use crate::nav::avoidance::ReactiveAvoidance;
 use crate::nav::map::{CELL_SIZE_M, Cell};

@@ -27,8 +27,8 @@ use embassy_time::{Duration, Ticker, Timer};
 
 use super::{
     CONTROL_RUNNING, CONTROL_STEPS, DECKS_OK, FAST_INPUTS, FastInput, LINK, LOAD, MAP_READS, MAP_REPLIES,
-    MISSION_NOTES, MISSION_REQUESTS, MISSION_RUNNING, MissionRequest, NAV_INPUTS, NavInput, START_OUTCOME, THREAD_BEATS, cycles,
-    fast_status, now_us, update_log, yield_now,
+    MISSION_NOTES, MISSION_REQUESTS, MISSION_RUNNING, MissionRequest, NAV_INPUTS, NavInput, START_OUTCOME,
+    THREAD_BEATS, cycles, fast_status, now_us, update_log, yield_now,
 };
 
 /// The navigator sized for the firmware's arena.

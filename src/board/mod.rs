@@ -43,8 +43,8 @@ use core::sync::atomic::{AtomicBool, AtomicU32, Ordering};
 use core::task::Poll;
 
 use cfnav::flight::high_level::HlCommand;
-use cfnav::mission::{MissionNote, MissionParams};
 use cfnav::mission::link_loss::LinkLossConfig;
+use cfnav::mission::{MissionNote, MissionParams};
 use cfnav::radio::crtp::CrtpPacket;
 use cfnav::radio::log_registry::FirmwareLogState;
 use cfnav::radio::mem::MapRead;

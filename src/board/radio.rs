@@ -63,8 +63,8 @@ use heapless::String;
 use super::eeprom::{EEPROM_DONE, EEPROM_JOB};
 use super::{
     BOOTED, DECK_FLOW2, DECK_MULTIRANGER, DECKS_OK, FAST_INPUTS, FAULT, FastInput, LINK, LOAD, MAP_READS, MAP_REPLIES,
-    MISSION_NOTES, MISSION_REQUESTS, MISSION_RUNNING, MissionRequest, START_OUTCOME, cycles, fast_status, fault, log_state,
-    update_log,
+    MISSION_NOTES, MISSION_REQUESTS, MISSION_RUNNING, MissionRequest, START_OUTCOME, cycles, fast_status, fault,
+    log_state, update_log,
 };
 
 /// Firmware version the platform service reports.

@@ -1,10 +1,12 @@
 //! The build's git revision as stock's `firmware` parameter group publishes it (issue 13):
 //! `firmware.revision0` (uint32, read-only) = the first 8 hex digits of the commit hash, `firmware.revision1`
 //! (uint16, read-only) = the next 4, `firmware.modified` (uint8, read-only) = 1 when the firmware's tracked
-//! inputs (`src`, `build.rs`, `Cargo.toml`, `memory.x`) differed from that commit at build time. Stock derives the same values in `tools/make/versionTemplate.py`
-//! (`irevision0 = "0x" + revision[0:8]`, `irevision1 = "0x" + revision[8:12]`) and declares them in
+//! inputs (`src`, `build.rs`, `Cargo.toml`, `memory.x`) differed from that commit at build time. Stock
+//! derives the same values in `tools/make/versionTemplate.py` (`irevision0 = "0x" + revision[0:8]`,
+//! `irevision1 = "0x" + revision[8:12]`) and declares them in
 //! `src/utils/src/version.tmpl` (`PARAM_UINT32 | PARAM_RONLY revision0`, `PARAM_UINT16 | PARAM_RONLY
-//! revision1`, `PARAM_UINT8 | PARAM_RONLY modified`); cfclient shows `revision0` and `revision1` as hex.
+//! revision1`, `PARAM_UINT8 | PARAM_RONLY modified`); cfclient's About dialog shows
+//! them as `{revision0:x}{revision1:x} (MODIFIED|CLEAN)` (`cfclient/ui/dialogs/about.py`).
 //!
 //! Job: parse the strings `build.rs` sets (`CFNAV_GIT_REVISION`, `CFNAV_GIT_MODIFIED`) at compile time.
 //! Non-goals: tags, branch names (stock's string-only fields have no parameter). Memory: three constants.

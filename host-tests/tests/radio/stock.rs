@@ -121,7 +121,9 @@ fn firmware_revision_parameters_are_the_git_commit_of_the_build() {
     // Over the wire, as cflib reads a value: 2/1 [id u16] -> [id u16, status 0, value].
     let read = |m: &mut Params, name: &str| {
         let i = id("firmware", name);
-        let reply = m.handle(&CrtpPacket::new(2, 1, &i.to_le_bytes()).unwrap()).expect("a reply");
+        let reply = m
+            .handle(&CrtpPacket::new(2, 1, &i.to_le_bytes()).unwrap())
+            .expect("a reply");
         assert_eq!(&reply.data[..3], &[i.to_le_bytes()[0], i.to_le_bytes()[1], 0]);
         reply.data[3..].to_vec()
     };
@@ -131,7 +133,12 @@ fn firmware_revision_parameters_are_the_git_commit_of_the_build() {
     assert_eq!(read(&mut m, "revision1"), rev1.to_le_bytes(), "HEAD {head}");
     assert_eq!(read(&mut m, "modified"), [u8::from(modified)]);
     // Read-only: a write changes nothing.
-    let p = CrtpPacket::new(2, 2, &[&id("firmware", "revision0").to_le_bytes()[..], &[0, 0, 0, 0]].concat()).unwrap();
+    let p = CrtpPacket::new(
+        2,
+        2,
+        &[&id("firmware", "revision0").to_le_bytes()[..], &[0, 0, 0, 0]].concat(),
+    )
+    .unwrap();
     assert_eq!(m.handle(&p), None);
     assert_eq!(read(&mut m, "revision0"), rev0.to_le_bytes());
 }

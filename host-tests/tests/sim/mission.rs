@@ -486,7 +486,11 @@ fn an_abort_near_a_pad_lands_on_its_centre() {
         };
         let r = run(&world, &options).expect("runs");
         let rep = &r.report;
-        assert_eq!((rep.outcome, rep.reason), ("aborted", Some("aborted")), "abort at {abort_s} s: {rep:?}");
+        assert_eq!(
+            (rep.outcome, rep.reason),
+            ("aborted", Some("aborted")),
+            "abort at {abort_s} s: {rep:?}"
+        );
         assert_eq!(rep.collisions, 0, "abort at {abort_s} s");
         let at_abort = r
             .trace

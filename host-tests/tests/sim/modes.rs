@@ -205,7 +205,10 @@ fn explore_turns_home_on_its_battery_reserve_and_lands_on_the_home_pad() {
         println!(
             "{name}: battery low after {battery_lasts_s:.1} s; exploring everything and flying home takes {mission_all_s:.1} s"
         );
-        assert!(mission_all_s > battery_lasts_s, "{name}: the scenario must strand a drone without reserve");
+        assert!(
+            mission_all_s > battery_lasts_s,
+            "{name}: the scenario must strand a drone without reserve"
+        );
         let options = RunOptions {
             mode: MissionMode::Explore,
             coverage: Some(1.0),
@@ -224,11 +227,16 @@ fn explore_turns_home_on_its_battery_reserve_and_lands_on_the_home_pad() {
             "{name}: {home:?}"
         );
         assert!(
-            e.console.iter().any(|l| l.starts_with("explore: battery reserve, flying home")),
+            e.console
+                .iter()
+                .any(|l| l.starts_with("explore: battery reserve, flying home")),
             "{name}: {:?}",
             e.console
         );
-        assert!(e.coverage < 1.0, "{name}: it stopped before exploring everything: {e:?}");
+        assert!(
+            e.coverage < 1.0,
+            "{name}: it stopped before exploring everything: {e:?}"
+        );
     }
 }
 
@@ -251,5 +259,8 @@ fn explore_retries_with_the_narrow_margin_before_ending() {
     // The far side (x > 3.1 m) is half the free space: seen only from beyond the gap.
     assert!(e.true_free_known >= 0.85, "{e:?}");
     let home = r.landings.last().expect("a landing");
-    assert!(home.pad == 0 && home.on_pad && home.error_m < EXPLORE_LANDING_ERROR_M, "{r:?}");
+    assert!(
+        home.pad == 0 && home.on_pad && home.error_m < EXPLORE_LANDING_ERROR_M,
+        "{r:?}"
+    );
 }

@@ -46,7 +46,7 @@ use crate::flight::supervisor::{
 };
 use crate::mission::link_loss::{LinkLossConfig, LinkWatch};
 use crate::mission::{
-    Mission, MissionConfig, MissionInputs, MissionPadDetector, MissionParams, MissionState, StartRefusal,
+    Mission, MissionConfig, MissionInputs, MissionNote, MissionPadDetector, MissionParams, MissionState, StartRefusal,
 };
 use crate::nav::avoidance::ReactiveAvoidance;
 use crate::nav::map::{CELL_SIZE_M, Cell};
@@ -412,6 +412,8 @@ pub struct Navigator<const CELLS: usize, const QUEUE: usize> {
     next_config: Option<MissionConfig>,
     /// The link-loss watch (`mission.linkLoss`, `mission.linkTimeout`).
     link: LinkWatch,
+    /// The supervisor's battery-low threshold, V (explore's battery reserve counts down to it).
+    battery_low_v: f32,
 }
 
 impl<const CELLS: usize, const QUEUE: usize> Navigator<CELLS, QUEUE> {
@@ -444,6 +446,7 @@ impl<const CELLS: usize, const QUEUE: usize> Navigator<CELLS, QUEUE> {
                 landmarks: _,
                 next_config: _,
                 link: _,
+                battery_low_v: _,
             } = n;
         };
         // SAFETY: the caller guarantees `slot` is valid and aligned; `addr_of_mut!` makes no reference to the
@@ -455,6 +458,7 @@ impl<const CELLS: usize, const QUEUE: usize> Navigator<CELLS, QUEUE> {
             core::ptr::addr_of_mut!((*slot).landmarks).write(Landmarks::new());
             core::ptr::addr_of_mut!((*slot).next_config).write(None);
             core::ptr::addr_of_mut!((*slot).link).write(LinkWatch::new());
+            core::ptr::addr_of_mut!((*slot).battery_low_v).write(config.supervisor.battery_low_v);
         }
     }
 
@@ -466,6 +470,7 @@ impl<const CELLS: usize, const QUEUE: usize> Navigator<CELLS, QUEUE> {
             landmarks: Landmarks::new(),
             next_config: None,
             link: LinkWatch::new(),
+            battery_low_v: config.supervisor.battery_low_v,
         }
     }
 
@@ -603,6 +608,8 @@ impl<const CELLS: usize, const QUEUE: usize> Navigator<CELLS, QUEUE> {
             crashed: matches!(sup.state, SupervisorState::Crashed | SupervisorState::Locked),
             battery_low: sup.battery_low,
             armed: sup.motors_allowed,
+            battery_v: sup.battery_v_filtered,
+            battery_low_v: self.battery_low_v,
         };
         let setpoint = self.mission.tick(now, &status.estimate, &inputs);
         Some(MissionCommand::Setpoint { setpoint, time: now })
@@ -611,6 +618,12 @@ impl<const CELLS: usize, const QUEUE: usize> Navigator<CELLS, QUEUE> {
     /// Whether a mission runs (commander setpoints are refused then).
     pub fn is_running(&self) -> bool {
         self.mission.is_running()
+    }
+
+    /// A decision of the mission the user should hear about on the console, once (see
+    /// [`Mission::take_note`]).
+    pub fn take_mission_note(&mut self) -> Option<MissionNote> {
+        self.mission.take_note()
     }
 
     /// The mission.
@@ -761,6 +774,11 @@ impl<const CELLS: usize, const QUEUE: usize> FlightCore<CELLS, QUEUE> {
     /// The `mission.state` code.
     pub fn mission_state(&self) -> MissionState {
         self.navigator.state()
+    }
+
+    /// A decision of the mission for the console, once ([`Navigator::take_mission_note`]).
+    pub fn take_mission_note(&mut self) -> Option<MissionNote> {
+        self.navigator.take_mission_note()
     }
 
     /// The estimator (diagnostics).

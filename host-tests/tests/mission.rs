@@ -118,14 +118,24 @@ fn preflight_waits_for_a_valid_estimate_and_the_armed_supervisor() {
 }
 
 #[test]
-fn abort_lands_where_it_is_and_ends_aborted() {
-    let mut m = started_on_the_pad();
+fn abort_lands_where_it_is_or_on_the_pad_within_reach_and_ends_aborted() {
+    // 0.8 m from the home pad (0.6, 1.3): it lands where it is.
+    let mut far = started_on_the_pad();
     let inputs = armed();
+    far.tick(40_000, &at(0.6, 1.3, 0.3), &inputs);
+    far.abort(&at(1.4, 1.3, 0.3));
+    let sp = far.tick(60_000, &at(1.4, 1.3, 0.3), &inputs);
+    assert!(
+        matches!(sp, Setpoint::Descend { x_m, y_m, vz_m_s, .. } if x_m == 1.4 && y_m == 1.3 && vz_m_s < 0.0),
+        "{sp:?}"
+    );
+    // 0.14 m from the home pad's centre: it lands on that centre, not across the pad's rim.
+    let mut m = started_on_the_pad();
     m.tick(40_000, &at(0.6, 1.3, 0.3), &inputs);
     m.abort(&at(0.7, 1.2, 0.3));
     let sp = m.tick(60_000, &at(0.7, 1.2, 0.3), &inputs);
     assert!(
-        matches!(sp, Setpoint::Descend { x_m, y_m, vz_m_s, .. } if x_m == 0.7 && y_m == 1.2 && vz_m_s < 0.0),
+        matches!(sp, Setpoint::Descend { x_m, y_m, vz_m_s, .. } if x_m == 0.6 && y_m == 1.3 && vz_m_s < 0.0),
         "{sp:?}"
     );
     assert_eq!(m.state(), MissionState::EmergencyLanding);
@@ -202,4 +212,35 @@ fn state_codes_follow_the_documented_ranges() {
     ] {
         assert!(s.code() >= 200 && s.is_final(), "{s:?}");
     }
+}
+
+/// Explore's discharge watch (`cfnav::mission::reserve`): on a synthetic linear discharge with noise it
+/// measures the slope (least squares against the known one), only after settling and a minimum span, and
+/// the remaining time is the straight-line extrapolation to the threshold.
+#[test]
+fn the_discharge_watch_measures_a_linear_discharge() {
+    use cfnav::mission::reserve::{DischargeWatch, MIN_SPAN_S, SETTLE_US, needed_s, remaining_s};
+    let mut w = DischargeWatch::new();
+    let rate = 4e-3f32; // V/s
+    let mut seen_at = None;
+    for ms in (0..60_000u64).step_by(20) {
+        let t = ms as f32 * 1e-3;
+        // ±5 mV of deterministic "noise".
+        let noise = 5e-3 * ((ms / 20) % 7) as f32 / 6.0 - 2.5e-3;
+        w.on_sample(ms * 1000, 3.9 - rate * t + noise);
+        w.on_sample(ms * 1000, f32::NAN);
+        if seen_at.is_none() && w.rate_v_per_s().is_some() {
+            seen_at = Some(t);
+        }
+    }
+    let first = seen_at.expect("a rate");
+    assert!(
+        first >= SETTLE_US as f32 * 1e-6 + MIN_SPAN_S - 0.1,
+        "trusted at {first} s"
+    );
+    let measured = w.rate_v_per_s().unwrap();
+    assert!((measured - rate).abs() < 0.1e-3, "{measured} V/s");
+    assert!((remaining_s(3.4, 3.2, rate) - 50.0).abs() < 1e-3);
+    // 3 m home at 0.5 m/s + 15 s of search and landing, times 1.5.
+    assert!((needed_s(3.0, 0.5, 1.5) - 31.5).abs() < 1e-3);
 }

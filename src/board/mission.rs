@@ -27,8 +27,8 @@ use embassy_time::{Duration, Ticker, Timer};
 
 use super::{
     CONTROL_RUNNING, CONTROL_STEPS, DECKS_OK, FAST_INPUTS, FastInput, LINK, LOAD, MAP_READS, MAP_REPLIES,
-    MISSION_REQUESTS, MISSION_RUNNING, MissionRequest, NAV_INPUTS, NavInput, START_OUTCOME, THREAD_BEATS, cycles,
-    fast_status, now_us, update_log, yield_now,
+    MISSION_NOTES, MISSION_REQUESTS, MISSION_RUNNING, MissionRequest, NAV_INPUTS, NavInput, START_OUTCOME,
+    THREAD_BEATS, cycles, fast_status, now_us, update_log, yield_now,
 };
 
 /// The navigator sized for the firmware's arena.
@@ -166,6 +166,11 @@ pub async fn mission_task(nav: &'static mut FwNavigator) {
             if MAP_REPLIES.try_send(reply).is_err() {
                 warn!("map memory reply dropped (radio behind)");
             }
+        }
+        if let Some(note) = nav.take_mission_note()
+            && MISSION_NOTES.try_send(note).is_err()
+        {
+            warn!("mission console note dropped (radio behind)");
         }
         let stats = nav.mission().stats();
         update_log(|s| {

@@ -43,8 +43,8 @@ use core::sync::atomic::{AtomicBool, AtomicU32, Ordering};
 use core::task::Poll;
 
 use cfnav::flight::high_level::HlCommand;
-use cfnav::mission::MissionParams;
 use cfnav::mission::link_loss::LinkLossConfig;
+use cfnav::mission::{MissionNote, MissionParams};
 use cfnav::radio::crtp::CrtpPacket;
 use cfnav::radio::log_registry::FirmwareLogState;
 use cfnav::radio::mem::MapRead;
@@ -116,6 +116,8 @@ pub static MISSION_REQUESTS: Channel<CriticalSectionRawMutex, MissionRequest, 2>
 pub static MAP_READS: Channel<CriticalSectionRawMutex, MapRead, 2> = Channel::new();
 /// Mission task → radio: the answers to [`MAP_READS`], ready to send.
 pub static MAP_REPLIES: Channel<CriticalSectionRawMutex, CrtpPacket, 2> = Channel::new();
+/// Mission task → radio: decisions of the mission for the console (explore's battery reserve).
+pub static MISSION_NOTES: Channel<CriticalSectionRawMutex, MissionNote, 2> = Channel::new();
 /// Mission task → radio: the outcome of the latest start request.
 pub static START_OUTCOME: Signal<CriticalSectionRawMutex, Result<(), StartError>> = Signal::new();
 /// What the log service samples; `None` until a task first writes it (see [`log_state`]).

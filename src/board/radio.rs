@@ -63,8 +63,8 @@ use heapless::String;
 use super::eeprom::{EEPROM_DONE, EEPROM_JOB};
 use super::{
     BOOTED, DECK_FLOW2, DECK_MULTIRANGER, DECKS_OK, FAST_INPUTS, FAULT, FastInput, LINK, LOAD, MAP_READS, MAP_REPLIES,
-    MISSION_REQUESTS, MISSION_RUNNING, MissionRequest, START_OUTCOME, cycles, fast_status, fault, log_state,
-    update_log,
+    MISSION_NOTES, MISSION_REQUESTS, MISSION_RUNNING, MissionRequest, START_OUTCOME, cycles, fast_status, fault,
+    log_state, update_log,
 };
 
 /// Firmware version the platform service reports.
@@ -366,6 +366,12 @@ impl Crtp {
         }
         while let Some(note) = self.ep.param.take_refusal() {
             let line = Params::console_line(&note);
+            self.console(&line);
+        }
+        while let Ok(note) = MISSION_NOTES.try_receive() {
+            let mut line: String<128> = String::new();
+            let _ = writeln!(line, "{note}");
+            info!("{}", line.as_str().trim_end());
             self.console(&line);
         }
         if self

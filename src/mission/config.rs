@@ -84,8 +84,10 @@ impl MissionMode {
             Self::Explore => (
                 "explore",
                 "fly to the nearest reachable frontier (60), look around there and choose the next (61), until \
-                 `mission.coverage` of the arena's cells is known or no frontier is left; then fly home, find the \
-                 home pad, land (21–24); `mission.covered` logs the coverage",
+                 `mission.coverage` of the arena's cells is known, no frontier is left (also at the narrow \
+                 margin `plan.narrowInfl`), or the battery no longer covers `mission.batReserve` times the \
+                 flight home (a console line says so); then fly home, find the home pad, land (21–24); \
+                 `mission.covered` logs the coverage",
             ),
         }
     }
@@ -225,6 +227,10 @@ pub struct MissionConfig {
     pub pad: PadConfig,
     /// Reactive avoidance.
     pub avoidance: AvoidanceConfig,
+    /// Explore's battery reserve (`mission.batReserve`): it turns home once the battery, at the discharge
+    /// rate measured in flight, no longer lasts this many times the flight home (planned path at cruise
+    /// speed, plus the home pad's search and landing; `super::reserve`). ≥ 1.
+    pub battery_reserve: f32,
 }
 
 impl Default for MissionConfig {
@@ -275,6 +281,7 @@ impl Default for MissionConfig {
                 smoothing_tau_s: 0.1,
                 ..AvoidanceConfig::default()
             },
+            battery_reserve: 1.5,
         }
     }
 }
@@ -291,4 +298,8 @@ pub struct MissionInputs {
     /// The supervisor allows the motors (armed or flying). It arms only while it sees a Stop setpoint
     /// (the thrust lock), so the mission keeps sending Stop until then.
     pub armed: bool,
+    /// The supervisor's filtered battery voltage, V (0: no reading yet; explore's reserve ignores it).
+    pub battery_v: f32,
+    /// The supervisor's battery-low threshold, V (below it for its hold time, it lands where it is).
+    pub battery_low_v: f32,
 }

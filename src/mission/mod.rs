@@ -73,13 +73,14 @@ mod hover;
 mod landing;
 pub mod link_loss;
 mod navigate;
+pub mod reserve;
 mod search;
 
 pub use config::{
     COVERAGE_RANGE, HOVER_TIME_RANGE_S, MAX_HEIGHT_M, MAX_SPEED_M_S, MIN_HEIGHT_M, MissionConfig, MissionConfigError,
     MissionInputs, MissionMode, MissionParams, StartRefusal, write_mode_table,
 };
-pub use explore::ExploreEnd;
+pub use explore::{ExploreEnd, MissionNote};
 
 use crate::landing::pad::PadDetector;
 use crate::landing::sweep::LawnmowerSweep;
@@ -258,9 +259,10 @@ const NO_PATH_TURN_RATE_RAD_S: f32 = 0.8;
 /// Take-off hands over to navigation this far above [`MIN_HEIGHT_M`] (or 5 cm below the cruise height if that
 /// is lower), m.
 const TAKEOFF_HANDOVER_MARGIN_M: f32 = 0.1;
-/// A link-loss landing closer than this to a known pad centre lands on that centre, m: the pads of the
-/// worlds are up to 0.3 × 0.3 m, plus the body's radius (0.06 m) and margin.
-const LINK_LOSS_PAD_SNAP_M: f32 = 0.3;
+/// A landing where the drone is (abort, battery low, no path, link loss) closer than this to a known pad
+/// centre lands on that centre, m: the pads of the worlds are up to 0.3 × 0.3 m, plus the body's radius
+/// (0.06 m) and margin.
+const PAD_SNAP_M: f32 = 0.3;
 /// Within this distance of the leg's target the navigating drone already feeds the pad detector, m.
 const PAD_LOOKOUT_RADIUS_M: f32 = 0.8;
 /// The hover test's hold and the exploration's first look begin once the climb is this close below the
@@ -476,6 +478,12 @@ impl<const CELLS: usize, const QUEUE: usize> Mission<CELLS, QUEUE> {
         }
     }
 
+    /// A decision the user should hear about on the console (explore turned home for its battery
+    /// reserve), once: the firmware's radio task and `cfnav sim --serve` print it.
+    pub fn take_note(&mut self) -> Option<MissionNote> {
+        self.explorer.note.take()
+    }
+
     /// Whether a mission is running (started, not ended).
     pub fn is_running(&self) -> bool {
         !matches!(self.phase, Phase::Idle | Phase::Ended(_))
@@ -550,14 +558,21 @@ impl<const CELLS: usize, const QUEUE: usize> Mission<CELLS, QUEUE> {
         match self.phase {
             Phase::Idle | Phase::Ended(_) => {}
             Phase::Preflight | Phase::OnPad { .. } => self.phase = Phase::Ended(MissionState::Aborted),
-            _ => {
-                self.phase = Phase::EmergencyLand {
-                    x: state.position_m[0],
-                    y: state.position_m[1],
-                    then: MissionState::Aborted,
-                }
-            }
+            _ => self.land_where_it_is(state, MissionState::Aborted),
         }
+    }
+
+    /// Ends the flight with a landing where the drone is, then `then`, by the one rule every such landing
+    /// (abort, battery low, no path, link loss) shares: over a pad it is approaching or descending onto, on
+    /// that pad's centre; else on a known pad's centre within [`PAD_SNAP_M`]
+    /// ([`Self::pad_snap_landing_point`]); else where it is.
+    fn land_where_it_is(&mut self, state: &StateEstimate, then: MissionState) {
+        let (x, y) = match self.phase {
+            Phase::Approach { x, y, .. } | Phase::Land { x, y } => (x, y),
+            Phase::NoPath { x, y, .. } => self.pad_snap_landing_point((x, y)),
+            _ => self.pad_snap_landing_point((state.position_m[0], state.position_m[1])),
+        };
+        self.phase = Phase::EmergencyLand { x, y, then };
     }
 
     /// The radio link was lost (see [`link_loss`]): apply `policy`. Does nothing when no mission runs or
@@ -565,29 +580,15 @@ impl<const CELLS: usize, const QUEUE: usize> Mission<CELLS, QUEUE> {
     /// code). Latched: nothing here is undone when the link comes back.
     pub fn on_link_lost(&mut self, policy: link_loss::LinkLossPolicy, now: Micros, state: &StateEstimate) {
         use link_loss::LinkLossPolicy;
-        let (x, y) = (state.position_m[0], state.position_m[1]);
         match (policy, self.phase) {
             (LinkLossPolicy::Continue, _) | (_, Phase::Idle | Phase::Ended(_) | Phase::EmergencyLand { .. }) => {}
             // On the ground with the motors off: it has landed already.
             (LinkLossPolicy::Land, Phase::Preflight | Phase::OnPad { .. }) => {
                 self.phase = Phase::Ended(MissionState::LinkLost)
             }
-            // Over a pad (approaching or descending onto it): finish on its centre.
-            (LinkLossPolicy::Land, Phase::Approach { x: px, y: py, .. } | Phase::Land { x: px, y: py }) => {
-                self.phase = Phase::EmergencyLand {
-                    x: px,
-                    y: py,
-                    then: MissionState::LinkLost,
-                }
-            }
-            (LinkLossPolicy::Land, _) => {
-                let (lx, ly) = self.link_loss_landing_point((x, y));
-                self.phase = Phase::EmergencyLand {
-                    x: lx,
-                    y: ly,
-                    then: MissionState::LinkLost,
-                }
-            }
+            // Over a pad (approaching or descending onto it): finish on its centre; near a known pad, on
+            // that pad's centre; else where it is.
+            (LinkLossPolicy::Land, _) => self.land_where_it_is(state, MissionState::LinkLost),
             // Still standing on the home pad.
             (LinkLossPolicy::ReturnHome, Phase::Preflight) => self.phase = Phase::Ended(MissionState::LinkLostHome),
             // On the goal pad, or on the way home already: the mission goes home anyway.
@@ -602,18 +603,18 @@ impl<const CELLS: usize, const QUEUE: usize> Mission<CELLS, QUEUE> {
         }
     }
 
-    /// Where a link-loss landing goes down: where the drone is, unless that lies within
-    /// [`LINK_LOSS_PAD_SNAP_M`] of a pad whose centre the mission knows (the home pad at the start point, a pad
+    /// Where a landing where the drone is goes down: where it is, unless that lies within
+    /// [`PAD_SNAP_M`] of a pad whose centre the mission knows (the home pad at the start point, a pad
     /// once locked): a drone coming down across a pad's edge lands tilted on its rim (measured: lost
     /// 2 s after take-off, 15 cm from the home pad's centre, the body touched the pad's side), so it lands on
     /// that pad's centre instead.
-    fn link_loss_landing_point(&self, (x, y): (f32, f32)) -> (f32, f32) {
+    fn pad_snap_landing_point(&self, (x, y): (f32, f32)) -> (f32, f32) {
         let [goal, home] = self.stats.pad_centres;
         let pads = [Some(self.params.start_m), goal, home];
         pads.into_iter()
             .flatten()
             .map(|p| (p, libm::hypotf(p.0 - x, p.1 - y)))
-            .filter(|(_, d)| *d < LINK_LOSS_PAD_SNAP_M)
+            .filter(|(_, d)| *d < PAD_SNAP_M)
             .min_by(|a, b| a.1.total_cmp(&b.1))
             .map_or((x, y), |(p, _)| p)
     }
@@ -692,6 +693,9 @@ impl<const CELLS: usize, const QUEUE: usize> Mission<CELLS, QUEUE> {
         };
         self.last_tick = Some(now);
         let (x, y, z) = (state.position_m[0], state.position_m[1], state.position_m[2]);
+        if self.leg == Leg::Explore && self.is_running() {
+            self.explore_battery(now, state, inputs);
+        }
 
         // Conditions that end or divert any flying phase.
         if self.is_running() && !matches!(self.phase, Phase::Preflight | Phase::OnPad { .. }) {
@@ -708,11 +712,7 @@ impl<const CELLS: usize, const QUEUE: usize> Mission<CELLS, QUEUE> {
                     then: MissionState::EstimatorFault,
                 };
             } else if inputs.battery_low && !matches!(self.phase, Phase::EmergencyLand { .. } | Phase::Land { .. }) {
-                self.phase = Phase::EmergencyLand {
-                    x,
-                    y,
-                    then: MissionState::BatteryLow,
-                };
+                self.land_where_it_is(state, MissionState::BatteryLow);
             }
         }
 
@@ -775,11 +775,7 @@ impl<const CELLS: usize, const QUEUE: usize> Mission<CELLS, QUEUE> {
                     Err(()) => {}
                 }
                 if (now.saturating_sub(since)) as f32 * 1e-6 > self.config.no_path_wait_s {
-                    self.phase = Phase::EmergencyLand {
-                        x: hx,
-                        y: hy,
-                        then: MissionState::NoPath,
-                    };
+                    self.land_where_it_is(state, MissionState::NoPath);
                 } else {
                     // Turn while waiting: the four beams sweep all round, and a beam through an opening frees
                     // the cells that an obstacle mapped from a drifted estimate still blocks there.

@@ -30,7 +30,8 @@
 //! `multiranger.c`, `zranger*.c`, `lighthouse.c`, `locodeck.c`, `ledring12.c`, `color_led_deck.c`);
 //! `kalman.resetEstimation` uint8 (`estimator_kalman.c`); `stabilizer.controller` uint8, 0 auto-select, 1 PID,
 //! 2 Mellinger, 3 INDI, 4 Brescianini, 5 Lee (`stabilizer.c`, `controller.h`); `commander.enHighLevel` uint8
-//! (`commander.c`). The deck names are every `deck.*` name the stock cfclient 2026.8.1 reads (Flight, LED-ring,
+//! (`commander.c`); `firmware.revision0` uint32, `revision1` uint16, `modified` uint8, all read-only
+//! (`version.tmpl`, values from git as `tools/make/versionTemplate.py` cuts them). The deck names are every `deck.*` name the stock cfclient 2026.8.1 reads (Flight, LED-ring,
 //! Color LED, Lighthouse and Loco tabs): a name it misses stalls its parameter callback.
 //!
 //! Design choices: the TOC CRC is CRC-32 over [`PARAM_CRC_SEED`] followed by, for every entry in id order, the
@@ -53,6 +54,7 @@ use crate::mission::{
 };
 use crate::nav::avoidance::{AvoidanceMethod, SpeedClamp};
 use crate::system::persistent_params::{PendingWrite, PersistentParams, param_key};
+use crate::system::version;
 
 use super::crtp::MAX_DATA;
 pub use super::wire_type::WireType;
@@ -815,6 +817,7 @@ pub const PARAM_TABLE: &[ParamEntry] = &[
     ParamEntry::declare("mission", "padTol", ParamType::F32, 0, Range::Closed(0.01, 0.3), "m", "horizontal error to the pad centre accepted before descending").persistent(),
     ParamEntry::declare("mission", "padPause", ParamType::F32, 0, Range::Closed(0.0, 30.0), "s", "pause on the goal pad, motors off").persistent(),
     ParamEntry::declare("mission", "sweepSpacing", ParamType::F32, 0, Range::Closed(0.05, 0.5), "m", "spacing of the pad search's sweep lines").persistent(),
+    ParamEntry::declare("mission", "batReserve", ParamType::F32, 0, Range::Closed(1.0, 5.0), "", "explore turns home once the battery, at the discharge rate measured in flight, no longer lasts this many times the flight home (planned path at cruise speed + 15 s for the pad search and landing)").persistent(),
     // Link loss (issue 13 part 5)
     ParamEntry::declare(
         "mission",
@@ -833,6 +836,34 @@ pub const PARAM_TABLE: &[ParamEntry] = &[
         Range::Closed(MIN_LINK_TIMEOUT_S, MAX_LINK_TIMEOUT_S),
         "s",
         "radio silence that counts as a lost link during a mission (default 2)",
+    ),
+    // The build's revision (stock `version.tmpl`; values from git via build.rs, `crate::system::version`)
+    ParamEntry::declare(
+        "firmware",
+        "revision0",
+        ParamType::U32,
+        RO,
+        Range::Any,
+        "",
+        "the build's git commit, first 8 hex digits as a number (stock; cfclient shows it in hex)",
+    ),
+    ParamEntry::declare(
+        "firmware",
+        "revision1",
+        ParamType::U16,
+        RO,
+        Range::Any,
+        "",
+        "the build's git commit, hex digits 9 to 12 as a number (stock)",
+    ),
+    ParamEntry::declare(
+        "firmware",
+        "modified",
+        ParamType::U8,
+        RO,
+        SWITCH,
+        "",
+        "1 when the firmware's tracked sources differed from that commit at build time (stock)",
     ),
 ];
 
@@ -870,6 +901,12 @@ pub const ID_COVERAGE: u16 = param_id(PARAM_TABLE, "mission", "coverage");
 pub const ID_LINK_LOSS: u16 = param_id(PARAM_TABLE, "mission", "linkLoss");
 /// Id of `mission.linkTimeout` (float).
 pub const ID_LINK_TIMEOUT: u16 = param_id(PARAM_TABLE, "mission", "linkTimeout");
+/// Id of `firmware.revision0` (uint32, read-only).
+pub const ID_FW_REVISION0: u16 = param_id(PARAM_TABLE, "firmware", "revision0");
+/// Id of `firmware.revision1` (uint16, read-only).
+pub const ID_FW_REVISION1: u16 = param_id(PARAM_TABLE, "firmware", "revision1");
+/// Id of `firmware.modified` (uint8, read-only).
+pub const ID_FW_MODIFIED: u16 = param_id(PARAM_TABLE, "firmware", "modified");
 
 /// Writes the README's parameter table for `table`: one Markdown row per declaration.
 pub fn write_param_table(out: &mut impl core::fmt::Write, table: &[ParamEntry]) -> core::fmt::Result {
@@ -1017,6 +1054,7 @@ pub fn tune_field<'a>(t: &'a mut Tuning, group: &str, name: &str) -> Option<Tune
         ("mission", "padTol") => TuneField::F32(&mut t.mission.settle_tolerance_m),
         ("mission", "padPause") => TuneField::F32(&mut t.mission.pause_s),
         ("mission", "sweepSpacing") => TuneField::F32(&mut t.mission.sweep.spacing_m),
+        ("mission", "batReserve") => TuneField::F32(&mut t.mission.battery_reserve),
         _ => return None,
     })
 }
@@ -1259,6 +1297,9 @@ impl ParamStore for MissionParamState {
             ID_COVERAGE => Value::F32(p.coverage_target),
             ID_LINK_LOSS => Value::U8(self.link_loss.policy.code()),
             ID_LINK_TIMEOUT => Value::F32(self.link_loss.timeout_s),
+            ID_FW_REVISION0 => Value::U32(version::REVISION0),
+            ID_FW_REVISION1 => Value::U16(version::REVISION1),
+            ID_FW_MODIFIED => Value::U8(version::MODIFIED),
             // The other deck.* entries: decks cfnav never drives.
             _ if PARAM_TABLE.get(usize::from(id))?.group == "deck" => flag(false),
             _ => return None,

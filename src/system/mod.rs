@@ -6,7 +6,7 @@
 //! by which a `mission.start` write becomes a started mission ([`mission_start`]), the flash accelerator's
 //! expected register value ([`flash_acr`]), the watchdog's timeout and feeding rule ([`watchdog`]), the
 //! pacing of the control step's costly inputs ([`step_pacing`]) and the persistent parameters' EEPROM
-//! records ([`persistent_params`]).
+//! records ([`persistent_params`]), the build's git revision ([`version`]).
 //!
 //! May depend on: [`crate::types`], [`crate::math`] and the radio codecs of [`crate::radio`] (the config
 //! block carries syslink radio settings). No peripheral access: the board layer reads the cycle counter,
@@ -19,4 +19,5 @@ pub mod mission_start;
 pub mod persistent_params;
 pub mod status_led;
 pub mod step_pacing;
+pub mod version;
 pub mod watchdog;

@@ -4,7 +4,8 @@
 # 1. tools/e2e/cflib_stock_names.py: cflib alone (decks, every cfclient log block, PositionHlCommander(PID),
 #    MotionCommander's estimator reset);
 # 2. tools/e2e/cfclient_gui.py: cfclient's own window under Xvfb from a fresh config (connect, every
-#    parameter shown, an edit read back, battery and state estimate shown, no exception), screenshots in
+#    parameter shown, an edit read back, battery and state estimate shown, the Supervisor box on the ground
+#    and flying a mission, no exception), screenshots in
 #    target/cfclient/.
 # The simulator must listen inside 19850-19859, the ports cflib's UDP scan probes (cfclient connects to what
 # its scan lists). Each check is bounded in time; a failure says which check and why.
@@ -39,8 +40,8 @@ if ! timeout 60 python3 tools/e2e/cflib_stock_names.py --uri "$URI"; then
   exit 1
 fi
 # A fresh simulator state is not needed: the GUI check reads what is there and restores nothing.
-if ! timeout 90 xvfb-run -a -s "-screen 0 1600x1000x24" \
-  python3 tools/e2e/cfclient_gui.py --uri "$URI" --timeout 60 --shots target/cfclient; then
+if ! timeout 120 xvfb-run -a -s "-screen 0 1600x1000x24" \
+  python3 tools/e2e/cfclient_gui.py --uri "$URI" --timeout 90 --shots target/cfclient; then
   echo "stock cfclient check failed (screenshots in target/cfclient/, simulator log: target/cfclient/serve.log)"
   exit 1
 fi

@@ -14,8 +14,10 @@ configuration directory, under whatever X display is set (CI runs it under `xvfb
    with the value in effect;
 5. checks the battery display (voltage text and bar) and the Flight tab's state estimate, thrust and motor
    fields, which cfclient fills from its log blocks;
-6. saves screenshots of the Parameters and Flight tabs (`--shots DIR`);
-7. fails if cfclient raised or logged an exception, logged an error, or refused a log block.
+6. checks the Flight tab's Supervisor box: auto-armed on the ground, "Flying" with thrust and motor bars
+   after `mission.start = 1`, no longer flying after the abort (`mission.start = 0`);
+7. saves screenshots of the Parameters and Flight tabs, on the ground and flying (`--shots DIR`);
+8. fails if cfclient raised or logged an exception, logged an error, or refused a log block.
 
 Exit status 0 when every check passed, 1 otherwise (each failed check is printed), 2 on a setup problem.
 """
@@ -240,6 +242,28 @@ def main():
               f"thrust {flight.estimateThrust.text()!r}", flush=True)
         pump(0.5)
         shot("cfclient-flight.png")
+
+        # 6. The Flight tab's Supervisor box (from `supervisor.info`, protocol >= 7) on the ground and in
+        # flight: auto-armed on the ground (as a stock Crazyflie 2.1), "Flying" with thrust and motor bars
+        # once a mission (mission.start = 1) has taken off; the abort (mission.start = 0) lands it again.
+        if not flight._supervisor_state.isVisible():
+            problem("Flight tab: the Supervisor box is hidden (protocol version < 7?)")
+        if flight.armButton.text() != "Auto armed":
+            problem(f"Flight tab: arm button says {flight.armButton.text()!r} on the ground, expected 'Auto armed'")
+        cf.param.set_value("mission.start", "1")
+        if wait(lambda: flight._supervisor_state.text() == "Flying" and flight.estimateThrust.text() != "0.00%"
+                and min(getattr(flight, f"actualM{i}").value() for i in range(1, 5)) > 0,
+                min(10, left()), "the Supervisor box to say Flying, with thrust and motors, after mission.start"):
+            pump(1.0)
+            motors = [getattr(flight, f"actualM{i}").value() for i in range(1, 5)]
+            print(f"flying: supervisor {flight._supervisor_state.text()!r}, arm button "
+                  f"{flight.armButton.text()!r}, thrust {flight.estimateThrust.text()!r}, motors {motors}, "
+                  f"z {flight.estimateZ.text()}", flush=True)
+            shot("cfclient-flying.png")
+        cf.param.set_value("mission.start", "0")
+        wait(lambda: flight._supervisor_state.text() != "Flying", min(15, left()), "the abort's landing")
+        print(f"after the abort: supervisor {flight._supervisor_state.text()!r}, "
+              f"arm button {flight.armButton.text()!r}", flush=True)
 
     try:
         run()

@@ -83,6 +83,66 @@ fn every_deck_cfclient_reads_is_a_read_only_uint8_set_from_detection() {
     assert_eq!(*m.store(), before);
 }
 
+/// `firmware.revision0/revision1/modified` as stock's `version.tmpl` declares them, with the values stock's
+/// `versionTemplate.py` cuts from `git rev-parse HEAD` (the oracle: git itself, asked here).
+#[test]
+fn firmware_revision_parameters_are_the_git_commit_of_the_build() {
+    let git = |args: &[&str]| {
+        let out = std::process::Command::new("git")
+            .args(args)
+            .current_dir(concat!(env!("CARGO_MANIFEST_DIR"), "/.."))
+            .output()
+            .expect("git runs");
+        assert!(out.status.success(), "git {args:?}");
+        String::from_utf8(out.stdout).unwrap().trim().to_string()
+    };
+    let head = git(&["rev-parse", "HEAD"]);
+    // build.rs's rule: the firmware's own tracked inputs differ from HEAD.
+    let modified = !git(&[
+        "status",
+        "--porcelain",
+        "--untracked-files=no",
+        "--",
+        "src",
+        "build.rs",
+        "Cargo.toml",
+        "memory.x",
+    ])
+    .is_empty();
+    let mut m = service();
+    for (name, ty) in [
+        ("revision0", ParamType::U32),
+        ("revision1", ParamType::U16),
+        ("modified", ParamType::U8),
+    ] {
+        let e = Params::entry(id("firmware", name)).unwrap();
+        assert_eq!((e.ty, e.flags), (ty, FLAG_READ_ONLY), "firmware.{name}");
+    }
+    // Over the wire, as cflib reads a value: 2/1 [id u16] -> [id u16, status 0, value].
+    let read = |m: &mut Params, name: &str| {
+        let i = id("firmware", name);
+        let reply = m
+            .handle(&CrtpPacket::new(2, 1, &i.to_le_bytes()).unwrap())
+            .expect("a reply");
+        assert_eq!(&reply.data[..3], &[i.to_le_bytes()[0], i.to_le_bytes()[1], 0]);
+        reply.data[3..].to_vec()
+    };
+    let rev0 = u32::from_str_radix(&head[0..8], 16).unwrap();
+    let rev1 = u16::from_str_radix(&head[8..12], 16).unwrap();
+    assert_eq!(read(&mut m, "revision0"), rev0.to_le_bytes(), "HEAD {head}");
+    assert_eq!(read(&mut m, "revision1"), rev1.to_le_bytes(), "HEAD {head}");
+    assert_eq!(read(&mut m, "modified"), [u8::from(modified)]);
+    // Read-only: a write changes nothing.
+    let p = CrtpPacket::new(
+        2,
+        2,
+        &[&id("firmware", "revision0").to_le_bytes()[..], &[0, 0, 0, 0]].concat(),
+    )
+    .unwrap();
+    assert_eq!(m.handle(&p), None);
+    assert_eq!(read(&mut m, "revision0"), rev0.to_le_bytes());
+}
+
 #[test]
 fn kalman_reset_estimation_is_accepted_on_the_ground_and_refused_in_the_air() {
     let mut m = service();

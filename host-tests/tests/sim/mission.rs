@@ -466,3 +466,58 @@ fn runs_are_deterministic_for_a_seed() {
         format!("{:?}", (b.outcome, b.landings, b.mission_time_s, b.replans))
     );
 }
+
+/// An abort near a pad (issue 13): the landing where the drone is follows the link-loss policy's rule (one
+/// function, `Mission::land_where_it_is`): within 0.3 m of a pad whose centre the mission knows (the home
+/// pad, a pad once locked), or approaching / descending onto a pad, it lands on that pad's centre instead of
+/// across its rim. Aborts through the default mission (trigger at 1 s): just after take-off beside the home
+/// pad, during the goal pad's approach and descent, and far from any pad (lands where it is). Judged on the
+/// truth: where the drone was at the abort, where it came to rest, which pad it landed on.
+#[test]
+fn an_abort_near_a_pad_lands_on_its_centre() {
+    let world = World::default_world();
+    let mut near_pad_cases = 0;
+    for abort_s in [3.0, 3.5, 8.0, 28.5, 29.5] {
+        let mut options = RunOptions::for_world(&world);
+        options.record = true;
+        options.faults = Faults {
+            abort_at_s: Some(abort_s),
+            ..Faults::default()
+        };
+        let r = run(&world, &options).expect("runs");
+        let rep = &r.report;
+        assert_eq!(
+            (rep.outcome, rep.reason),
+            ("aborted", Some("aborted")),
+            "abort at {abort_s} s: {rep:?}"
+        );
+        assert_eq!(rep.collisions, 0, "abort at {abort_s} s");
+        let at_abort = r
+            .trace
+            .iter()
+            .find(|p| p.t_s >= abort_s)
+            .expect("a trace point at the abort")
+            .truth;
+        let rest = r.trace.last().expect("a trace").truth;
+        let last = rep.landings.last().expect("it landed");
+        let near = world
+            .pads
+            .iter()
+            .position(|p| (p.center[0] - at_abort[0]).hypot(p.center[1] - at_abort[1]) < 0.25);
+        println!("abort at {abort_s} s at {at_abort:?}: rest {rest:?}, {last:?}");
+        match near {
+            Some(i) => {
+                near_pad_cases += 1;
+                assert!(
+                    last.pad == i && last.on_pad && last.error_m < 0.06,
+                    "abort at {abort_s} s near pad {i}: landed {last:?}"
+                );
+            }
+            None => {
+                let off = (rest[0] - at_abort[0]).hypot(rest[1] - at_abort[1]);
+                assert!(off < 0.15, "abort at {abort_s} s: came to rest {off} m away");
+            }
+        }
+    }
+    assert!(near_pad_cases >= 2, "the sweep must include aborts near a pad");
+}

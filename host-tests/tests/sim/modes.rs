@@ -167,3 +167,100 @@ fn the_safety_rules_still_end_the_modes() {
     assert_eq!(r.mission_state, MissionState::BatteryLow.code(), "{r:?}");
     assert_eq!((r.reason, r.collisions), (Some("battery"), 0));
 }
+
+/// Explore's battery reserve (issue 13): a battery that lasts a fraction of what exploring the whole arena
+/// (`mission.coverage = 1`: until no frontier is left) takes. Without the reserve the supervisor's
+/// battery-low latch lands the drone wherever it is (state 203, the round trip's rule); with it, the drone
+/// measures its discharge, turns home while the battery still covers the way, finds the home pad and lands
+/// on it, and the console says why. Judged on the truth (which pad, how far from its centre).
+#[test]
+fn explore_turns_home_on_its_battery_reserve_and_lands_on_the_home_pad() {
+    use cfnav_tools::sim::runner::Faults;
+    // Half charged, draining 2.5 times faster than physics.
+    let weak = Faults {
+        battery_state_of_charge: Some(0.5),
+        battery_drain_multiplier: Some(2.5),
+        ..Faults::default()
+    };
+    for name in ["default.toml", "boxes.toml"] {
+        let w = world(name);
+        // The oracle that exploring until empty strands it: hovering on this battery, the supervisor's
+        // battery-low latch lands the drone (203) sooner than exploring the whole arena takes on a full one.
+        let hover = RunOptions {
+            mode: MissionMode::HoverTest,
+            hover_time_s: Some(60.0),
+            faults: weak,
+            ..RunOptions::for_world(&w)
+        };
+        let h = run(&w, &hover).unwrap().report;
+        assert_eq!(h.mission_state, MissionState::BatteryLow.code(), "{name}: {h:?}");
+        let battery_lasts_s = h.mission_time_s.expect("it landed");
+        let full = RunOptions {
+            mode: MissionMode::Explore,
+            coverage: Some(1.0),
+            ..RunOptions::for_world(&w)
+        };
+        let f = run(&w, &full).unwrap().report;
+        let mission_all_s = f.mission_time_s.expect("it landed");
+        println!(
+            "{name}: battery low after {battery_lasts_s:.1} s; exploring everything and flying home takes {mission_all_s:.1} s"
+        );
+        assert!(
+            mission_all_s > battery_lasts_s,
+            "{name}: the scenario must strand a drone without reserve"
+        );
+        let options = RunOptions {
+            mode: MissionMode::Explore,
+            coverage: Some(1.0),
+            faults: weak,
+            ..RunOptions::for_world(&w)
+        };
+        let r = run(&w, &options).unwrap().report;
+        let e = r.explore.clone().expect("an explore report");
+        println!("{name}: {r:?}");
+        assert_eq!(e.end, Some("battery"), "{name}: the reserve turned it home: {r:?}");
+        assert_eq!(r.mission_state, MissionState::Completed.code(), "{name}: {r:?}");
+        assert_eq!((r.outcome, r.collisions), ("completed", 0), "{name}: {r:?}");
+        let home = r.landings.last().expect("a landing");
+        assert!(
+            home.pad == 0 && home.on_pad && home.error_m < EXPLORE_LANDING_ERROR_M,
+            "{name}: {home:?}"
+        );
+        assert!(
+            e.console
+                .iter()
+                .any(|l| l.starts_with("explore: battery reserve, flying home")),
+            "{name}: {:?}",
+            e.console
+        );
+        assert!(
+            e.coverage < 1.0,
+            "{name}: it stopped before exploring everything: {e:?}"
+        );
+    }
+}
+
+/// Explore's narrow-margin fallback (issue 13): the `gap` world's only opening (0.5 m) is closed at the full
+/// inflation margin (0.25 m) and open at the narrow one (0.15 m). At the full margin no frontier beyond the
+/// wall is reachable; the exploration retries with the narrow margin before ending, so it maps the far
+/// half too, then flies home and lands on the home pad.
+#[test]
+fn explore_retries_with_the_narrow_margin_before_ending() {
+    let w = world("gap.toml");
+    let options = RunOptions {
+        mode: MissionMode::Explore,
+        coverage: Some(0.95),
+        ..RunOptions::for_world(&w)
+    };
+    let r = run(&w, &options).unwrap().report;
+    let e = r.explore.clone().expect("an explore report");
+    println!("{r:?}");
+    assert_eq!((r.outcome, r.collisions), ("completed", 0), "{r:?}");
+    // The far side (x > 3.1 m) is half the free space: seen only from beyond the gap.
+    assert!(e.true_free_known >= 0.85, "{e:?}");
+    let home = r.landings.last().expect("a landing");
+    assert!(
+        home.pad == 0 && home.on_pad && home.error_m < EXPLORE_LANDING_ERROR_M,
+        "{r:?}"
+    );
+}

@@ -181,8 +181,11 @@ pub struct ExploreReport {
     pub true_free_known: f32,
     /// Fraction of the cells the grid holds as occupied that are truly within 0.15 m of an obstacle or wall (the estimate drifts).
     pub occupied_correct: Option<f32>,
-    /// `coverage`, `no_frontier`, or `None` when the exploration did not end (battery, abort, crash...).
+    /// `coverage`, `no_frontier`, `battery` (the reserve turned it home), or `None` when the exploration
+    /// did not end (battery low, abort, crash...).
     pub end: Option<&'static str>,
+    /// The mission's console lines (`Mission::take_note`), e.g. why the battery reserve turned it home.
+    pub console: Vec<String>,
     /// From the trigger to the end of the exploration (the way home begins), s.
     pub explore_time_s: Option<f64>,
     pub frontiers_reached: u32,
@@ -370,6 +373,7 @@ pub fn run(world: &World, options: &RunOptions) -> Result<RunResult, String> {
     let take_off_truth = drone.quad.position();
     let mut hover_truth = (0.0f32, 0.0f32, 0u64);
     let mut coverage_curve: Vec<(f64, f32)> = Vec::new();
+    let mut mission_notes: Vec<String> = Vec::new();
     let mut explore_ended_at: Option<u64> = None;
     let take_off_surface = drone.quad.position()[2];
 
@@ -406,6 +410,12 @@ pub fn run(world: &World, options: &RunOptions) -> Result<RunResult, String> {
             drone.core.on_radio_packet(tick * 1000);
         }
         let new_duty = drone.step(world);
+        if let Some(note) = drone.core.take_mission_note() {
+            if options.verbose {
+                eprintln!("{:8.3} s  console: {note}", tick as f64 * 1e-3);
+            }
+            mission_notes.push(note.to_string());
+        }
         if link_lost.is_none()
             && let Some(t) = drone.core.navigator().link_watch().fired_at()
         {
@@ -666,7 +676,9 @@ pub fn run(world: &World, options: &RunOptions) -> Result<RunResult, String> {
                 end: stats.explore_end.map(|e| match e {
                     ExploreEnd::Coverage => "coverage",
                     ExploreEnd::NoFrontier => "no_frontier",
+                    ExploreEnd::Battery => "battery",
                 }),
+                console: mission_notes.clone(),
                 explore_time_s: explore_ended_at.map(|t| t.saturating_sub(trigger_tick) as f64 * 1e-3),
                 frontiers_reached: stats.frontiers_reached,
                 frontiers_dropped: stats.frontiers_dropped,

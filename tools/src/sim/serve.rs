@@ -627,6 +627,10 @@ pub fn serve(
         let end = target.min(drone.tick() + CHUNK_TICKS);
         while drone.tick() < end {
             drone.step(world);
+            // The mission's decisions the user should hear about (explore's battery reserve).
+            if let Some(note) = drone.core.take_mission_note() {
+                radio.console(&format!("{note}\n"));
+            }
             if radio.ep.supervisor.poll(now_us(&drone)) {
                 radio.apply_supervisor(&mut drone);
             }

@@ -1,13 +1,16 @@
 //! The pad search: the coarse lawnmower around the nominal goal, then refinement lines across and along the
 //! first crossing until the detector locks, every line clipped to keep its clearance from mapped obstacles
-//! and the arena walls. The rules are in the [mission's documentation](super).
+//! and the arena walls, and bounded by what the horizontal beams read now (the map in the estimate frame
+//! can miss a thin cylinder or a face it confirmed late), with a beam turned onto each line's direction.
+//! The rules are in the [mission's documentation](super).
 
 use super::landing::{MAX_REFUSALS, Touchdown};
 use super::{Mission, Phase, Search};
 use crate::landing::gate::Target;
 use crate::landing::sweep::{ArenaBounds, LawnmowerSweep, SweepAxis};
+use crate::math::wrap_angle;
 use crate::nav::map::{CELL_SIZE_M, Cell};
-use crate::types::{Setpoint, StateEstimate};
+use crate::types::{MultiRangerSample, Setpoint, StateEstimate};
 
 /// Search lines stop this far from mapped obstacles and arena walls, m: the drone's radius (0.06 m), the
 /// estimate's drift over a search (≈ 5 cm) and tracking overshoot at a line's end.
@@ -36,6 +39,20 @@ const FLOOR_SPOT_CLEARANCE_M: f32 = 0.22;
 const FLOOR_SPOT_RINGS: u8 = 9;
 const FLOOR_SPOT_STEP_M: f32 = 0.15;
 const REFINE_STAGES: u8 = 8;
+/// A live beam reading closer than this closes the way along it, m: the body's radius (0.06 m), the
+/// reading's age at 10 Hz and the velocity loop's lag (≈ 0.25 s: 8 cm at 0.3 m/s) and 4 cm of ranger
+/// noise and overshoot. (0.13 m let world 20 000 193 overshoot a line's end into a cylinder, 0.4 m/s.)
+pub(super) const LIVE_BEAM_STOP_M: f32 = 0.2;
+/// The speed allowed towards a live beam's return per metre beyond [`LIVE_BEAM_STOP_M`], 1/s: 0.45 m/s at
+/// 0.5 m, so the search speed is only cut where a beam sees something within a few tenths of a metre.
+pub(super) const LIVE_BEAM_GAIN_PER_S: f32 = 1.5;
+/// A search leg this long or longer turns a beam onto its direction, m (shorter: the last centimetres of
+/// a line, where the direction to the target swings).
+const LINE_ALIGN_MIN_M: f32 = 0.1;
+/// Another beam takes over the line's direction only when it needs this much less turn, rad.
+const LINE_ALIGN_HYSTERESIS_RAD: f32 = 0.15;
+/// Beams reading further than this bound nothing, m.
+const LIVE_BEAM_HORIZON_M: f32 = 1.0;
 
 impl<const CELLS: usize, const QUEUE: usize> Mission<CELLS, QUEUE> {
     pub(super) fn begin_search(&mut self, state: &StateEstimate) -> Setpoint {
@@ -110,8 +127,10 @@ impl<const CELLS: usize, const QUEUE: usize> Mission<CELLS, QUEUE> {
     }
 
     /// Fly towards `target` at the search speed (stopping short of mapped obstacles, see
-    /// [`Self::clip_to_clearance`]); `true` once within 3 cm of where it can get.
-    pub(super) fn fly_to(&self, state: &StateEstimate, target: (f32, f32)) -> (Setpoint, bool) {
+    /// [`Self::clip_to_clearance`], and of what the live beams see, see [`Self::live_beam_guard`]), turning
+    /// the beam nearest the direction of travel onto it; `true` once within 3 cm of where it can get, or
+    /// when a beam closes the way ahead.
+    pub(super) fn fly_to(&mut self, state: &StateEstimate, target: (f32, f32)) -> (Setpoint, bool) {
         let (x, y) = (state.position_m[0], state.position_m[1]);
         let target = self.clip_to_clearance((x, y), target);
         let (dx, dy) = (target.0 - x, target.1 - y);
@@ -119,13 +138,22 @@ impl<const CELLS: usize, const QUEUE: usize> Mission<CELLS, QUEUE> {
         // Line ends lie off the pad, so they need no precision; a firm approach (about 2.5 m/s² of
         // deceleration demand, 4 cm tolerance) keeps each line short in time, and with it the drift
         // between the crossings the detector compares.
-        let reached = d < 0.04;
         let speed = self.config.search_speed_m_s.min(0.05 + 2.5 * d);
         let (vx, vy) = if d > 1e-3 {
             (speed * dx / d, speed * dy / d)
         } else {
             (0.0, 0.0)
         };
+        // Four beams leave 90° gaps: a line flown diagonally to them sees a thin cylinder or a box's corner
+        // ahead only when it is beside the drone. Turn the beam nearest the line's direction onto it.
+        if d > LINE_ALIGN_MIN_M {
+            self.heading = Self::beam_aligned_heading(self.heading, libm::atan2f(dy, dx));
+        }
+        // The map in the estimate frame may miss what a beam sees now (a thin cylinder, a face the map
+        // confirmed late): the live beams bound the speed towards each of their returns, and a line whose
+        // way ahead a beam closes ends there, like a line clipped by the map.
+        let ((vx, vy), blocked) = self.live_beam_guard(state, (vx, vy));
+        let reached = d < 0.04 || blocked;
         (
             Setpoint::Velocity {
                 vx_m_s: vx,
@@ -135,6 +163,71 @@ impl<const CELLS: usize, const QUEUE: usize> Mission<CELLS, QUEUE> {
             },
             reached,
         )
+    }
+
+    /// The heading nearest `heading` that points one of the four beams along `travel`, rad; the beam in use
+    /// is kept unless another needs [`LINE_ALIGN_HYSTERESIS_RAD`] less turn (a line at 45° to the beams
+    /// does not make the heading flip).
+    pub(super) fn beam_aligned_heading(heading: f32, travel: f32) -> f32 {
+        if !(heading.is_finite() && travel.is_finite()) {
+            return heading;
+        }
+        let offsets = [
+            0.0,
+            core::f32::consts::FRAC_PI_2,
+            core::f32::consts::PI,
+            -core::f32::consts::FRAC_PI_2,
+        ];
+        let turn = |offset: f32| wrap_angle(travel - offset - heading);
+        // The beam pointing nearest the travel now (with the current heading).
+        let current = offsets
+            .into_iter()
+            .min_by(|a, b| libm::fabsf(turn(*a)).total_cmp(&libm::fabsf(turn(*b))))
+            .unwrap_or(0.0);
+        let best = offsets
+            .into_iter()
+            .filter(|o| libm::fabsf(turn(*o)) + LINE_ALIGN_HYSTERESIS_RAD < libm::fabsf(turn(current)))
+            .min_by(|a, b| libm::fabsf(turn(*a)).total_cmp(&libm::fabsf(turn(*b))))
+            .unwrap_or(current);
+        wrap_angle(heading + turn(best))
+    }
+
+    /// Bounds the arena-frame velocity `v` by what the four horizontal beams read now: the component
+    /// towards each beam's return may be at most [`LIVE_BEAM_GAIN_PER_S`]` · (d − `[`LIVE_BEAM_STOP_M`]`)`
+    /// (the excess is removed along that beam, so the drone slides along a face instead of stopping), and
+    /// `true` when a beam within 45° of the direction of travel reads closer than the stop distance (the
+    /// way ahead is closed). A beam with no return, or an invalid one, bounds nothing.
+    pub(super) fn live_beam_guard(&self, state: &StateEstimate, v: (f32, f32)) -> ((f32, f32), bool) {
+        let yaw = state.attitude_rad[2];
+        let speed = libm::hypotf(v.0, v.1);
+        if !(yaw.is_finite() && speed.is_finite()) || speed < 1e-4 {
+            return (v, false);
+        }
+        let (c, s) = (libm::cosf(yaw), libm::sinf(yaw));
+        let (ux0, uy0) = (v.0 / speed, v.1 / speed);
+        let ranges = [
+            self.last_ranges.front,
+            self.last_ranges.back,
+            self.last_ranges.left,
+            self.last_ranges.right,
+        ];
+        let mut out = v;
+        let mut blocked = false;
+        for (range, (bx, by)) in ranges.into_iter().zip(MultiRangerSample::HORIZONTAL_BEAMS_BODY) {
+            let Some(d) = range.filter(|d| d.is_finite() && *d > 0.0 && *d < LIVE_BEAM_HORIZON_M) else {
+                continue;
+            };
+            let (ux, uy) = (c * bx - s * by, s * bx + c * by);
+            let allowed = (LIVE_BEAM_GAIN_PER_S * (d - LIVE_BEAM_STOP_M)).max(0.0);
+            let towards = out.0 * ux + out.1 * uy;
+            if towards > allowed {
+                out = (out.0 - (towards - allowed) * ux, out.1 - (towards - allowed) * uy);
+            }
+            if d < LIVE_BEAM_STOP_M && ux0 * ux + uy0 * uy > core::f32::consts::FRAC_1_SQRT_2 {
+                blocked = true;
+            }
+        }
+        (out, blocked)
     }
 
     pub(super) fn search(&mut self, search: Search, state: &StateEstimate, _dt_s: f32) -> Setpoint {

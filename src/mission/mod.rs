@@ -11,8 +11,7 @@
 //!
 //! Units and frames: arena frame, metres, seconds, radians. While navigating the drone turns to face its
 //! direction of travel, so the front ranger sees what it flies into (four beams are blind diagonally);
-//! searching, it turns the beam nearest each line's direction onto that line; elsewhere it keeps the last
-//! heading.
+//! elsewhere it keeps the last heading.
 //!
 //! How each phase works:
 //! - **Navigate**: the four horizontal ranges update the [`OccupancyGrid`] (freed along each beam, the end
@@ -38,8 +37,8 @@
 //!   goal): a coarse lawnmower pass around the nominal goal, its first lines along the arrival direction
 //!   (a drone already on that line flies on along it instead of turning back to its start), until the
 //!   [`PadDetector`] has a first crossing (on every line, and on the approach back to a locked centre, the
-//!   speed towards each horizontal beam's return is bounded by what that beam reads now, and a line ends
-//!   where a beam within 45° of its direction reads closer than 0.2 m); then short refinement stages
+//!   speed towards each horizontal beam's return the arena's walls do not explain is bounded by what that
+//!   beam reads now, and a line ends where such a beam within 45° of its direction reads closer than 0.2 m); then short refinement stages
 //!   centred on the latest estimate —
 //!   lines across the first crossing (which fix the other coordinate), then lines along it, four rounds
 //!   in all with a fresh detector every round (the estimate drifts) — until the detector locks (three

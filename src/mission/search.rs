@@ -1,14 +1,13 @@
 //! The pad search: the coarse lawnmower around the nominal goal, then refinement lines across and along the
 //! first crossing until the detector locks, every line clipped to keep its clearance from mapped obstacles
 //! and the arena walls, and bounded by what the horizontal beams read now (the map in the estimate frame
-//! can miss a thin cylinder or a face it confirmed late), with a beam turned onto each line's direction.
+//! can miss a thin cylinder or a face it confirmed late).
 //! The rules are in the [mission's documentation](super).
 
 use super::landing::{MAX_REFUSALS, Touchdown};
 use super::{Mission, Phase, Search};
 use crate::landing::gate::Target;
 use crate::landing::sweep::{ArenaBounds, LawnmowerSweep, SweepAxis};
-use crate::math::wrap_angle;
 use crate::nav::map::{CELL_SIZE_M, Cell};
 use crate::types::{MultiRangerSample, Setpoint, StateEstimate};
 
@@ -46,11 +45,9 @@ pub(super) const LIVE_BEAM_STOP_M: f32 = 0.2;
 /// The speed allowed towards a live beam's return per metre beyond [`LIVE_BEAM_STOP_M`], 1/s: 0.45 m/s at
 /// 0.5 m, so the search speed is only cut where a beam sees something within a few tenths of a metre.
 pub(super) const LIVE_BEAM_GAIN_PER_S: f32 = 1.5;
-/// A search leg this long or longer turns a beam onto its direction, m (shorter: the last centimetres of
-/// a line, where the direction to the target swings).
-const LINE_ALIGN_MIN_M: f32 = 0.1;
-/// Another beam takes over the line's direction only when it needs this much less turn, rad.
-const LINE_ALIGN_HYSTERESIS_RAD: f32 = 0.15;
+/// A beam's return within this of the arena wall's distance along the beam is that wall, m (the estimate's
+/// error with map fixes, a few cm, plus the ranger's).
+const LIVE_BEAM_WALL_MATCH_M: f32 = 0.08;
 /// Beams reading further than this bound nothing, m.
 const LIVE_BEAM_HORIZON_M: f32 = 1.0;
 
@@ -127,10 +124,9 @@ impl<const CELLS: usize, const QUEUE: usize> Mission<CELLS, QUEUE> {
     }
 
     /// Fly towards `target` at the search speed (stopping short of mapped obstacles, see
-    /// [`Self::clip_to_clearance`], and of what the live beams see, see [`Self::live_beam_guard`]), turning
-    /// the beam nearest the direction of travel onto it; `true` once within 3 cm of where it can get, or
-    /// when a beam closes the way ahead.
-    pub(super) fn fly_to(&mut self, state: &StateEstimate, target: (f32, f32)) -> (Setpoint, bool) {
+    /// [`Self::clip_to_clearance`], and of what the live beams see, see [`Self::live_beam_guard`]); `true`
+    /// once within 3 cm of where it can get, or when a beam closes the way ahead.
+    pub(super) fn fly_to(&self, state: &StateEstimate, target: (f32, f32)) -> (Setpoint, bool) {
         let (x, y) = (state.position_m[0], state.position_m[1]);
         let target = self.clip_to_clearance((x, y), target);
         let (dx, dy) = (target.0 - x, target.1 - y);
@@ -144,11 +140,6 @@ impl<const CELLS: usize, const QUEUE: usize> Mission<CELLS, QUEUE> {
         } else {
             (0.0, 0.0)
         };
-        // Four beams leave 90° gaps: a line flown diagonally to them sees a thin cylinder or a box's corner
-        // ahead only when it is beside the drone. Turn the beam nearest the line's direction onto it.
-        if d > LINE_ALIGN_MIN_M {
-            self.heading = Self::beam_aligned_heading(self.heading, libm::atan2f(dy, dx));
-        }
         // The map in the estimate frame may miss what a beam sees now (a thin cylinder, a face the map
         // confirmed late): the live beams bound the speed towards each of their returns, and a line whose
         // way ahead a beam closes ends there, like a line clipped by the map.
@@ -163,33 +154,6 @@ impl<const CELLS: usize, const QUEUE: usize> Mission<CELLS, QUEUE> {
             },
             reached,
         )
-    }
-
-    /// The heading nearest `heading` that points one of the four beams along `travel`, rad; the beam in use
-    /// is kept unless another needs [`LINE_ALIGN_HYSTERESIS_RAD`] less turn (a line at 45° to the beams
-    /// does not make the heading flip).
-    pub(super) fn beam_aligned_heading(heading: f32, travel: f32) -> f32 {
-        if !(heading.is_finite() && travel.is_finite()) {
-            return heading;
-        }
-        let offsets = [
-            0.0,
-            core::f32::consts::FRAC_PI_2,
-            core::f32::consts::PI,
-            -core::f32::consts::FRAC_PI_2,
-        ];
-        let turn = |offset: f32| wrap_angle(travel - offset - heading);
-        // The beam pointing nearest the travel now (with the current heading).
-        let current = offsets
-            .into_iter()
-            .min_by(|a, b| libm::fabsf(turn(*a)).total_cmp(&libm::fabsf(turn(*b))))
-            .unwrap_or(0.0);
-        let best = offsets
-            .into_iter()
-            .filter(|o| libm::fabsf(turn(*o)) + LINE_ALIGN_HYSTERESIS_RAD < libm::fabsf(turn(current)))
-            .min_by(|a, b| libm::fabsf(turn(*a)).total_cmp(&libm::fabsf(turn(*b))))
-            .unwrap_or(current);
-        wrap_angle(heading + turn(best))
     }
 
     /// Bounds the arena-frame velocity `v` by what the four horizontal beams read now: the component
@@ -218,6 +182,14 @@ impl<const CELLS: usize, const QUEUE: usize> Mission<CELLS, QUEUE> {
                 continue;
             };
             let (ux, uy) = (c * bx - s * by, s * bx + c * by);
+            // The arena's walls are known exactly and the lines keep their clearance from them already
+            // (`clip_to_clearance`): a return the wall explains bounds nothing, so a pad against a wall is
+            // still crossed to its far edge.
+            if libm::fabsf(d - self.wall_distance_along((state.position_m[0], state.position_m[1]), (ux, uy)))
+                < LIVE_BEAM_WALL_MATCH_M
+            {
+                continue;
+            }
             let allowed = (LIVE_BEAM_GAIN_PER_S * (d - LIVE_BEAM_STOP_M)).max(0.0);
             let towards = out.0 * ux + out.1 * uy;
             if towards > allowed {
@@ -228,6 +200,21 @@ impl<const CELLS: usize, const QUEUE: usize> Mission<CELLS, QUEUE> {
             }
         }
         (out, blocked)
+    }
+
+    /// Distance from `p` along the unit vector `u` to the arena's boundary, m (infinite when none is ahead).
+    fn wall_distance_along(&self, p: (f32, f32), u: (f32, f32)) -> f32 {
+        let (w, h) = self.params.arena_m;
+        let along = |pos: f32, dir: f32, size: f32| {
+            if dir > 1e-6 {
+                (size - pos) / dir
+            } else if dir < -1e-6 {
+                -pos / dir
+            } else {
+                f32::INFINITY
+            }
+        };
+        along(p.0, u.0, w).min(along(p.1, u.1, h))
     }
 
     pub(super) fn search(&mut self, search: Search, state: &StateEstimate, _dt_s: f32) -> Setpoint {

@@ -223,9 +223,11 @@ impl<const CELLS: usize, const QUEUE: usize> Mission<CELLS, QUEUE> {
                 .config
                 .search_speed_m_s
                 .min(2.0 * (err - 0.5 * APPROACH_HOLD_RADIUS_M));
+            // The live beams bound it as on a search line (a pad beside an obstacle the map missed).
+            let ((vx, vy), _) = self.live_beam_guard(state, (speed * (px - x) / err, speed * (py - y) / err));
             return Setpoint::Velocity {
-                vx_m_s: speed * (px - x) / err,
-                vy_m_s: speed * (py - y) / err,
+                vx_m_s: vx,
+                vy_m_s: vy,
                 z_m: self.params.height_m,
                 yaw_rad: self.heading,
             };

@@ -36,7 +36,10 @@
 //!   0.18 m short of mapped obstacles and the arena walls; navigation hands over 0.35 m before the nominal
 //!   goal): a coarse lawnmower pass around the nominal goal, its first lines along the arrival direction
 //!   (a drone already on that line flies on along it instead of turning back to its start), until the
-//!   [`PadDetector`] has a first crossing; then short refinement stages centred on the latest estimate —
+//!   [`PadDetector`] has a first crossing (on every line, and on the approach back to a locked centre, the
+//!   speed towards each horizontal beam's return the arena's walls do not explain is bounded by what that
+//!   beam reads now, and a line ends where such a beam within 45° of its direction reads closer than 0.2 m); then short refinement stages
+//!   centred on the latest estimate —
 //!   lines across the first crossing (which fix the other coordinate), then lines along it, four rounds
 //!   in all with a fresh detector every round (the estimate drifts) — until the detector locks (three
 //!   inlier crossings covering both directions: usually the first crossing and two lines across it). A

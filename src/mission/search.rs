@@ -1,13 +1,15 @@
 //! The pad search: the coarse lawnmower around the nominal goal, then refinement lines across and along the
 //! first crossing until the detector locks, every line clipped to keep its clearance from mapped obstacles
-//! and the arena walls. The rules are in the [mission's documentation](super).
+//! and the arena walls, and bounded by what the horizontal beams read now (the map in the estimate frame
+//! can miss a thin cylinder or a face it confirmed late).
+//! The rules are in the [mission's documentation](super).
 
 use super::landing::{MAX_REFUSALS, Touchdown};
 use super::{Mission, Phase, Search};
 use crate::landing::gate::Target;
 use crate::landing::sweep::{ArenaBounds, LawnmowerSweep, SweepAxis};
 use crate::nav::map::{CELL_SIZE_M, Cell};
-use crate::types::{Setpoint, StateEstimate};
+use crate::types::{MultiRangerSample, Setpoint, StateEstimate};
 
 /// Search lines stop this far from mapped obstacles and arena walls, m: the drone's radius (0.06 m), the
 /// estimate's drift over a search (≈ 5 cm) and tracking overshoot at a line's end.
@@ -36,6 +38,18 @@ const FLOOR_SPOT_CLEARANCE_M: f32 = 0.22;
 const FLOOR_SPOT_RINGS: u8 = 9;
 const FLOOR_SPOT_STEP_M: f32 = 0.15;
 const REFINE_STAGES: u8 = 8;
+/// A live beam reading closer than this closes the way along it, m: the body's radius (0.06 m), the
+/// reading's age at 10 Hz and the velocity loop's lag (≈ 0.25 s: 8 cm at 0.3 m/s) and 4 cm of ranger
+/// noise and overshoot. (0.13 m let world 20 000 193 overshoot a line's end into a cylinder, 0.4 m/s.)
+pub(super) const LIVE_BEAM_STOP_M: f32 = 0.2;
+/// The speed allowed towards a live beam's return per metre beyond [`LIVE_BEAM_STOP_M`], 1/s: 0.45 m/s at
+/// 0.5 m, so the search speed is only cut where a beam sees something within a few tenths of a metre.
+pub(super) const LIVE_BEAM_GAIN_PER_S: f32 = 1.5;
+/// A beam's return within this of the arena wall's distance along the beam is that wall, m (the estimate's
+/// error with map fixes, a few cm, plus the ranger's).
+const LIVE_BEAM_WALL_MATCH_M: f32 = 0.08;
+/// Beams reading further than this bound nothing, m.
+const LIVE_BEAM_HORIZON_M: f32 = 1.0;
 
 impl<const CELLS: usize, const QUEUE: usize> Mission<CELLS, QUEUE> {
     pub(super) fn begin_search(&mut self, state: &StateEstimate) -> Setpoint {
@@ -110,7 +124,8 @@ impl<const CELLS: usize, const QUEUE: usize> Mission<CELLS, QUEUE> {
     }
 
     /// Fly towards `target` at the search speed (stopping short of mapped obstacles, see
-    /// [`Self::clip_to_clearance`]); `true` once within 3 cm of where it can get.
+    /// [`Self::clip_to_clearance`], and of what the live beams see, see [`Self::live_beam_guard`]); `true`
+    /// once within 3 cm of where it can get, or when a beam closes the way ahead.
     pub(super) fn fly_to(&self, state: &StateEstimate, target: (f32, f32)) -> (Setpoint, bool) {
         let (x, y) = (state.position_m[0], state.position_m[1]);
         let target = self.clip_to_clearance((x, y), target);
@@ -119,13 +134,17 @@ impl<const CELLS: usize, const QUEUE: usize> Mission<CELLS, QUEUE> {
         // Line ends lie off the pad, so they need no precision; a firm approach (about 2.5 m/s² of
         // deceleration demand, 4 cm tolerance) keeps each line short in time, and with it the drift
         // between the crossings the detector compares.
-        let reached = d < 0.04;
         let speed = self.config.search_speed_m_s.min(0.05 + 2.5 * d);
         let (vx, vy) = if d > 1e-3 {
             (speed * dx / d, speed * dy / d)
         } else {
             (0.0, 0.0)
         };
+        // The map in the estimate frame may miss what a beam sees now (a thin cylinder, a face the map
+        // confirmed late): the live beams bound the speed towards each of their returns, and a line whose
+        // way ahead a beam closes ends there, like a line clipped by the map.
+        let ((vx, vy), blocked) = self.live_beam_guard(state, (vx, vy));
+        let reached = d < 0.04 || blocked;
         (
             Setpoint::Velocity {
                 vx_m_s: vx,
@@ -135,6 +154,67 @@ impl<const CELLS: usize, const QUEUE: usize> Mission<CELLS, QUEUE> {
             },
             reached,
         )
+    }
+
+    /// Bounds the arena-frame velocity `v` by what the four horizontal beams read now: the component
+    /// towards each beam's return may be at most [`LIVE_BEAM_GAIN_PER_S`]` · (d − `[`LIVE_BEAM_STOP_M`]`)`
+    /// (the excess is removed along that beam, so the drone slides along a face instead of stopping), and
+    /// `true` when a beam within 45° of the direction of travel reads closer than the stop distance (the
+    /// way ahead is closed). A beam with no return, or an invalid one, bounds nothing.
+    pub(super) fn live_beam_guard(&self, state: &StateEstimate, v: (f32, f32)) -> ((f32, f32), bool) {
+        let yaw = state.attitude_rad[2];
+        let speed = libm::hypotf(v.0, v.1);
+        if !(yaw.is_finite() && speed.is_finite()) || speed < 1e-4 {
+            return (v, false);
+        }
+        let (c, s) = (libm::cosf(yaw), libm::sinf(yaw));
+        let (ux0, uy0) = (v.0 / speed, v.1 / speed);
+        let ranges = [
+            self.last_ranges.front,
+            self.last_ranges.back,
+            self.last_ranges.left,
+            self.last_ranges.right,
+        ];
+        let mut out = v;
+        let mut blocked = false;
+        for (range, (bx, by)) in ranges.into_iter().zip(MultiRangerSample::HORIZONTAL_BEAMS_BODY) {
+            let Some(d) = range.filter(|d| d.is_finite() && *d > 0.0 && *d < LIVE_BEAM_HORIZON_M) else {
+                continue;
+            };
+            let (ux, uy) = (c * bx - s * by, s * bx + c * by);
+            // The arena's walls are known exactly and the lines keep their clearance from them already
+            // (`clip_to_clearance`): a return the wall explains bounds nothing, so a pad against a wall is
+            // still crossed to its far edge.
+            if libm::fabsf(d - self.wall_distance_along((state.position_m[0], state.position_m[1]), (ux, uy)))
+                < LIVE_BEAM_WALL_MATCH_M
+            {
+                continue;
+            }
+            let allowed = (LIVE_BEAM_GAIN_PER_S * (d - LIVE_BEAM_STOP_M)).max(0.0);
+            let towards = out.0 * ux + out.1 * uy;
+            if towards > allowed {
+                out = (out.0 - (towards - allowed) * ux, out.1 - (towards - allowed) * uy);
+            }
+            if d < LIVE_BEAM_STOP_M && ux0 * ux + uy0 * uy > core::f32::consts::FRAC_1_SQRT_2 {
+                blocked = true;
+            }
+        }
+        (out, blocked)
+    }
+
+    /// Distance from `p` along the unit vector `u` to the arena's boundary, m (infinite when none is ahead).
+    fn wall_distance_along(&self, p: (f32, f32), u: (f32, f32)) -> f32 {
+        let (w, h) = self.params.arena_m;
+        let along = |pos: f32, dir: f32, size: f32| {
+            if dir > 1e-6 {
+                (size - pos) / dir
+            } else if dir < -1e-6 {
+                -pos / dir
+            } else {
+                f32::INFINITY
+            }
+        };
+        along(p.0, u.0, w).min(along(p.1, u.1, h))
     }
 
     pub(super) fn search(&mut self, search: Search, state: &StateEstimate, _dt_s: f32) -> Setpoint {

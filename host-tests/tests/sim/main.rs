@@ -1,5 +1,6 @@
 //! The simulator (tools/src/sim): world files, physics and sensor models, and whole missions flown in it.
 
+mod collide;
 mod commander;
 mod link_loss;
 mod mission;

@@ -1022,7 +1022,8 @@ impl<const EDGES: usize> PadDetector<EDGES> {
             return false;
         }
         // Still on the top: the level now is the level the entry stepped to, and the top is flat.
-        if !(libm::fabsf(level_now - enter.level_after) <= cfg.step_match_m + 0.25 * height) {
+        let off_level = libm::fabsf(level_now - enter.level_after);
+        if off_level.is_nan() || off_level > cfg.step_match_m + 0.25 * height {
             return false;
         }
         if !self.flat_between(enter.odo, now.odo + FLAT_TOP_INSET_M) {

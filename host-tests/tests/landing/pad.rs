@@ -481,20 +481,20 @@ fn a_line_that_ends_on_the_pad_gives_a_half_crossing_from_its_entry_edge() {
     // keeps its clearance), so no line sees the far side, and the drone stops there for too short a visit
     // for the z-score to see the step back off. When the caller says each such line ended (`line_ended`),
     // the entry edge alone places the centre half a pad inwards; with one line along the wall that locks
-    // on the true centre. Oracle: the pad's true centre. Without `line_ended` the x coordinate is never
-    // measured and nothing locks (asserted below on the same traces).
+    // on the true centre. Oracle: the pad's true centre. (On these clean synthetic turns the turn-back
+    // pairing of step 6b would also measure x once the drone flies back out; in the simulator it often
+    // does not, see `sim::pads`. Here `line_ended` must itself add the half crossing, before the way back.)
     let mut locks = 0;
     for seed in 0..100 {
         let mut rng = SmallRng::seed_from_u64(seed);
         let truth = (1.0 + rng.random_range(-0.03..0.03), 1.0 + rng.random_range(-0.05..0.05));
         let world = World::pad_at(truth);
         let mut det = PadDetector::<EDGES>::new(mission_detector()).expect("config");
-        let mut without = PadDetector::<EDGES>::new(mission_detector()).expect("config");
+        let mut halves_added = 0usize;
         // One line along the wall (fixes y), then two lines towards the wall (+x), each ending on the pad
         // and flying back out.
         let along = [(truth.0 + 0.05, 0.5), (truth.0 + 0.05, 1.5)];
         fly(&mut det, &world, &along, &mut SmallRng::seed_from_u64(seed + 1000));
-        fly(&mut without, &world, &along, &mut SmallRng::seed_from_u64(seed + 1000));
         for (k, dy) in [-0.06f32, 0.06].iter().enumerate() {
             let onto = rng.random_range(0.07..0.12);
             let end = (truth.0 - 0.5 * PAD_SIDE_M + onto, 1.0 + dy);
@@ -502,16 +502,14 @@ fn a_line_that_ends_on_the_pad_gives_a_half_crossing_from_its_entry_edge() {
             let back = [end, (end.0, 1.0 + dy + 0.04), (truth.0 - 0.6, 1.0 + dy + 0.04)];
             let noise = seed * 10 + k as u64;
             fly(&mut det, &world, &line, &mut SmallRng::seed_from_u64(noise));
-            fly(&mut without, &world, &line, &mut SmallRng::seed_from_u64(noise));
-            det.line_ended();
+            let before = det.crossings().len();
+            let added = det.line_ended();
+            assert_eq!(added, det.crossings().len() == before + 1, "seed {seed}");
+            halves_added += usize::from(added);
             fly(&mut det, &world, &back, &mut SmallRng::seed_from_u64(noise + 500));
-            fly(&mut without, &world, &back, &mut SmallRng::seed_from_u64(noise + 500));
         }
         det.flush();
-        without.flush();
-        assert!(!without.locked(), "seed {seed}: locked without the half crossings");
-        let halves = det.crossings().iter().filter(|c| c.turn_back && c.inlier).count();
-        assert!(halves >= 1, "seed {seed}: no half crossing in {:?}", det.crossings());
+        assert!(halves_added >= 1, "seed {seed}: no half crossing in {:?}", det.crossings());
         let est = det.estimate().expect("an estimate");
         assert!(
             (est.x - truth.0).abs() <= 0.03 && (est.y - truth.1).abs() <= 0.02,

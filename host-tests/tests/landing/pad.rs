@@ -509,7 +509,11 @@ fn a_line_that_ends_on_the_pad_gives_a_half_crossing_from_its_entry_edge() {
             fly(&mut det, &world, &back, &mut SmallRng::seed_from_u64(noise + 500));
         }
         det.flush();
-        assert!(halves_added >= 1, "seed {seed}: no half crossing in {:?}", det.crossings());
+        assert!(
+            halves_added >= 1,
+            "seed {seed}: no half crossing in {:?}",
+            det.crossings()
+        );
         let est = det.estimate().expect("an estimate");
         assert!(
             (est.x - truth.0).abs() <= 0.03 && (est.y - truth.1).abs() <= 0.02,

@@ -46,6 +46,11 @@
 //!    wall the search cannot fly across). It fixes the centre along the travel as that side moved half of
 //!    `pad_size_m` inwards, and enters the fit as a crossing flagged [`Crossing::turn_back`]; a pad of
 //!    another size shifts it by half the difference.
+//!    6c. **Half crossings**: a line that has to end on the pad (a wall or an obstacle 0.1–0.25 m beyond
+//!    it, where the search keeps its clearance) never sees the far side. When the caller says the line ends
+//!    ([`PadDetector::line_ended`]) while the drone is still on a flat top at the level an entry stepped to,
+//!    at least 6 cm past that entry and straight on from it, the entry edge fixes the centre along the
+//!    travel as half of `pad_size_m` inwards: a crossing flagged [`Crossing::turn_back`], as in 6b.
 //! 7. **Centre**: a crossing fixes the centre only *along* its chord: for a square pad, the chord's
 //!    midpoint has the centre's coordinate along the chord direction `d`, whatever the line's offset.
 //!    Across the chord it only says "within half a pad of this line". So the centre `c` minimises
@@ -103,6 +108,9 @@ const FLAT_TOP_INSET_M: f32 = 0.04;
 /// Largest spread (10th to 90th percentile of the bins) of a flat top, m: ten times the VL53L1x's noise at
 /// 0.4 m, a third of a 10 cm pad's height.
 const FLAT_TOP_SPREAD_M: f32 = 0.03;
+/// A half crossing (a line that ends on the pad, [`PadDetector::line_ended`]) needs the drone this far onto
+/// the top past the entry edge, m: beyond the footprint's blur, so the level read is the top's.
+const HALF_CROSSING_MIN_TOP_M: f32 = 0.06;
 /// Fewest bins the flatness check needs (fewer: the ring no longer holds the top, the check passes).
 const FLAT_TOP_MIN_BINS: usize = 5;
 /// A turn-back's two edges must lie on one pad side: their separation along the travel direction, m.
@@ -969,6 +977,77 @@ impl<const EDGES: usize> PadDetector<EDGES> {
             inlier: true,
             turn_back: true,
         })
+    }
+
+    /// The line being flown ends here, short of where it was laid out (a wall or an obstacle ahead; the
+    /// caller turns back next). A drone that entered the pad on this line and is still on its top will
+    /// never see the far side: the entry edge alone fixes the centre along the travel, half of
+    /// `pad_size_m` inwards (module docs, step 6c). Returns whether such a half crossing was added.
+    pub fn line_ended(&mut self) -> bool {
+        self.flush();
+        let cfg = self.config;
+        let Some(enter) = self.pending_enter else {
+            return false;
+        };
+        // Where the drone is now: the newest bins (the median of up to three, one stray reading is not
+        // the level).
+        let newest = self.bins.wrapping_sub(1);
+        let Some(now) = self.ring_bin(newest).copied() else {
+            return false;
+        };
+        let mut levels = [0.0f32; 3];
+        let mut n = 0usize;
+        for back in 0..3u32 {
+            if let Some(b) = newest.checked_sub(back).and_then(|s| self.ring_bin(s))
+                && let Some(slot) = levels.get_mut(n)
+            {
+                *slot = b.range;
+                n += 1;
+            }
+        }
+        let level_now = median(levels.get_mut(..n).unwrap_or(&mut []));
+        let d = enter.heading;
+        let (dx, dy) = (now.x - enter.edge.x, now.y - enter.edge.y);
+        let along = d.0 * dx + d.1 * dy;
+        let across = libm::fabsf(d.0 * dy - d.1 * dx);
+        // Straight on from the entry, far enough onto the top to have seen it, not past its far side.
+        if !(along >= HALF_CROSSING_MIN_TOP_M && along <= cfg.pad_size_m && across <= TURN_BACK_SIDE_TOLERANCE_M) {
+            return false;
+        }
+        if now.odo - enter.odo > TRAVEL_SLACK_RATIO * along + TRAVEL_SLACK_M {
+            return false;
+        }
+        let height = enter.level_before - enter.level_after;
+        if height.is_nan() || height < cfg.min_step_m {
+            return false;
+        }
+        // Still on the top: the level now is the level the entry stepped to, and the top is flat.
+        let off_level = libm::fabsf(level_now - enter.level_after);
+        if off_level.is_nan() || off_level > cfg.step_match_m + 0.25 * height {
+            return false;
+        }
+        if !self.flat_between(enter.odo, now.odo + FLAT_TOP_INSET_M) {
+            return false;
+        }
+        let side = (enter.edge.x, enter.edge.y);
+        let inwards = (side.0 + cfg.pad_size_m * d.0, side.1 + cfg.pad_size_m * d.1);
+        if !(inwards.0.is_finite() && inwards.1.is_finite()) {
+            return false;
+        }
+        self.pending_enter = None;
+        let half = Crossing {
+            enter: side,
+            exit: inwards,
+            step_m: height,
+            inlier: true,
+            turn_back: true,
+        };
+        if self.crossings.push(half).is_err() {
+            self.dropped = self.dropped.saturating_add(1);
+            return false;
+        }
+        self.refit();
+        true
     }
 
     /// Refits the centre over the crossings, dropping outliers one at a time (worst first).

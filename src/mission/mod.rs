@@ -45,6 +45,9 @@
 //!   inlier crossings covering both directions: usually the first crossing and two lines across it). A
 //!   line ends as soon as it gave a crossing (its rest only costs time), and in the first round a stage
 //!   ends once its direction has two inlier crossings; later rounds fly all three lines of a stage.
+//!   A line cut short by the clearance while the drone is on the pad (a wall or an obstacle 0.1–0.25 m
+//!   beyond it) cannot see the far side: when the drone reaches that end, the detector takes the
+//!   entry edge alone, half a pad from the centre, as a half crossing.
 //!   If the pattern ends without a
 //!   lock the search widens and re-centres on the best estimate once; if that fails too, the drone lands
 //!   on the estimate only where the descent gate allows it, else clear of the pad, and the mission ends

@@ -21,6 +21,9 @@ const CLEARANCE_HORIZON_M: f32 = 0.3;
 /// Sampling step along a search line for the clearance check, m.
 const CLEARANCE_STEP_M: f32 = 0.025;
 const REFINE_LINES: u8 = 3;
+/// A line end reached this far short of its waypoint was cut short by the clearance, m (the end is
+/// reached within 4 cm of where the line may go).
+const CLIPPED_LINE_END_M: f32 = 0.06;
 /// Searches widened and re-centred per leg after the refinement found no lock.
 const MAX_WIDENINGS: u8 = 1;
 /// A widened coarse pattern is this much larger on each side, m.
@@ -261,6 +264,9 @@ impl<const CELLS: usize, const QUEUE: usize> Mission<CELLS, QUEUE> {
                 };
                 let wp = if step % 2 == 0 { first } else { second };
                 let (sp, reached) = self.fly_to(state, wp);
+                if reached {
+                    self.line_end_reached(state, wp);
+                }
                 self.phase = Phase::Search(Search::Coarse {
                     step: if reached { step + 1 } else { step },
                     reverse,
@@ -309,6 +315,9 @@ impl<const CELLS: usize, const QUEUE: usize> Mission<CELLS, QUEUE> {
                 let (first, second) = if line % 2 == 0 { (a, b) } else { (b, a) };
                 let wp = if end == 0 { first } else { second };
                 let (sp, reached) = self.fly_to(state, wp);
+                if reached {
+                    self.line_end_reached(state, wp);
+                }
                 let crossings_now = self.crossing_count();
                 // A line has done its job once it gave a crossing: its remaining length only costs time.
                 let line_done = end == 1 && (reached || crossings_now > crossings_before);
@@ -354,6 +363,17 @@ impl<const CELLS: usize, const QUEUE: usize> Mission<CELLS, QUEUE> {
                 self.phase = Phase::Search(next);
                 sp
             }
+        }
+    }
+
+    /// The drone reached the end of a search line. Where that end was cut short of the waypoint `wp` by
+    /// the clearance (a wall or an obstacle just beyond a pad there), a drone that flew onto the pad cannot
+    /// fly off its far side: the detector takes the entry edge alone as a half crossing
+    /// ([`crate::landing::pad::PadDetector::line_ended`]).
+    fn line_end_reached(&mut self, state: &StateEstimate, wp: (f32, f32)) {
+        let here = (state.position_m[0], state.position_m[1]);
+        if libm::hypotf(wp.0 - here.0, wp.1 - here.1) > CLIPPED_LINE_END_M {
+            self.pad.line_ended();
         }
     }
 

@@ -470,6 +470,89 @@ fn turn_backs_fix_the_centre_next_to_a_wall() {
     println!("pad next to a wall: {turn_back_locks} of 100 locked");
 }
 
+/// The mission's detector tuning (three inlier crossings covering both directions lock).
+fn mission_detector() -> PadConfig {
+    cfnav::mission::MissionConfig::default().pad
+}
+
+#[test]
+fn a_line_that_ends_on_the_pad_gives_a_half_crossing_from_its_entry_edge() {
+    // A pad 0.1 m from a wall: the lines towards the wall must end 0.05–0.12 m onto the pad (the search
+    // keeps its clearance), so no line sees the far side, and the drone stops there for too short a visit
+    // for the z-score to see the step back off. When the caller says each such line ended (`line_ended`),
+    // the entry edge alone places the centre half a pad inwards; with one line along the wall that locks
+    // on the true centre. Oracle: the pad's true centre. (On these clean synthetic turns the turn-back
+    // pairing of step 6b would also measure x once the drone flies back out; in the simulator it often
+    // does not, see `sim::pads`. Here `line_ended` must itself add the half crossing, before the way back.)
+    let mut locks = 0;
+    for seed in 0..100 {
+        let mut rng = SmallRng::seed_from_u64(seed);
+        let truth = (1.0 + rng.random_range(-0.03..0.03), 1.0 + rng.random_range(-0.05..0.05));
+        let world = World::pad_at(truth);
+        let mut det = PadDetector::<EDGES>::new(mission_detector()).expect("config");
+        let mut halves_added = 0usize;
+        // One line along the wall (fixes y), then two lines towards the wall (+x), each ending on the pad
+        // and flying back out.
+        let along = [(truth.0 + 0.05, 0.5), (truth.0 + 0.05, 1.5)];
+        fly(&mut det, &world, &along, &mut SmallRng::seed_from_u64(seed + 1000));
+        for (k, dy) in [-0.06f32, 0.06].iter().enumerate() {
+            let onto = rng.random_range(0.07..0.12);
+            let end = (truth.0 - 0.5 * PAD_SIDE_M + onto, 1.0 + dy);
+            let line = [(truth.0 - 0.6, 1.0 + dy), end];
+            let back = [end, (end.0, 1.0 + dy + 0.04), (truth.0 - 0.6, 1.0 + dy + 0.04)];
+            let noise = seed * 10 + k as u64;
+            fly(&mut det, &world, &line, &mut SmallRng::seed_from_u64(noise));
+            let before = det.crossings().len();
+            let added = det.line_ended();
+            assert_eq!(added, det.crossings().len() == before + 1, "seed {seed}");
+            halves_added += usize::from(added);
+            fly(&mut det, &world, &back, &mut SmallRng::seed_from_u64(noise + 500));
+        }
+        det.flush();
+        assert!(
+            halves_added >= 1,
+            "seed {seed}: no half crossing in {:?}",
+            det.crossings()
+        );
+        let est = det.estimate().expect("an estimate");
+        assert!(
+            (est.x - truth.0).abs() <= 0.03 && (est.y - truth.1).abs() <= 0.02,
+            "seed {seed}: estimate ({:.3}, {:.3}) vs truth ({:.3}, {:.3})",
+            est.x,
+            est.y,
+            truth.0,
+            truth.1
+        );
+        if det.locked() {
+            locks += 1;
+        }
+    }
+    println!("lines ending on a pad next to a wall: {locks} of 100 locked");
+    assert!(locks >= 90, "only {locks} of 100 locked");
+}
+
+#[test]
+fn a_line_that_ends_off_the_pad_gives_no_half_crossing() {
+    // A line that ends on the floor short of the pad, and one that ends on the floor after crossing it,
+    // add no half crossing.
+    for seed in 0..50 {
+        let mut rng = SmallRng::seed_from_u64(seed);
+        let truth = (1.0, 1.0);
+        let short = [(0.4, 1.0), (truth.0 - 0.5 * PAD_SIDE_M - 0.05, 1.0)];
+        let across = [(0.4, 1.0), (truth.0 + 0.5 * PAD_SIDE_M + 0.2, 1.0)];
+        for (what, world, line) in [
+            ("short of the pad", World::pad_at(truth), &short[..]),
+            ("past the pad", World::pad_at(truth), &across[..]),
+        ] {
+            let mut det = PadDetector::<EDGES>::new(mission_detector()).expect("config");
+            fly(&mut det, &world, line, &mut rng);
+            let before = det.crossings().iter().filter(|c| c.turn_back).count();
+            assert!(!det.line_ended(), "seed {seed}: {what}");
+            assert_eq!(det.crossings().iter().filter(|c| c.turn_back).count(), before, "{what}");
+        }
+    }
+}
+
 #[test]
 fn single_pass_does_not_lock_but_measures_the_along_line_coordinate() {
     // Parallel lines only measure the centre along the lines; across them it is only known to the line

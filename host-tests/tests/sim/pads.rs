@@ -88,3 +88,47 @@ fn no_descent_at_a_pads_edge() {
         clear_or_on_pad(&world, &r);
     }
 }
+
+/// The default world with its goal pad moved to `pad` and the nominal goal to `goal` (hand-made worlds of
+/// a pad against the arena wall and in a corner).
+fn default_world_with_goal_pad(name: &str, pad: [f32; 2], goal: [f32; 2]) -> World {
+    let mut world = World::default_world();
+    world.name = name.to_string();
+    world.pads.last_mut().expect("a goal pad").center = pad;
+    world.mission.goal = goal;
+    world
+}
+
+#[test]
+fn a_pad_against_a_wall_or_in_a_corner_is_found_and_landed_on() {
+    // The goal pad 0.1 m from the east wall, and 0.11 m from both walls of the north-east corner: the
+    // search lines towards a wall stop 0.18 m from it, on the pad, so no line sees the far side. Before
+    // the half crossings (`PadDetector::line_ended`) the corner pad was not found on any of these noise
+    // seeds (state 202, the drone came to rest 0.9-1.2 m off it) and `wallS` seed 2 neither; now each
+    // lands on the pad's top, within 6 cm of its centre, without touching anything. Oracle: the world's
+    // geometry (the gap below) and the runner's truth.
+    let cases = [
+        ("corner", [5.74, 2.74], [5.50, 2.60], [2u64, 3, 4]),
+        ("wallS", [3.5, 0.26], [3.45, 0.5], [2, 3, 4]),
+    ];
+    for (name, pad, goal, seeds) in cases {
+        let world = default_world_with_goal_pad(name, pad, goal);
+        let gap = goal_pad_gap(&world);
+        assert!((0.1..=0.12).contains(&gap), "{name}: gap {gap}");
+        for seed in seeds {
+            let options = RunOptions {
+                seed,
+                ..RunOptions::for_world(&world)
+            };
+            let r = run(&world, &options).expect("runs").report;
+            println!("{name} seed {seed}: gap {gap:.2} m, {r:?}");
+            assert_eq!(r.outcome, "completed", "{name} seed {seed}: {r:?}");
+            assert_eq!(r.collisions, 0, "{name} seed {seed}");
+            assert!(
+                r.landings.iter().all(|l| l.on_pad && l.error_m <= 0.06),
+                "{name} seed {seed}: {:?}",
+                r.landings
+            );
+        }
+    }
+}

@@ -334,6 +334,12 @@ pub struct EstimatorConfig {
     pub map_fix: bool,
     /// Map fixes whose innovation exceeds this many standard deviations are rejected. Default 3.
     pub map_fix_gate_sigma: f32,
+    /// Let the map fixes against the arena's exact walls correct the heading too (their Jacobian on the
+    /// heading error, module `map_fix`, "Heading"). Default true.
+    pub map_fix_heading: bool,
+    /// The most one map fix may turn the heading, rad; a fix that would turn it more is rejected (a wrong
+    /// wall, an outlier the position gate let through). Default 0.02 (1.1°).
+    pub map_fix_max_yaw_step_rad: f32,
     /// Gravity-direction update std at rest on the ground, m/s² per axis. Default 0.2.
     pub rest_accel_std_m_s2: f32,
     /// Initial std of x and y at a reset, m. Default 0.05 (the start pad's position is known).
@@ -386,6 +392,8 @@ impl Default for EstimatorConfig {
             wall_gate_sigma: 3.0,
             map_fix: true,
             map_fix_gate_sigma: 3.0,
+            map_fix_heading: true,
+            map_fix_max_yaw_step_rad: 0.02,
             rest_accel_std_m_s2: 0.2,
             initial_std_xy_m: 0.05,
             initial_std_z_m: 0.02,
@@ -455,6 +463,8 @@ impl EstimatorConfig {
             wall_gate_sigma: pos(self.wall_gate_sigma, d.wall_gate_sigma),
             map_fix: self.map_fix,
             map_fix_gate_sigma: pos(self.map_fix_gate_sigma, d.map_fix_gate_sigma),
+            map_fix_heading: self.map_fix_heading,
+            map_fix_max_yaw_step_rad: pos(self.map_fix_max_yaw_step_rad, d.map_fix_max_yaw_step_rad),
             rest_accel_std_m_s2: pos(self.rest_accel_std_m_s2, d.rest_accel_std_m_s2),
             initial_std_xy_m: pos(self.initial_std_xy_m, d.initial_std_xy_m),
             initial_std_z_m: pos(self.initial_std_z_m, d.initial_std_z_m),
@@ -552,8 +562,10 @@ pub struct Diagnostics {
     pub wall_rejected: u32,
     /// Map-relative fixes fused (module `map_fix`).
     pub map_fused: u32,
-    /// Map-relative fixes rejected by the gate.
+    /// Map-relative fixes rejected by the gate (or by the heading bound, `map_fix_max_yaw_step_rad`).
     pub map_rejected: u32,
+    /// Map-relative fixes fused with their heading term (against the arena's walls).
+    pub map_heading_fused: u32,
 }
 
 /// The estimator. See the module documentation.

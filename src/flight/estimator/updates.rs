@@ -8,6 +8,7 @@ use super::{
     COVARIANCE_MAX, COVARIANCE_MIN, Estimator, FLOW_RESOLUTION, N, SD, SV, SZ, V3, Vec9, dot9, euler_from_rot,
     mul_m3t_v3, mul9_v, quat_from_rotvec, quat_mul, quat_normalize, quat_to_rot, scale3, skew, sq,
 };
+use crate::math::wrap_angle;
 use crate::types::{FlowSample, MultiRangerSample, RangeReading};
 
 /// Attitude corrections below this are not worth rotating the covariance for (stock kalmanCoreFinalize).
@@ -184,14 +185,35 @@ impl Estimator {
             return;
         }
         self.predict_covariance();
-        // The fixes before this one moved the estimate by `p − start`: the expected distance moves with it.
+        // The fixes before this one moved the estimate by `p − start` and turned it by `yaw − yaw_start`:
+        // the expected distance moves with the position, the measured one with the heading.
         let start = [self.pos[0], self.pos[1]];
+        let heading = self.cfg.map_fix_heading;
+        // The arena-frame heading error is R[2]·δθ (δθ in the body frame): the third row of R.
+        let yaw_row = |q| quat_to_rot(q)[2];
+        let yaw_start = euler_from_rot(&quat_to_rot(self.quat))[2];
         for fix in fixes.fixes.iter().flatten() {
             let shift = (self.pos[0] - start[0]) * fix.normal[0] + (self.pos[1] - start[1]) * fix.normal[1];
-            let innovation = fix.measured_m - (fix.expected_m - shift);
+            let lever = if heading && fix.yaw_lever_m.is_finite() {
+                fix.yaw_lever_m
+            } else {
+                0.0
+            };
+            let turned = if lever != 0.0 {
+                wrap_angle(euler_from_rot(&quat_to_rot(self.quat))[2] - yaw_start)
+            } else {
+                0.0
+            };
+            let innovation = fix.measured_m + lever * turned - (fix.expected_m - shift);
             let mut h = [0.0; N];
             h[0] = -fix.normal[0];
             h[1] = -fix.normal[1];
+            if lever != 0.0 {
+                let row = yaw_row(self.quat);
+                for k in 0..3 {
+                    h[SD + k] = -lever * row[k];
+                }
+            }
             let r_var = sq(fix.std_m);
             let s = self.innovation_variance(&h, r_var);
             // (A NaN innovation, std or variance is rejected too.)
@@ -200,8 +222,22 @@ impl Estimator {
                 self.diag.map_rejected = self.diag.map_rejected.saturating_add(1);
                 continue;
             }
-            if self.scalar_update(&h, innovation, r_var) {
-                self.diag.map_fused = self.diag.map_fused.saturating_add(1);
+            let max_yaw = if lever != 0.0 {
+                self.cfg.map_fix_max_yaw_step_rad
+            } else {
+                f32::INFINITY
+            };
+            match self.scalar_update_bounded(&h, innovation, r_var, max_yaw) {
+                Update::Applied => {
+                    self.diag.map_fused = self.diag.map_fused.saturating_add(1);
+                    if lever != 0.0 {
+                        self.diag.map_heading_fused = self.diag.map_heading_fused.saturating_add(1);
+                    }
+                }
+                Update::TurnTooLarge => {
+                    self.diag.map_rejected = self.diag.map_rejected.saturating_add(1);
+                }
+                Update::Unusable => {}
             }
         }
         self.supervise(true);
@@ -305,17 +341,30 @@ impl Estimator {
     /// correction is folded into the nominal state at once. Returns false (and changes nothing) if the
     /// numbers are not usable.
     pub(super) fn scalar_update(&mut self, h: &Vec9, innov: f32, r_var: f32) -> bool {
+        self.scalar_update_bounded(h, innov, r_var, f32::INFINITY) == Update::Applied
+    }
+
+    /// [`Self::scalar_update`] that changes nothing when the correction would turn the heading (the
+    /// arena-frame yaw, `R[2]·δθ`) by more than `max_yaw_rad`.
+    pub(super) fn scalar_update_bounded(&mut self, h: &Vec9, innov: f32, r_var: f32, max_yaw_rad: f32) -> Update {
         let ph = mul9_v(&self.cov, h);
         let s = dot9(h, &ph) + r_var;
         if !(s.is_finite() && s > 0.0 && innov.is_finite()) {
-            return false;
+            return Update::Unusable;
         }
         let mut dx = [0.0; N];
         for (d, &p) in dx.iter_mut().zip(ph.iter()) {
             *d = p / s * innov;
         }
         if !dx.iter().all(|d| d.is_finite()) {
-            return false;
+            return Update::Unusable;
+        }
+        if max_yaw_rad.is_finite() {
+            let row = quat_to_rot(self.quat)[2];
+            let turn = row[0] * dx[SD] + row[1] * dx[SD + 1] + row[2] * dx[SD + 2];
+            if !(turn.abs() <= max_yaw_rad) {
+                return Update::TurnTooLarge;
+            }
         }
         // P − P hᵀ h P / s, computed symmetric (equal to the Joseph form in exact arithmetic for the
         // optimal gain; the conditioning below keeps it positive).
@@ -340,6 +389,17 @@ impl Estimator {
             // (Smaller corrections are still folded into q, just not worth rotating P for.)
             self.rotate_attitude_covariance(dtheta);
         }
-        true
+        Update::Applied
     }
+}
+
+/// What [`Estimator::scalar_update_bounded`] did.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub(super) enum Update {
+    /// Folded into the state.
+    Applied,
+    /// Rejected: it would have turned the heading by more than allowed.
+    TurnTooLarge,
+    /// Rejected: non-finite or degenerate numbers.
+    Unusable,
 }

@@ -24,7 +24,8 @@
 //! strapdown `ṗ = v`, `v̇ = R f − g` with no `ω × v` terms; the controller and the output want arena
 //! velocity; and the flow model still sees body velocity through `v_b = Rᵀv`, whose attitude Jacobian
 //! (`[v_b]×`) is one line. Price: the flow update also touches the yaw error (correctly: a yaw error
-//! rotates `v_b`); yaw stays unobservable, as in stock, and is held by the gyro.
+//! rotates `v_b`); yaw stays unobservable, as in stock, and is held by the gyro, except where the map fixes
+//! against the arena's walls measure it (below).
 //!
 //! ## Prediction (IMU)
 //!
@@ -111,7 +112,10 @@
 //! hands the stabilizer up to four [`map_fix::MapFix`]es: the distance to a surface along its normal `n`,
 //! measured and expected. [`Estimator::on_map_fixes`] fuses each as a scalar measurement `c − p·n`
 //! (Jacobian `−n` on x and y), std from the ranger model (and the landmark's plane), gated at
-//! `map_fix_gate_sigma`. Over a default-world mission this holds the horizontal error to an RMS of
+//! `map_fix_gate_sigma`; against the arena's exact walls the Jacobian also has the heading term
+//! `−r·n·u⊥·R[2]` on `δθ` (two beams on one wall, or one over several sweeps, correct the yaw; each
+//! fix's turn bounded by `map_fix_max_yaw_step_rad`). Over a default-world mission this holds the
+//! horizontal error to an RMS of
 //! ≈ 1.5 cm instead of the flow's ≈ 6.6 cm random walk (BENCHMARKS.md §5).
 //!
 //! ## The pad step

@@ -8,7 +8,6 @@ use super::{
     COVARIANCE_MAX, COVARIANCE_MIN, Estimator, FLOW_RESOLUTION, N, SD, SV, SZ, V3, Vec9, dot9, euler_from_rot,
     mul_m3t_v3, mul9_v, quat_from_rotvec, quat_mul, quat_normalize, quat_to_rot, scale3, skew, sq,
 };
-use crate::math::wrap_angle;
 use crate::types::{FlowSample, MultiRangerSample, RangeReading};
 
 /// Attitude corrections below this are not worth rotating the covariance for (stock kalmanCoreFinalize).
@@ -185,22 +184,16 @@ impl Estimator {
             return;
         }
         self.predict_covariance();
-        // The fixes before this one moved the estimate by `p − start` and turned it by `yaw − yaw_start`:
+        // The fixes before this one moved the estimate by `p − start` and turned it by `turned`:
         // the expected distance moves with the position, the measured one with the heading.
         let start = [self.pos[0], self.pos[1]];
         let heading = self.cfg.map_fix_heading;
-        // The arena-frame heading error is R[2]·δθ (δθ in the body frame): the third row of R.
-        let yaw_row = |q| quat_to_rot(q)[2];
-        let yaw_start = euler_from_rot(&quat_to_rot(self.quat))[2];
+        // How far this sweep's updates turned the heading so far, rad.
+        let mut turned = 0.0;
         for fix in fixes.fixes.iter().flatten() {
             let shift = (self.pos[0] - start[0]) * fix.normal[0] + (self.pos[1] - start[1]) * fix.normal[1];
             let lever = if heading && fix.yaw_lever_m.is_finite() {
                 fix.yaw_lever_m
-            } else {
-                0.0
-            };
-            let turned = if lever != 0.0 {
-                wrap_angle(euler_from_rot(&quat_to_rot(self.quat))[2] - yaw_start)
             } else {
                 0.0
             };
@@ -209,7 +202,8 @@ impl Estimator {
             h[0] = -fix.normal[0];
             h[1] = -fix.normal[1];
             if lever != 0.0 {
-                let row = yaw_row(self.quat);
+                // The arena-frame heading error is R[2]·δθ (δθ in the body frame): the third row of R.
+                let row = quat_to_rot(self.quat)[2];
                 for k in 0..3 {
                     h[SD + k] = -lever * row[k];
                 }
@@ -228,7 +222,8 @@ impl Estimator {
                 f32::INFINITY
             };
             match self.scalar_update_bounded(&h, innovation, r_var, max_yaw) {
-                Update::Applied => {
+                Update::Applied { turn_rad } => {
+                    turned += turn_rad;
                     self.diag.map_fused = self.diag.map_fused.saturating_add(1);
                     if lever != 0.0 {
                         self.diag.map_heading_fused = self.diag.map_heading_fused.saturating_add(1);
@@ -341,11 +336,14 @@ impl Estimator {
     /// correction is folded into the nominal state at once. Returns false (and changes nothing) if the
     /// numbers are not usable.
     pub(super) fn scalar_update(&mut self, h: &Vec9, innov: f32, r_var: f32) -> bool {
-        self.scalar_update_bounded(h, innov, r_var, f32::INFINITY) == Update::Applied
+        matches!(
+            self.scalar_update_bounded(h, innov, r_var, f32::INFINITY),
+            Update::Applied { .. }
+        )
     }
 
     /// [`Self::scalar_update`] that changes nothing when the correction would turn the heading (the
-    /// arena-frame yaw, `R[2]·δθ`) by more than `max_yaw_rad`.
+    /// arena-frame yaw, `R[2]·δθ`) by more than `max_yaw_rad`; says how far it turned it.
     pub(super) fn scalar_update_bounded(&mut self, h: &Vec9, innov: f32, r_var: f32, max_yaw_rad: f32) -> Update {
         let ph = mul9_v(&self.cov, h);
         let s = dot9(h, &ph) + r_var;
@@ -359,12 +357,10 @@ impl Estimator {
         if !dx.iter().all(|d| d.is_finite()) {
             return Update::Unusable;
         }
-        if max_yaw_rad.is_finite() {
-            let row = quat_to_rot(self.quat)[2];
-            let turn = row[0] * dx[SD] + row[1] * dx[SD + 1] + row[2] * dx[SD + 2];
-            if !(turn.abs() <= max_yaw_rad) {
-                return Update::TurnTooLarge;
-            }
+        let row = quat_to_rot(self.quat)[2];
+        let turn_rad = row[0] * dx[SD] + row[1] * dx[SD + 1] + row[2] * dx[SD + 2];
+        if !(turn_rad.abs() <= max_yaw_rad) {
+            return Update::TurnTooLarge;
         }
         // P − P hᵀ h P / s, computed symmetric (equal to the Joseph form in exact arithmetic for the
         // optimal gain; the conditioning below keeps it positive).
@@ -389,15 +385,18 @@ impl Estimator {
             // (Smaller corrections are still folded into q, just not worth rotating P for.)
             self.rotate_attitude_covariance(dtheta);
         }
-        Update::Applied
+        Update::Applied { turn_rad }
     }
 }
 
 /// What [`Estimator::scalar_update_bounded`] did.
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[derive(Clone, Copy, Debug, PartialEq)]
 pub(super) enum Update {
-    /// Folded into the state.
-    Applied,
+    /// Folded into the state; it turned the heading by this much, rad.
+    Applied {
+        /// `R[2]·δθ`.
+        turn_rad: f32,
+    },
     /// Rejected: it would have turned the heading by more than allowed.
     TurnTooLarge,
     /// Rejected: non-finite or degenerate numbers.

@@ -184,6 +184,7 @@ impl Estimator {
             return;
         }
         self.predict_covariance();
+        self.map_sweeps = self.map_sweeps.wrapping_add(1);
         // The fixes before this one moved the estimate by `p − start` and turned it by `turned`:
         // the expected distance moves with the position, the measured one with the heading.
         let start = [self.pos[0], self.pos[1]];
@@ -215,6 +216,21 @@ impl Estimator {
             if !within_gate {
                 self.diag.map_rejected = self.diag.map_rejected.saturating_add(1);
                 continue;
+            }
+            // A jump needs a second sweep's word (see `EstimatorConfig::map_fix_jump_m`).
+            if innovation.abs() > self.cfg.map_fix_jump_m {
+                let slot = usize::from(fix.normal[1].abs() > fix.normal[0].abs()) * 2
+                    + usize::from(fix.normal[0] + fix.normal[1] > 0.0);
+                let confirmed = self.map_jumps[slot].is_some_and(|(before, sweep)| {
+                    self.map_sweeps.wrapping_sub(sweep) <= 2
+                        && self.map_sweeps != sweep
+                        && (innovation - before).abs() <= self.cfg.map_fix_jump_agree_m
+                });
+                self.map_jumps[slot] = Some((innovation, self.map_sweeps));
+                if !confirmed {
+                    self.diag.map_jumps_held = self.diag.map_jumps_held.saturating_add(1);
+                    continue;
+                }
             }
             let max_yaw = if lever != 0.0 {
                 self.cfg.map_fix_max_yaw_step_rad

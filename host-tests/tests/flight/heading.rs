@@ -3,7 +3,8 @@
 //! (or one beam over consecutive sweeps as the drone moves) correct the yaw. Oracle: the simulator's true
 //! yaw. The drift is made the way a real drone gets it: a gyro bias that changes after the at-rest
 //! calibration (a few mrad/s, as the IMU warms up), which the filter cannot know, plus a drone set down a
-//! few degrees off the heading the mission was told.
+//! few degrees off the heading the mission was told. Also the map fixes' jump rule (a jump beyond
+//! `map_fix_jump_m` needs a second sweep's word).
 
 use cfnav::flight::estimator::map_fix::{MapFix, MapFixes};
 use cfnav::flight::estimator::{Estimator, EstimatorConfig};
@@ -121,7 +122,7 @@ fn wall_fixes_hold_the_heading_against_a_gyro_drift() {
         worst_off.0
     );
     assert!(
-        worst_off.1 > 0.12,
+        worst_off.1 > 0.10,
         "without them the position error stays at {}",
         worst_off.1
     );
@@ -230,4 +231,51 @@ fn two_beams_on_one_wall_turn_the_heading() {
     );
     assert_eq!(tight.diagnostics().map_heading_fused, 0);
     assert!(tight.state().attitude_rad[2].abs() < 1e-4);
+}
+
+/// One wall fix along +x with `innovation_m` (measured − expected), no heading lever.
+fn x_fix(innovation_m: f32) -> MapFixes {
+    let mut out = MapFixes::default();
+    out.fixes[0] = Some(MapFix {
+        normal: [1.0, 0.0],
+        measured_m: 1.0 + innovation_m,
+        expected_m: 1.0,
+        std_m: 0.01,
+        yaw_lever_m: 0.0,
+    });
+    out
+}
+
+/// A fix implying a jump beyond `map_fix_jump_m` (here 10 cm, inside the 3σ gate of a 5 cm position std)
+/// moves nothing alone: a beam that met another surface in one sweep (training world 21000241: a 14 cm
+/// step) is held back. The same jump in the next sweep is a real drift and is fused; a different one is
+/// not; with the rule switched off (a 10 m threshold) the single sweep moves the estimate.
+#[test]
+fn a_jump_needs_a_second_sweep() {
+    let x0 = |e: &Estimator| e.state().position_m[0];
+    let mut est = airborne(EstimatorConfig::default());
+    let start = x0(&est);
+    est.on_map_fixes(&x_fix(0.10));
+    assert_eq!(est.diagnostics().map_jumps_held, 1);
+    assert_eq!(x0(&est), start, "a single sweep's jump moved the estimate");
+    // A disagreeing jump (−10 cm) does not confirm it.
+    est.on_map_fixes(&x_fix(-0.10));
+    assert_eq!(est.diagnostics().map_jumps_held, 2);
+    assert_eq!(x0(&est), start);
+    // Two sweeps agreeing: fused; the wall is nearer than believed, so the drone is further towards +x.
+    est.on_map_fixes(&x_fix(-0.09));
+    assert_eq!(est.diagnostics().map_fused, 1);
+    assert!(x0(&est) > start + 0.03, "moved to {} from {start}", x0(&est));
+    // Small innovations need no confirmation.
+    let mut small = airborne(EstimatorConfig::default());
+    small.on_map_fixes(&x_fix(0.03));
+    assert_eq!(small.diagnostics().map_fused, 1);
+    // Without the rule the single jump is fused at once.
+    let mut off = airborne(EstimatorConfig {
+        map_fix_jump_m: 10.0,
+        ..EstimatorConfig::default()
+    });
+    off.on_map_fixes(&x_fix(0.10));
+    assert_eq!(off.diagnostics().map_fused, 1);
+    assert!(x0(&off) < start - 0.05);
 }

@@ -27,7 +27,7 @@ fn fly(config: &FlightConfig, seed: u64, yaw0_rad: f32, bias_rad_s: f32) -> Run 
     let world = World::default_world();
     let mut drone = SimDrone::new(&world, seed, &Faults::default()).unwrap();
     let start = world.mission.start;
-    let mut quad = Quadrotor::new(drone.quad.params().clone(), [start[0], start[1], 0.0], yaw0_rad);
+    let mut quad = Quadrotor::new(*drone.quad.params(), [start[0], start[1], 0.0], yaw0_rad);
     quad.place_on_surface(&world);
     drone.quad = quad;
     *drone.core = FlightCore::new(config, (start[0], start[1]), 0.0).unwrap();

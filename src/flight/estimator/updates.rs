@@ -375,7 +375,7 @@ impl Estimator {
         }
         let row = quat_to_rot(self.quat)[2];
         let turn_rad = row[0] * dx[SD] + row[1] * dx[SD + 1] + row[2] * dx[SD + 2];
-        if !(turn_rad.abs() <= max_yaw_rad) {
+        if turn_rad.abs() > max_yaw_rad {
             return Update::TurnTooLarge;
         }
         // P − P hᵀ h P / s, computed symmetric (equal to the Joseph form in exact arithmetic for the

@@ -55,8 +55,8 @@
 //! a heading error would be frozen into it: the self-reinforcing loop); the position gate sees the
 //! heading's variance; a fix that would turn the heading by more than `map_fix_max_yaw_step_rad` (0.02
 //! rad) is rejected. Measured (`host-tests/tests/flight/heading.rs`, default world, a 6 mrad/s gyro bias
-//! appearing after the at-rest calibration, 3° placement error): the late yaw error stays at 2.1–3.1°
-//! (a lag: there is no gyro-bias state) and the position at 2.4–4.7 cm, against 7.0–8.4° and 18–22 cm
+//! appearing after the at-rest calibration, 3° placement error): the late yaw error stays at 2.0–3.3°
+//! (a lag: there is no gyro-bias state) and the position at 3.1–3.9 cm, against 6.2–10.8° and 12–66 cm
 //! without.
 //!
 //! Non-goals: a gyro-bias state (the heading error is corrected, not its rate), mapping (the mission owns

@@ -247,6 +247,9 @@ const GYRO_LPF_HZ: f32 = 80.0;
 /// Standard deviations after a divergence reset: position 1 m / 0.5 m (z), velocity 1 m/s, attitude 0.1 rad.
 const DIVERGENCE_STD: [f32; N] = [1.0, 1.0, 0.5, 1.0, 1.0, 1.0, 0.1, 0.1, 0.1];
 
+/// No held-back map-fix jump (see `Estimator::map_jump_mm`).
+const NO_JUMP: i16 = i16::MIN;
+
 /// Validity: this many flow/range samples in a row without an IMU sample means the IMU stopped.
 const MAX_SAMPLES_WITHOUT_IMU: u16 = 30;
 /// Validity: this many non-finite IMU samples in a row means the IMU is broken.
@@ -621,9 +624,11 @@ pub struct Estimator {
     flow_reject_streak: u8,
     /// Per wall direction (axis × side of the normal): the innovation of the last map fix that implied a
     /// jump beyond `map_fix_jump_m` and was held back, and the sweep it came in (see `on_map_fixes`).
-    map_jumps: [Option<(f32, u32)>; 4],
+    /// (In millimetres, [`NO_JUMP`] for none, and the sweep's number: 12 bytes.)
+    map_jump_mm: [i16; 4],
+    map_jump_sweep: [u8; 4],
     /// Map-fix sweeps received.
-    map_sweeps: u32,
+    map_sweeps: u8,
     walls: WallHold,
     surface: SurfaceTracker,
     // Time and health.
@@ -677,7 +682,8 @@ impl Estimator {
             flow_rot: [0.0; 3],
             flow_dt: 0.0,
             flow_reject_streak: 0,
-            map_jumps: [None; 4],
+            map_jump_mm: [NO_JUMP; 4],
+            map_jump_sweep: [0; 4],
             map_sweeps: 0,
             walls: WallHold::default(),
             surface: SurfaceTracker::new(0.0),
@@ -739,7 +745,7 @@ impl Estimator {
         self.surface.reset(self.home_pos[2]);
         self.clear_blocks();
         self.flow_reject_streak = 0;
-        self.map_jumps = [None; 4];
+        self.map_jump_mm = [NO_JUMP; 4];
         self.walls.clear();
         self.last_flow_us = None;
         self.last_range_us = None;

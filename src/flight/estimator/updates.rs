@@ -5,7 +5,7 @@
 use super::map_fix::MapFixes;
 use super::surface::Entry;
 use super::{
-    COVARIANCE_MAX, COVARIANCE_MIN, Estimator, FLOW_RESOLUTION, N, SD, SV, SZ, V3, Vec9, dot9, euler_from_rot,
+    COVARIANCE_MAX, COVARIANCE_MIN, Estimator, FLOW_RESOLUTION, N, NO_JUMP, SD, SV, SZ, V3, Vec9, dot9, euler_from_rot,
     mul_m3t_v3, mul9_v, quat_from_rotvec, quat_mul, quat_normalize, quat_to_rot, scale3, skew, sq,
 };
 use crate::types::{FlowSample, MultiRangerSample, RangeReading};
@@ -221,12 +221,14 @@ impl Estimator {
             if innovation.abs() > self.cfg.map_fix_jump_m {
                 let slot = usize::from(fix.normal[1].abs() > fix.normal[0].abs()) * 2
                     + usize::from(fix.normal[0] + fix.normal[1] > 0.0);
-                let confirmed = self.map_jumps[slot].is_some_and(|(before, sweep)| {
-                    self.map_sweeps.wrapping_sub(sweep) <= 2
-                        && self.map_sweeps != sweep
-                        && (innovation - before).abs() <= self.cfg.map_fix_jump_agree_m
-                });
-                self.map_jumps[slot] = Some((innovation, self.map_sweeps));
+                let (before_mm, sweep) = (self.map_jump_mm[slot], self.map_jump_sweep[slot]);
+                let confirmed = before_mm != NO_JUMP
+                    && self.map_sweeps.wrapping_sub(sweep) <= 2
+                    && self.map_sweeps != sweep
+                    && (innovation - f32::from(before_mm) * 1e-3).abs() <= self.cfg.map_fix_jump_agree_m;
+                // (The pre-gate keeps |innovation| well inside ±32 m.)
+                self.map_jump_mm[slot] = (innovation * 1e3).clamp(-32_000.0, 32_000.0) as i16;
+                self.map_jump_sweep[slot] = self.map_sweeps;
                 if !confirmed {
                     self.diag.map_jumps_held = self.diag.map_jumps_held.saturating_add(1);
                     continue;

@@ -3,6 +3,7 @@
 
 mod control;
 mod estimator;
+mod heading;
 mod high_level;
 mod map_fix;
 mod supervisor;

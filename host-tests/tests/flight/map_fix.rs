@@ -5,7 +5,7 @@
 //! mission against the simulator's ground truth with the fixes on and off.
 
 use cfnav::flight::estimator::map_fix::{
-    CONFIRMED_LOG_ODDS, LANDMARK_SETTLE, Landmarks, MAX_INCIDENCE_RAD, PRE_GATE_M, RayGrid, cast_fixes, ray_cast,
+    CONFIRMED_LOG_ODDS, LANDMARK_SETTLE, Landmarks, MAX_WALL_INCIDENCE_RAD, PRE_GATE_M, RayGrid, cast_fixes, ray_cast,
 };
 use cfnav::flight::estimator::{Estimator, EstimatorConfig};
 use cfnav::nav::grid::{ChangedCells, OccupancyGrid};
@@ -172,14 +172,19 @@ proptest! {
             let u = (a.cos(), a.sin());
             let (t, axis) = ray_walls((f64::from(x), f64::from(y)), u, (3.0, 2.0));
             let cos_inc = [u.0, u.1][axis].abs();
-            let usable = t <= 2.5 && cos_inc >= f64::from(MAX_INCIDENCE_RAD).cos() + 1e-4;
-            let too_oblique = cos_inc < f64::from(MAX_INCIDENCE_RAD).cos() - 1e-4;
+            // The arena's exact walls allow more incidence than an obstacle's face (the heading fixes).
+            let usable = t <= 2.5 && cos_inc >= f64::from(MAX_WALL_INCIDENCE_RAD).cos() + 1e-4;
+            let too_oblique = cos_inc < f64::from(MAX_WALL_INCIDENCE_RAD).cos() - 1e-4;
             match fix {
                 Some(f) => {
                     prop_assert!(!too_oblique, "beam {beam}: {f:?}");
                     prop_assert!((f.measured_m - f.expected_m).abs() < 1e-4, "{f:?}");
                     prop_assert!((f64::from(f.expected_m) - t * cos_inc).abs() < 1e-4, "{f:?} vs {}", t * cos_inc);
                     prop_assert!(f.std_m > 0.0 && f.std_m < 0.06);
+                    // The heading's lever: d/d(yaw) of the range times |n·u| at the fixed range.
+                    let along = |a: f64| [a.cos(), a.sin()][axis].abs();
+                    let lever = t * (along(a + 1e-4) - along(a - 1e-4)) / 2e-4;
+                    prop_assert!((f64::from(f.yaw_lever_m) - lever).abs() < 2e-3, "{f:?} vs lever {lever}");
                 }
                 None => prop_assert!(!usable, "beam {beam} gave no fix at {t} m, cos {cos_inc}"),
             }
@@ -422,6 +427,7 @@ fn the_estimator_gates_fixes() {
                 measured_m: measured,
                 expected_m: 1.0,
                 std_m: 0.01,
+                yaw_lever_m: 0.0,
             }),
             None,
             None,

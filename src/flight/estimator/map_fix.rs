@@ -42,8 +42,25 @@
 //! one, then the estimator's 3σ gate decides. Beams at more than [`MAX_INCIDENCE_RAD`] to the surface's
 //! normal are not used (a grazing beam's range depends on where along the surface it lands).
 //!
-//! Non-goals: heading correction (yaw is held by the gyro; with two beams on one wall it would be
-//! observable, not done), mapping (the mission owns the map), loop closure.
+//! Heading. A beam's distance along a wall's normal depends on the heading it was computed with:
+//! `measured = r·n·u(ψ)`, so a heading error δ (true minus estimated, counter-clockwise) makes it short by
+//! `δ·r·n·u⊥` ([`MapFix::yaw_lever_m`], `u⊥` the beam turned by +90°). Against the arena's exact walls
+//! each fix therefore carries its Jacobian on the heading too, and the EKF splits the residual between
+//! position and heading by their covariances. Two beams 90° apart on one wall (the drone flying at
+//! 35°–55° to it; walls are used up to [`MAX_WALL_INCIDENCE_RAD`], a flat plane has no grazing doubt)
+//! have levers of opposite sign: their disagreement is the heading alone, whatever the position. One beam
+//! over consecutive sweeps as the drone moves does the same through the filter's position–heading
+//! covariance (the flow's displacement is rotated by the heading error). Rules: only the exact walls
+//! steer the heading, never a landmark (its plane was placed with the estimated heading of its time, so
+//! a heading error would be frozen into it: the self-reinforcing loop); the position gate sees the
+//! heading's variance; a fix that would turn the heading by more than `map_fix_max_yaw_step_rad` (0.02
+//! rad) is rejected. Measured (`host-tests/tests/flight/heading.rs`, default world, a 6 mrad/s gyro bias
+//! appearing after the at-rest calibration, 3° placement error): the late yaw error stays at 2.0–3.3°
+//! (a lag: there is no gyro-bias state) and the position at 3.1–3.9 cm, against 6.2–10.8° and 12–66 cm
+//! without.
+//!
+//! Non-goals: a gyro-bias state (the heading error is corrected, not its rate), mapping (the mission owns
+//! the map), loop closure.
 //!
 //! Units and frames: metres, radians, arena frame (origin at the arena's lower-left corner). Memory: a
 //! [`MapFixes`] is 4 × 20 bytes plus tags; [`Landmarks`] (the navigator keeps one per flight) 48 × 16
@@ -61,8 +78,13 @@ pub const MIN_RANGE_M: f32 = 0.1;
 /// A cell counts as a surface only at or above this log-odds: two hits (+8 each) net of misses (−3 each)
 /// from other sweeps or beams (the grid's default occupied threshold, 6, is one hit).
 pub const CONFIRMED_LOG_ODDS: i8 = 16;
-/// A beam more than this off the surface's normal gives no fix, rad (40°).
+/// A beam more than this off the surface's normal gives no fix, rad (40°): for an obstacle's face, whose
+/// grid cells say little about where along it a grazing beam lands.
 pub const MAX_INCIDENCE_RAD: f32 = 0.70;
+/// The same for the arena's exact walls, rad (55°): a flat plane has no such doubt, and beams up to 55°
+/// let two beams 90° apart see one wall at once when the drone flies at 35°–55° to it (the heading
+/// correction, see the module docs).
+pub const MAX_WALL_INCIDENCE_RAD: f32 = 0.96;
 /// A measured range further than this from the expected one is something else (an unmapped object in
 /// front, an outlier), m.
 pub const PRE_GATE_M: f32 = 0.3;
@@ -219,6 +241,13 @@ pub struct MapFix {
     pub expected_m: f32,
     /// The std of `measured_m − expected_m` (ranger and, for a landmark, its plane's), m.
     pub std_m: f32,
+    /// The heading's lever on the fix, m/rad: `range · n·u⊥`, with `u⊥` the beam's arena direction turned
+    /// by +90°. `measured_m` (computed with the estimated heading) comes out short by this much per radian
+    /// the true heading lies counter-clockwise of the estimate, so the EKF's Jacobian on the heading error
+    /// is `−yaw_lever_m`. Set only
+    /// against the arena's exact walls (0 for a landmark, whose plane was placed with the estimated
+    /// heading of its time and must not steer the heading: see the module docs, "Heading").
+    pub yaw_lever_m: f32,
 }
 
 /// The fixes of one Multi-ranger sweep, in the order of [`MultiRangerSample::horizontal`].
@@ -361,6 +390,7 @@ pub fn cast_fixes(
     }
     let (sn, cs) = (libm::sinf(yaw_rad), libm::cosf(yaw_rad));
     let min_cos = libm::cosf(MAX_INCIDENCE_RAD);
+    let min_cos_wall = libm::cosf(MAX_WALL_INCIDENCE_RAD);
     for (beam, range) in sample.horizontal().into_iter().enumerate() {
         let Some(r) = range.filter(|r| r.is_finite() && (MIN_RANGE_M..=MAX_RANGE_M).contains(r)) else {
             continue;
@@ -373,7 +403,7 @@ pub fn cast_fixes(
             continue;
         };
         let cos_inc = hit.sign * u[hit.axis];
-        if cos_inc.is_nan() || cos_inc < min_cos {
+        if cos_inc.is_nan() || cos_inc < if hit.wall { min_cos_wall } else { min_cos } {
             continue;
         }
         if !hit.wall {
@@ -414,11 +444,15 @@ pub fn cast_fixes(
         let ranger_std = (RANGER_STD_FLOOR_M + RANGER_STD_RELATIVE * r) * cos_inc;
         let plane_std = if hit.wall { 0.0 } else { LANDMARK_STD_M };
         let std_m = libm::sqrtf(ranger_std * ranger_std + plane_std * plane_std);
+        // n·u⊥ with u⊥ = (−u_y, u_x); only the wall's own axis of n is non-zero.
+        let u_perp = [-u[1], u[0]];
+        let yaw_lever_m = if hit.wall { r * hit.sign * u_perp[hit.axis] } else { 0.0 };
         out.fixes[beam] = Some(MapFix {
             normal,
             measured_m: measured,
             expected_m: expected,
             std_m,
+            yaw_lever_m,
         });
     }
     out

@@ -24,7 +24,8 @@
 //! strapdown `ṗ = v`, `v̇ = R f − g` with no `ω × v` terms; the controller and the output want arena
 //! velocity; and the flow model still sees body velocity through `v_b = Rᵀv`, whose attitude Jacobian
 //! (`[v_b]×`) is one line. Price: the flow update also touches the yaw error (correctly: a yaw error
-//! rotates `v_b`); yaw stays unobservable, as in stock, and is held by the gyro.
+//! rotates `v_b`); yaw stays unobservable, as in stock, and is held by the gyro, except where the map fixes
+//! against the arena's walls measure it (below).
 //!
 //! ## Prediction (IMU)
 //!
@@ -111,7 +112,14 @@
 //! hands the stabilizer up to four [`map_fix::MapFix`]es: the distance to a surface along its normal `n`,
 //! measured and expected. [`Estimator::on_map_fixes`] fuses each as a scalar measurement `c − p·n`
 //! (Jacobian `−n` on x and y), std from the ranger model (and the landmark's plane), gated at
-//! `map_fix_gate_sigma`. Over a default-world mission this holds the horizontal error to an RMS of
+//! `map_fix_gate_sigma`; against the arena's exact walls the Jacobian also has the heading term
+//! `−r·n·u⊥·R[2]` on `δθ` (two beams on one wall, or one over several sweeps, correct the yaw; each
+//! fix's turn bounded by `map_fix_max_yaw_step_rad`). A fix implying a jump beyond `map_fix_jump_m`
+//! (8 cm) is held back unless a fix along the same normal direction in one of the two sweeps before
+//! agreed (within 4 cm): one beam that met another surface than the cast predicted, accepted by a gate
+//! the position's own uncertainty had widened, made the worst single errors (a 14 cm step in one sweep,
+//! training seed 21000241). Over a default-world mission this holds the
+//! horizontal error to an RMS of
 //! ≈ 1.5 cm instead of the flow's ≈ 6.6 cm random walk (BENCHMARKS.md §5).
 //!
 //! ## The pad step
@@ -239,6 +247,9 @@ const GYRO_LPF_HZ: f32 = 80.0;
 /// Standard deviations after a divergence reset: position 1 m / 0.5 m (z), velocity 1 m/s, attitude 0.1 rad.
 const DIVERGENCE_STD: [f32; N] = [1.0, 1.0, 0.5, 1.0, 1.0, 1.0, 0.1, 0.1, 0.1];
 
+/// No held-back map-fix jump (see `Estimator::map_jump_mm`).
+const NO_JUMP: i16 = i16::MIN;
+
 /// Validity: this many flow/range samples in a row without an IMU sample means the IMU stopped.
 const MAX_SAMPLES_WITHOUT_IMU: u16 = 30;
 /// Validity: this many non-finite IMU samples in a row means the IMU is broken.
@@ -334,6 +345,21 @@ pub struct EstimatorConfig {
     pub map_fix: bool,
     /// Map fixes whose innovation exceeds this many standard deviations are rejected. Default 3.
     pub map_fix_gate_sigma: f32,
+    /// A map fix whose innovation exceeds this (m) moves the estimate only when a fix along the same
+    /// normal direction in one of the two sweeps before it implied the same jump (within
+    /// `map_fix_jump_agree_m`): a real drift shows in every sweep, a beam that met another surface than
+    /// the cast (a corner, an obstacle's side, a ranger outlier) in one. Default 0.08 (measured at 0.06
+    /// on training seeds 20–23, where single-sweep
+    /// jumps of up to 14 cm were the worst estimate errors, BENCHMARKS.md §5; 0.06 lost two sim CI runs).
+    pub map_fix_jump_m: f32,
+    /// See `map_fix_jump_m`, m. Default 0.04.
+    pub map_fix_jump_agree_m: f32,
+    /// Let the map fixes against the arena's exact walls correct the heading too (their Jacobian on the
+    /// heading error, module `map_fix`, "Heading"). Default true.
+    pub map_fix_heading: bool,
+    /// The most one map fix may turn the heading, rad; a fix that would turn it more is rejected (a wrong
+    /// wall, an outlier the position gate let through). Default 0.02 (1.1°).
+    pub map_fix_max_yaw_step_rad: f32,
     /// Gravity-direction update std at rest on the ground, m/s² per axis. Default 0.2.
     pub rest_accel_std_m_s2: f32,
     /// Initial std of x and y at a reset, m. Default 0.05 (the start pad's position is known).
@@ -386,6 +412,10 @@ impl Default for EstimatorConfig {
             wall_gate_sigma: 3.0,
             map_fix: true,
             map_fix_gate_sigma: 3.0,
+            map_fix_jump_m: 0.08,
+            map_fix_jump_agree_m: 0.04,
+            map_fix_heading: true,
+            map_fix_max_yaw_step_rad: 0.02,
             rest_accel_std_m_s2: 0.2,
             initial_std_xy_m: 0.05,
             initial_std_z_m: 0.02,
@@ -455,6 +485,10 @@ impl EstimatorConfig {
             wall_gate_sigma: pos(self.wall_gate_sigma, d.wall_gate_sigma),
             map_fix: self.map_fix,
             map_fix_gate_sigma: pos(self.map_fix_gate_sigma, d.map_fix_gate_sigma),
+            map_fix_jump_m: pos(self.map_fix_jump_m, d.map_fix_jump_m),
+            map_fix_jump_agree_m: pos(self.map_fix_jump_agree_m, d.map_fix_jump_agree_m),
+            map_fix_heading: self.map_fix_heading,
+            map_fix_max_yaw_step_rad: pos(self.map_fix_max_yaw_step_rad, d.map_fix_max_yaw_step_rad),
             rest_accel_std_m_s2: pos(self.rest_accel_std_m_s2, d.rest_accel_std_m_s2),
             initial_std_xy_m: pos(self.initial_std_xy_m, d.initial_std_xy_m),
             initial_std_z_m: pos(self.initial_std_z_m, d.initial_std_z_m),
@@ -552,8 +586,12 @@ pub struct Diagnostics {
     pub wall_rejected: u32,
     /// Map-relative fixes fused (module `map_fix`).
     pub map_fused: u32,
-    /// Map-relative fixes rejected by the gate.
+    /// Map-relative fixes rejected by the gate (or by the heading bound, `map_fix_max_yaw_step_rad`).
     pub map_rejected: u32,
+    /// Map-relative fixes held back: a jump beyond `map_fix_jump_m` no earlier sweep confirmed.
+    pub map_jumps_held: u32,
+    /// Map-relative fixes fused with their heading term (against the arena's walls).
+    pub map_heading_fused: u32,
 }
 
 /// The estimator. See the module documentation.
@@ -585,6 +623,13 @@ pub struct Estimator {
     flow_rot: V3,
     flow_dt: f32,
     flow_reject_streak: u8,
+    /// Per wall direction (axis × side of the normal): the innovation of the last map fix that implied a
+    /// jump beyond `map_fix_jump_m` and was held back, and the sweep it came in (see `on_map_fixes`).
+    /// (In millimetres, [`NO_JUMP`] for none, and the sweep's number: 12 bytes.)
+    map_jump_mm: [i16; 4],
+    map_jump_sweep: [u8; 4],
+    /// Map-fix sweeps received.
+    map_sweeps: u8,
     walls: WallHold,
     surface: SurfaceTracker,
     // Time and health.
@@ -638,6 +683,9 @@ impl Estimator {
             flow_rot: [0.0; 3],
             flow_dt: 0.0,
             flow_reject_streak: 0,
+            map_jump_mm: [NO_JUMP; 4],
+            map_jump_sweep: [0; 4],
+            map_sweeps: 0,
             walls: WallHold::default(),
             surface: SurfaceTracker::new(0.0),
             now_us: 0,
@@ -698,6 +746,7 @@ impl Estimator {
         self.surface.reset(self.home_pos[2]);
         self.clear_blocks();
         self.flow_reject_streak = 0;
+        self.map_jump_mm = [NO_JUMP; 4];
         self.walls.clear();
         self.last_flow_us = None;
         self.last_range_us = None;

@@ -5,7 +5,7 @@
 use super::map_fix::MapFixes;
 use super::surface::Entry;
 use super::{
-    COVARIANCE_MAX, COVARIANCE_MIN, Estimator, FLOW_RESOLUTION, N, SD, SV, SZ, V3, Vec9, dot9, euler_from_rot,
+    COVARIANCE_MAX, COVARIANCE_MIN, Estimator, FLOW_RESOLUTION, N, NO_JUMP, SD, SV, SZ, V3, Vec9, dot9, euler_from_rot,
     mul_m3t_v3, mul9_v, quat_from_rotvec, quat_mul, quat_normalize, quat_to_rot, scale3, skew, sq,
 };
 use crate::types::{FlowSample, MultiRangerSample, RangeReading};
@@ -184,14 +184,31 @@ impl Estimator {
             return;
         }
         self.predict_covariance();
-        // The fixes before this one moved the estimate by `p − start`: the expected distance moves with it.
+        self.map_sweeps = self.map_sweeps.wrapping_add(1);
+        // The fixes before this one moved the estimate by `p − start` and turned it by `turned`:
+        // the expected distance moves with the position, the measured one with the heading.
         let start = [self.pos[0], self.pos[1]];
+        let heading = self.cfg.map_fix_heading;
+        // How far this sweep's updates turned the heading so far, rad.
+        let mut turned = 0.0;
         for fix in fixes.fixes.iter().flatten() {
             let shift = (self.pos[0] - start[0]) * fix.normal[0] + (self.pos[1] - start[1]) * fix.normal[1];
-            let innovation = fix.measured_m - (fix.expected_m - shift);
+            let lever = if heading && fix.yaw_lever_m.is_finite() {
+                fix.yaw_lever_m
+            } else {
+                0.0
+            };
+            let innovation = fix.measured_m + lever * turned - (fix.expected_m - shift);
             let mut h = [0.0; N];
             h[0] = -fix.normal[0];
             h[1] = -fix.normal[1];
+            if lever != 0.0 {
+                // The arena-frame heading error is R[2]·δθ (δθ in the body frame): the third row of R.
+                let row = quat_to_rot(self.quat)[2];
+                for k in 0..3 {
+                    h[SD + k] = -lever * row[k];
+                }
+            }
             let r_var = sq(fix.std_m);
             let s = self.innovation_variance(&h, r_var);
             // (A NaN innovation, std or variance is rejected too.)
@@ -200,8 +217,40 @@ impl Estimator {
                 self.diag.map_rejected = self.diag.map_rejected.saturating_add(1);
                 continue;
             }
-            if self.scalar_update(&h, innovation, r_var) {
-                self.diag.map_fused = self.diag.map_fused.saturating_add(1);
+            // A jump needs a second sweep's word (see `EstimatorConfig::map_fix_jump_m`).
+            if innovation.abs() > self.cfg.map_fix_jump_m {
+                let slot = usize::from(fix.normal[1].abs() > fix.normal[0].abs()) * 2
+                    + usize::from(fix.normal[0] + fix.normal[1] > 0.0);
+                let (before_mm, sweep) = (self.map_jump_mm[slot], self.map_jump_sweep[slot]);
+                let confirmed = before_mm != NO_JUMP
+                    && self.map_sweeps.wrapping_sub(sweep) <= 2
+                    && self.map_sweeps != sweep
+                    && (innovation - f32::from(before_mm) * 1e-3).abs() <= self.cfg.map_fix_jump_agree_m;
+                // (The pre-gate keeps |innovation| well inside ±32 m.)
+                self.map_jump_mm[slot] = (innovation * 1e3).clamp(-32_000.0, 32_000.0) as i16;
+                self.map_jump_sweep[slot] = self.map_sweeps;
+                if !confirmed {
+                    self.diag.map_jumps_held = self.diag.map_jumps_held.saturating_add(1);
+                    continue;
+                }
+            }
+            let max_yaw = if lever != 0.0 {
+                self.cfg.map_fix_max_yaw_step_rad
+            } else {
+                f32::INFINITY
+            };
+            match self.scalar_update_bounded(&h, innovation, r_var, max_yaw) {
+                Update::Applied { turn_rad } => {
+                    turned += turn_rad;
+                    self.diag.map_fused = self.diag.map_fused.saturating_add(1);
+                    if lever != 0.0 {
+                        self.diag.map_heading_fused = self.diag.map_heading_fused.saturating_add(1);
+                    }
+                }
+                Update::TurnTooLarge => {
+                    self.diag.map_rejected = self.diag.map_rejected.saturating_add(1);
+                }
+                Update::Unusable => {}
             }
         }
         self.supervise(true);
@@ -305,17 +354,31 @@ impl Estimator {
     /// correction is folded into the nominal state at once. Returns false (and changes nothing) if the
     /// numbers are not usable.
     pub(super) fn scalar_update(&mut self, h: &Vec9, innov: f32, r_var: f32) -> bool {
+        matches!(
+            self.scalar_update_bounded(h, innov, r_var, f32::INFINITY),
+            Update::Applied { .. }
+        )
+    }
+
+    /// [`Self::scalar_update`] that changes nothing when the correction would turn the heading (the
+    /// arena-frame yaw, `R[2]·δθ`) by more than `max_yaw_rad`; says how far it turned it.
+    pub(super) fn scalar_update_bounded(&mut self, h: &Vec9, innov: f32, r_var: f32, max_yaw_rad: f32) -> Update {
         let ph = mul9_v(&self.cov, h);
         let s = dot9(h, &ph) + r_var;
         if !(s.is_finite() && s > 0.0 && innov.is_finite()) {
-            return false;
+            return Update::Unusable;
         }
         let mut dx = [0.0; N];
         for (d, &p) in dx.iter_mut().zip(ph.iter()) {
             *d = p / s * innov;
         }
         if !dx.iter().all(|d| d.is_finite()) {
-            return false;
+            return Update::Unusable;
+        }
+        let row = quat_to_rot(self.quat)[2];
+        let turn_rad = row[0] * dx[SD] + row[1] * dx[SD + 1] + row[2] * dx[SD + 2];
+        if turn_rad.abs() > max_yaw_rad {
+            return Update::TurnTooLarge;
         }
         // P − P hᵀ h P / s, computed symmetric (equal to the Joseph form in exact arithmetic for the
         // optimal gain; the conditioning below keeps it positive).
@@ -340,6 +403,20 @@ impl Estimator {
             // (Smaller corrections are still folded into q, just not worth rotating P for.)
             self.rotate_attitude_covariance(dtheta);
         }
-        true
+        Update::Applied { turn_rad }
     }
+}
+
+/// What [`Estimator::scalar_update_bounded`] did.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub(super) enum Update {
+    /// Folded into the state; it turned the heading by this much, rad.
+    Applied {
+        /// `R[2]·δθ`.
+        turn_rad: f32,
+    },
+    /// Rejected: it would have turned the heading by more than allowed.
+    TurnTooLarge,
+    /// Rejected: non-finite or degenerate numbers.
+    Unusable,
 }

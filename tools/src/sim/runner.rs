@@ -301,6 +301,11 @@ impl SimDrone {
         })
     }
 
+    /// The simulated IMU (tests: change its bias in flight).
+    pub fn imu_mut(&mut self) -> &mut Imu {
+        &mut self.imu
+    }
+
     /// Milliseconds since power-on.
     pub fn tick(&self) -> u64 {
         self.tick

@@ -151,6 +151,12 @@ impl Imu {
         self.gyro_bias
     }
 
+    /// Sets the gyro bias, rad/s (tests: a bias that changes after the at-rest calibration, e.g. with the
+    /// temperature, turns into a heading drift only map-relative fixes can see).
+    pub fn set_gyro_bias(&mut self, bias_rad_s: [f32; 3]) {
+        self.gyro_bias = bias_rad_s;
+    }
+
     /// The present accelerometer bias, m/s².
     pub fn accel_bias(&self) -> [f32; 3] {
         self.accel_bias

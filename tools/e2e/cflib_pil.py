@@ -29,11 +29,13 @@ and param TOC infos, walk the param TOC to mission.startX, write 1.25 and read i
 import argparse
 import json
 import os
-import socket
 import subprocess
 import sys
 import threading
 import time
+
+sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
+from wait_for_sim import answers_scan_probe  # noqa: E402
 
 import cflib.crtp
 from cflib.crazyflie import Crazyflie
@@ -45,22 +47,6 @@ T0 = time.monotonic()
 
 def say(msg):
     print(f"[{time.monotonic() - T0:6.1f} s] {msg}", flush=True)
-
-
-def wait_for_bridge(port, seconds):
-    deadline = time.monotonic() + seconds
-    while time.monotonic() < deadline:
-        s = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
-        s.settimeout(0.2)
-        try:
-            s.sendto(b"\xff", ("127.0.0.1", port))
-            s.recv(64)
-            return True
-        except OSError:
-            time.sleep(0.2)
-        finally:
-            s.close()
-    return False
 
 
 def reduced(port, failures):
@@ -192,7 +178,7 @@ def main():
     timer.daemon = True
     timer.start()
     try:
-        if not wait_for_bridge(args.port, 120):
+        if not answers_scan_probe(args.port, 120):
             say('FAIL: cfnav-pil does not answer on UDP')
             stop_pil()
             return 1

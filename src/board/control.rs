@@ -120,8 +120,6 @@ pub async fn control_task(
     let mut timing = LoopTiming::new();
     let mut window_start = cycles();
     let mut errors = 0u32;
-    // The supervisor's last state, to log its transitions (with the reason: which rule cut the motors).
-    let mut supervisor_state = stab.supervisor().state;
     let mut gate = HeavyInputGate::new();
     let mut tuning_seen = 0u32;
     loop {
@@ -166,15 +164,6 @@ pub async fn control_task(
             motors.stop();
         }
         publish_fast_status(stab.status());
-        let verdict = *stab.supervisor();
-        if verdict.state != supervisor_state {
-            supervisor_state = verdict.state;
-            warn!(
-                "supervisor: {} ({})",
-                defmt::Debug2Format(&verdict.state),
-                defmt::Debug2Format(&verdict.reason)
-            );
-        }
         let step = CONTROL_STEPS.fetch_add(1, Ordering::Relaxed);
         if step.is_multiple_of(LOG_DECIMATION) {
             // The log variables at 100 Hz (the fastest period cflib asks for is 10 ms).

@@ -19,10 +19,11 @@
 //! mission may only start when every sensor it needs is present *and* has a reader running
 //! ([`super::DECKS_OK`]).
 
+use cfnav::drivers::DriverError;
 use cfnav::drivers::i2c_guard::{BusRecovery, GuardConfig, GuardedI2c};
 use cfnav::drivers::multiranger::{DeckReader, FIRST_ADDRESS, FLOW_DECK_Z_ADDRESS, MultiRanger};
 use cfnav::drivers::pca95x4;
-use cfnav::drivers::pmw3901::Pmw3901;
+use cfnav::drivers::pmw3901::{Pmw3901, ReadHealth, ReadOutcome, RecoveryAction};
 use cfnav::drivers::vl53l1x::{RangingConfig, Vl53l1x};
 use cfnav::system::config_block::{EEPROM_I2C_ADDRESS, READ_LEN, RadioSettings};
 use cfnav::types::RangeReading;
@@ -152,8 +153,35 @@ pub fn guard(bus: I2c<'static, Async, I2cMaster>, pins: I2cRecoveryPins, config:
 /// Flow read period (stock `flowdeck_v1v2.c`: 10 ms).
 pub const FLOW_PERIOD: Duration = Duration::from_millis(10);
 
+/// Deadline of one SPI bus operation of the flow deck (a write, read or transfer; the driver's own delays
+/// are not counted). A motion burst is 13 bytes, ≈ 80 µs at 1.3 MHz: 1 ms is 12× that. Stock
+/// (`spi_drv.c` `spiExchange`) waits on its DMA semaphores with no bound.
+pub const SPI_OP_TIMEOUT: Duration = Duration::from_millis(1);
+
+/// Why a flow-deck SPI transaction failed.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum FlowSpiError {
+    /// The peripheral reported an error.
+    Bus(embassy_stm32::spi::Error),
+    /// An operation did not finish within [`SPI_OP_TIMEOUT`]: its future was dropped (embassy stops both
+    /// DMA streams and waits for them on drop; the next transfer flushes DR, clearing an overrun) and chip
+    /// select raised, which also resets the PMW3901's SPI port.
+    Timeout,
+}
+
+impl embedded_hal_async::spi::Error for FlowSpiError {
+    fn kind(&self) -> embedded_hal_async::spi::ErrorKind {
+        match self {
+            FlowSpiError::Bus(e) => embedded_hal_async::spi::Error::kind(e),
+            FlowSpiError::Timeout => embedded_hal_async::spi::ErrorKind::Other,
+        }
+    }
+}
+
 /// SPI1 with one chip-select pin: the `SpiDevice` the PMW3901 driver needs (the flow deck is the only SPI
-/// device this firmware uses, so the bus is not shared).
+/// device this firmware uses, so the bus is not shared). Every bus operation has a deadline
+/// ([`SPI_OP_TIMEOUT`]): a lost byte (SPI overrun, the RX DMA stream waiting for one more byte) or a deck
+/// unplugged mid-burst must not park the flow task forever.
 pub struct SpiWithCs {
     bus: Spi<'static, Async, SpiMaster>,
     cs: Output<'static>,
@@ -167,7 +195,7 @@ impl SpiWithCs {
 }
 
 impl ErrorType for SpiWithCs {
-    type Error = embassy_stm32::spi::Error;
+    type Error = FlowSpiError;
 }
 
 impl SpiDevice for SpiWithCs {
@@ -175,15 +203,20 @@ impl SpiDevice for SpiWithCs {
         self.cs.set_low();
         let mut result = Ok(());
         for op in operations.iter_mut() {
-            result = match op {
-                Operation::Read(buf) => self.bus.read(buf).await,
-                Operation::Write(buf) => self.bus.write(buf).await,
-                Operation::Transfer(read, write) => self.bus.transfer(read, write).await,
-                Operation::TransferInPlace(buf) => self.bus.transfer_in_place(buf).await,
+            let outcome = match op {
+                Operation::Read(buf) => with_timeout(SPI_OP_TIMEOUT, self.bus.read(buf)).await,
+                Operation::Write(buf) => with_timeout(SPI_OP_TIMEOUT, self.bus.write(buf)).await,
+                Operation::Transfer(read, write) => with_timeout(SPI_OP_TIMEOUT, self.bus.transfer(read, write)).await,
+                Operation::TransferInPlace(buf) => with_timeout(SPI_OP_TIMEOUT, self.bus.transfer_in_place(buf)).await,
                 Operation::DelayNs(ns) => {
                     Timer::after_nanos(u64::from(*ns)).await;
-                    Ok(())
+                    Ok(Ok(()))
                 }
+            };
+            result = match outcome {
+                Ok(Ok(())) => Ok(()),
+                Ok(Err(e)) => Err(FlowSpiError::Bus(e)),
+                Err(_) => Err(FlowSpiError::Timeout),
             };
             if result.is_err() {
                 break;
@@ -391,23 +424,45 @@ pub async fn init_flow(spi: SpiWithCs) -> Option<FlowSensor> {
     }
 }
 
-/// 100 Hz optical flow → the control task.
+/// 100 Hz optical flow → the control task. A failed read (bus error or [`SPI_OP_TIMEOUT`]) is dropped and
+/// counted; repeated failures re-synchronise the chip ([`ReadHealth`], `drivers::pmw3901`). Logged on
+/// power-of-two counts: "flow read failed", "flow read timed out", "flow sensor re-synced".
 #[embassy_executor::task]
 pub async fn flow_task(mut flow: FlowSensor) {
     let mut ticker = Ticker::every(FLOW_PERIOD);
-    let mut errors = 0u32;
+    let mut health = ReadHealth::new();
     loop {
         ticker.next().await;
-        match flow.read(now_us(), &mut Delay).await {
+        let outcome = match flow.read(now_us(), &mut Delay).await {
             // Dropped if the control task is behind: the next reading carries the accumulated motion.
             Ok(sample) => {
                 let _ = FAST_INPUTS.try_send(FastInput::Flow(sample));
+                ReadOutcome::Read
+            }
+            Err(DriverError::Bus(FlowSpiError::Timeout)) => {
+                let n = health.stats().timeouts.saturating_add(1);
+                if n.is_power_of_two() {
+                    warn!("flow read timed out ({} so far): burst dropped", n);
+                }
+                ReadOutcome::Timeout
             }
             Err(e) => {
-                errors = errors.saturating_add(1);
-                if errors.is_power_of_two() {
-                    warn!("flow read failed ({} so far): {}", errors, defmt::Debug2Format(&e));
+                let n = health.stats().bus_errors.saturating_add(1);
+                if n.is_power_of_two() {
+                    warn!("flow read failed ({} so far): {}", n, defmt::Debug2Format(&e));
                 }
+                ReadOutcome::BusError
+            }
+        };
+        if health.record(outcome) == RecoveryAction::Resync {
+            let ok = flow.init(&mut Delay).await.is_ok();
+            health.record_resync(ok);
+            let stats = health.stats();
+            if !ok || stats.resyncs.is_power_of_two() {
+                warn!(
+                    "flow sensor re-synced ({} so far, {} failed; {} timeouts, {} bus errors)",
+                    stats.resyncs, stats.failed_resyncs, stats.timeouts, stats.bus_errors
+                );
             }
         }
     }

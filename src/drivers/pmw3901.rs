@@ -419,3 +419,106 @@ impl<S: SpiDevice> Pmw3901<S> {
         Ok(burst.to_sample(dt_s))
     }
 }
+
+/// How one flow read ended, as the board saw it (the input of [`ReadHealth::record`]).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum ReadOutcome {
+    /// A burst was read (valid or not: the chip answered).
+    Read,
+    /// The bus reported an error.
+    BusError,
+    /// The transfer did not finish within the board's deadline and was abandoned (its DMA stopped, chip
+    /// select raised): a byte lost on the bus, a deck unplugged mid-burst.
+    Timeout,
+}
+
+/// What the board should do after a read ([`ReadHealth::record`]).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum RecoveryAction {
+    /// Nothing: read again at the next period (a failed read's burst is dropped; the next burst carries the
+    /// motion it accumulated, and [`Pmw3901::read`] keeps the previous timestamp so its `dt_s` spans it).
+    None,
+    /// Re-synchronise the chip with its own power-up sequence ([`Pmw3901::init`]: the CS pulse that resets
+    /// its SPI port, the identity check, Power_Up_Reset and the vendor table), then read again.
+    Resync,
+}
+
+/// Counters of [`ReadHealth`] (for the board's log lines).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct ReadStats {
+    /// Reads abandoned at the deadline.
+    pub timeouts: u32,
+    /// Reads that ended in a bus error.
+    pub bus_errors: u32,
+    /// Re-synchronisations started.
+    pub resyncs: u32,
+    /// Re-synchronisations that failed (the chip did not answer its identity or the bus failed again).
+    pub failed_resyncs: u32,
+}
+
+/// The flow read's recovery policy, sans-IO: counts the failures and asks for a re-synchronisation of the
+/// chip when [`RESYNC_AFTER_FAILURES`] reads in a row failed. One failed read is only dropped (a glitch);
+/// a repeated one means the chip's SPI port may be out of step (the datasheet's power-up step 2 resets
+/// it: CS high, low, high). After a re-synchronisation the count starts again, so a deck that stays
+/// absent is retried every [`RESYNC_AFTER_FAILURES`] periods (20 ms at 100 Hz, ≈ 60 ms of bus time each,
+/// on the flow task only). Memory: 17 bytes.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct ReadHealth {
+    failures_in_a_row: u8,
+    stats: ReadStats,
+}
+
+/// Failed reads in a row that trigger [`RecoveryAction::Resync`].
+pub const RESYNC_AFTER_FAILURES: u8 = 2;
+
+impl ReadHealth {
+    /// No failures yet.
+    pub const fn new() -> Self {
+        Self {
+            failures_in_a_row: 0,
+            stats: ReadStats {
+                timeouts: 0,
+                bus_errors: 0,
+                resyncs: 0,
+                failed_resyncs: 0,
+            },
+        }
+    }
+
+    /// Records how a read ended; returns what to do next.
+    pub fn record(&mut self, outcome: ReadOutcome) -> RecoveryAction {
+        match outcome {
+            ReadOutcome::Read => {
+                self.failures_in_a_row = 0;
+                return RecoveryAction::None;
+            }
+            ReadOutcome::BusError => self.stats.bus_errors = self.stats.bus_errors.saturating_add(1),
+            ReadOutcome::Timeout => self.stats.timeouts = self.stats.timeouts.saturating_add(1),
+        }
+        self.failures_in_a_row = self.failures_in_a_row.saturating_add(1);
+        if self.failures_in_a_row >= RESYNC_AFTER_FAILURES {
+            self.failures_in_a_row = 0;
+            self.stats.resyncs = self.stats.resyncs.saturating_add(1);
+            RecoveryAction::Resync
+        } else {
+            RecoveryAction::None
+        }
+    }
+
+    /// Records the end of a re-synchronisation the last [`ReadHealth::record`] asked for.
+    pub fn record_resync(&mut self, ok: bool) {
+        if !ok {
+            self.stats.failed_resyncs = self.stats.failed_resyncs.saturating_add(1);
+        }
+    }
+
+    /// The counters.
+    pub fn stats(&self) -> ReadStats {
+        self.stats
+    }
+
+    /// Failures since the last successful read or re-synchronisation.
+    pub fn failures_in_a_row(&self) -> u8 {
+        self.failures_in_a_row
+    }
+}

@@ -547,3 +547,63 @@ fn driver_state_beyond_the_spi_device_is_the_previous_timestamp() {
     // Module doc: 16 bytes (Option<u64> microseconds).
     assert_eq!(size_of::<Pmw3901<()>>(), 16);
 }
+
+// The flow read's recovery policy (`ReadHealth`): the board drops a failed read (a timed-out transfer
+// after a lost SPI byte, a bus error), and re-synchronises the chip only when failures repeat. Oracle:
+// the rule as specified (drop one, resync after RESYNC_AFTER_FAILURES in a row, count everything).
+
+use cfnav::drivers::pmw3901::{RESYNC_AFTER_FAILURES, ReadHealth, ReadOutcome, RecoveryAction};
+
+#[test]
+fn a_single_timeout_is_dropped_without_resync() {
+    let mut health = ReadHealth::new();
+    assert_eq!(health.record(ReadOutcome::Read), RecoveryAction::None);
+    assert_eq!(health.record(ReadOutcome::Timeout), RecoveryAction::None);
+    assert_eq!(health.record(ReadOutcome::Read), RecoveryAction::None);
+    assert_eq!(health.record(ReadOutcome::Timeout), RecoveryAction::None);
+    let stats = health.stats();
+    assert_eq!((stats.timeouts, stats.bus_errors, stats.resyncs), (2, 0, 0));
+}
+
+#[test]
+fn repeated_timeouts_resync_the_chip_and_the_count_restarts() {
+    assert_eq!(RESYNC_AFTER_FAILURES, 2);
+    let mut health = ReadHealth::new();
+    assert_eq!(health.record(ReadOutcome::Timeout), RecoveryAction::None);
+    assert_eq!(health.record(ReadOutcome::Timeout), RecoveryAction::Resync);
+    assert_eq!(health.failures_in_a_row(), 0);
+    health.record_resync(true);
+    // The next failure after a resync is a new glitch, not a repeat.
+    assert_eq!(health.record(ReadOutcome::Timeout), RecoveryAction::None);
+    let stats = health.stats();
+    assert_eq!((stats.timeouts, stats.resyncs, stats.failed_resyncs), (3, 1, 0));
+}
+
+#[test]
+fn bus_errors_and_timeouts_count_together_towards_a_resync() {
+    let mut health = ReadHealth::new();
+    assert_eq!(health.record(ReadOutcome::BusError), RecoveryAction::None);
+    assert_eq!(health.record(ReadOutcome::Timeout), RecoveryAction::Resync);
+    let stats = health.stats();
+    assert_eq!((stats.timeouts, stats.bus_errors, stats.resyncs), (1, 1, 1));
+}
+
+#[test]
+fn an_unplugged_deck_is_retried_every_few_periods_and_never_saturates_into_a_panic() {
+    let mut health = ReadHealth::new();
+    let mut resyncs = 0u32;
+    for _ in 0..1_000 {
+        if health.record(ReadOutcome::Timeout) == RecoveryAction::Resync {
+            resyncs += 1;
+            health.record_resync(false);
+        }
+    }
+    assert_eq!(resyncs, 1_000 / u32::from(RESYNC_AFTER_FAILURES));
+    let stats = health.stats();
+    assert_eq!(stats.resyncs, resyncs);
+    assert_eq!(stats.failed_resyncs, resyncs);
+    assert_eq!(stats.timeouts, 1_000);
+    // Plugged back in: the first good read clears the streak.
+    assert_eq!(health.record(ReadOutcome::Read), RecoveryAction::None);
+    assert_eq!(health.failures_in_a_row(), 0);
+}

@@ -127,6 +127,8 @@ def main():
                     help='wall seconds to wait after RADIO_READY before the first request (0: at once)')
     ap.add_argument('--probe', action='store_true', help='pass --probe to cfnav-pil (registers at a panic)')
     ap.add_argument('--json', default=None)
+    ap.add_argument('--pil-arg', action='append', default=[],
+                    help='one more argument for cfnav-pil (repeat), e.g. --pil-arg=--no-flow')
     ap.add_argument('--reduced', action='store_true',
                     help="CI's reduced check: cflib's own UdpDriver (unmodified) asks the link source, the "
                          "protocol version and both TOCs' sizes, then reads and writes one parameter by id")
@@ -138,6 +140,7 @@ def main():
            '--serve-seconds', str(args.virtual_seconds), '--no-stop', '--until-stdin-eof']
     if args.probe:
         cmd += ['--probe']
+    cmd += args.pil_arg
     if args.json:
         cmd += ['--json', args.json]
     say('starting ' + ' '.join(cmd))

@@ -11,6 +11,8 @@ use cfnav::flight::estimator::{Estimator, EstimatorConfig};
 use cfnav::math::wrap_angle;
 use cfnav::stack::{FlightConfig, FlightCore};
 use cfnav::types::ImuSample;
+
+use crate::map_fix::airborne_estimator;
 use cfnav_tools::sim::physics::Quadrotor;
 use cfnav_tools::sim::runner::{Faults, SimDrone, mission_params};
 use cfnav_tools::sim::world::World;
@@ -128,22 +130,6 @@ fn wall_fixes_hold_the_heading_against_a_gyro_drift() {
     );
 }
 
-/// An estimator with `cfg`, calibrated at rest at (1, 1), yaw 0, then flying.
-fn airborne(cfg: EstimatorConfig) -> Estimator {
-    let mut est = Estimator::new(cfg);
-    est.reset([1.0, 1.0, 0.0], 0.0);
-    let still = ImuSample {
-        gyro_rad_s: [0.0; 3],
-        accel_m_s2: [0.0, 0.0, cfnav::types::GRAVITY_M_S2],
-    };
-    for _ in 0..1200 {
-        est.on_imu(&still, 0.001);
-    }
-    est.set_flying(true);
-    est.on_imu(&still, 0.001);
-    est
-}
-
 /// The fixes of two beams 90° apart on the wall x = 2 (the front at −45° and the left at +45° off its
 /// normal), cast as the firmware does from the estimate `est` (position and yaw) while the true heading is
 /// `true_yaw` and the true position (1, 1): exact ranges, numbers computed with the estimated heading.
@@ -180,7 +166,7 @@ fn two_beams_on_one_wall_turn_the_heading() {
         accel_m_s2: [0.0, 0.0, cfnav::types::GRAVITY_M_S2],
     };
     let hover = |cfg: EstimatorConfig, delta: f32| {
-        let mut est = airborne(cfg);
+        let mut est = airborne_estimator(cfg);
         for _ in 0..30 {
             let fixes = two_beam_fixes(&est, delta);
             est.on_map_fixes(&fixes);
@@ -253,7 +239,7 @@ fn x_fix(innovation_m: f32) -> MapFixes {
 #[test]
 fn a_jump_needs_a_second_sweep() {
     let x0 = |e: &Estimator| e.state().position_m[0];
-    let mut est = airborne(EstimatorConfig::default());
+    let mut est = airborne_estimator(EstimatorConfig::default());
     let start = x0(&est);
     est.on_map_fixes(&x_fix(0.10));
     assert_eq!(est.diagnostics().map_jumps_held, 1);
@@ -267,11 +253,11 @@ fn a_jump_needs_a_second_sweep() {
     assert_eq!(est.diagnostics().map_fused, 1);
     assert!(x0(&est) > start + 0.03, "moved to {} from {start}", x0(&est));
     // Small innovations need no confirmation.
-    let mut small = airborne(EstimatorConfig::default());
+    let mut small = airborne_estimator(EstimatorConfig::default());
     small.on_map_fixes(&x_fix(0.03));
     assert_eq!(small.diagnostics().map_fused, 1);
     // Without the rule the single jump is fused at once.
-    let mut off = airborne(EstimatorConfig {
+    let mut off = airborne_estimator(EstimatorConfig {
         map_fix_jump_m: 10.0,
         ..EstimatorConfig::default()
     });

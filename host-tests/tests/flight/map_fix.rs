@@ -453,8 +453,8 @@ fn the_estimator_gates_fixes() {
     assert_eq!(off.diagnostics().map_fused + off.diagnostics().map_rejected, 0);
 }
 
-/// An estimator calibrated on the ground and then told it flies.
-fn airborne_estimator(cfg: EstimatorConfig) -> Estimator {
+/// An estimator calibrated at rest at (1, 1), yaw 0, then told it flies (also the heading tests').
+pub(crate) fn airborne_estimator(cfg: EstimatorConfig) -> Estimator {
     use cfnav::types::ImuSample;
     let mut est = Estimator::new(cfg);
     est.reset([1.0, 1.0, 0.0], 0.0);

@@ -21,6 +21,7 @@
 mod apb8;
 mod board;
 mod client;
+mod core_check;
 mod deck;
 mod devices;
 mod dreq;

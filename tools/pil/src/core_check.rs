@@ -1,0 +1,105 @@
+//! Checks of the emulated Cortex-M4 against the architecture, where the cfnav image depends on a detail the
+//! emulator once got wrong.
+//!
+//! Job: run a few hand-assembled Thumb instructions on the same machine `cfnav-pil` builds ([`Board`]), with
+//! SysTick interrupting them every few cycles, and read the registers back. The one detail today: exception
+//! entry must stack ITSTATE with xPSR and the return must restore it (ARMv7-M ARM, DDI 0403E, B1.5.6
+//! PushStack and B1.5.8 ExceptionReturn), so an interrupt inside an `IT` block leaves the rest of the block
+//! conditional. rsemu 0.0.7 stacked xPSR with the IT bits cleared; `patches/` fixes it, and
+//! `an_interrupt_inside_an_it_block_keeps_its_condition` fails without the patch (docs/pil.md).
+//! Non-goals: an instruction-set test suite (rsemu has its own corpus). Units: addresses as the core sees them.
+
+#[cfg(test)]
+mod tests {
+    use rsemu::host::gdb::target::{DebugTarget, MachineTarget};
+
+    use crate::board::Board;
+    use crate::deck::Fitted;
+    use crate::devices::Faults;
+
+    /// Flash offset of the program (above the vector table) and the initial stack pointer.
+    const CODE: usize = 0x100;
+    const STACK_TOP: u32 = 0x2000_1000;
+    /// SysTick's first reload (SYST_RVR); the handler then varies it between 100 and 107 so that the
+    /// interrupts do not fall into step with the loop.
+    const FIRST_RELOAD: u8 = 100;
+
+    /// The flash image: vectors (reset, SysTick, the rest parked on a `b .`), then the program.
+    fn image() -> Vec<u8> {
+        // Thumb-16 encodings (DDI 0403E A7.7), at CODE:
+        let code: [u16; 24] = [
+            0x480A,                         // 0x100 ldr r0, [pc, #40]   ; =SYST_CSR at 0x12c
+            0x2100 | (FIRST_RELOAD as u16), // 0x102 movs r1, #reload
+            0x6041,                         // 0x104 str r1, [r0, #4]    ; SYST_RVR
+            0x2100,                         // 0x106 movs r1, #0
+            0x6081,                         // 0x108 str r1, [r0, #8]    ; SYST_CVR
+            0x2400,                         // 0x10a movs r4, #0         ; wrongly executed adds
+            0x2500,                         // 0x10c movs r5, #0         ; loop passes
+            0x2600,                         // 0x10e movs r6, #0         ; SysTick handler entries
+            0x2107,                         // 0x110 movs r1, #7         ; ENABLE | TICKINT | CLKSOURCE
+            0x6001,                         // 0x112 str r1, [r0, #0]    ; SYST_CSR
+            0x42AD,                         // 0x114 loop: cmp r5, r5    ; Z = 1, so NE fails
+            0xBF18,                         // 0x116 it ne
+            0x3401,                         // 0x118 addne r4, #1        ; must never execute
+            0x3501,                         // 0x11a adds r5, #1
+            0xE7FA,                         // 0x11c b loop
+            0x3601,                         // 0x11e systick: adds r6, #1 ; flags come back from the frame
+            0x2207,                         // 0x120 movs r2, #7
+            0x4032,                         // 0x122 ands r2, r6
+            0x3264,                         // 0x124 adds r2, #100       ; next period 101..108 cycles, so the
+            0x6042,                         // 0x126 str r2, [r0, #4]    ; interrupts land all over the loop
+            0x4770,                         // 0x128 bx lr
+            0xE7FE,                         // 0x12a parked: b .
+            0xE010,                         // 0x12c .word 0xE000E010 (SYST_CSR), low half
+            0xE000,                         //       high half
+        ];
+        let mut flash = vec![0xFF; 0x1000];
+        let mut word = |at: usize, value: u32| flash[at..at + 4].copy_from_slice(&value.to_le_bytes());
+        word(0, STACK_TOP);
+        for vector in 1..16 {
+            word(vector * 4, 0x0800_012B); // parked (Thumb bit set)
+        }
+        word(4, 0x0800_0101); // reset
+        word(15 * 4, 0x0800_011F); // SysTick
+        for (k, half) in code.iter().enumerate() {
+            flash[CODE + 2 * k..CODE + 2 * k + 2].copy_from_slice(&half.to_le_bytes());
+        }
+        flash
+    }
+
+    fn register(board: &mut Board, n: usize) -> u32 {
+        let target = MachineTarget::new(&mut board.machine);
+        let bytes = target.read_register(0, n).expect("the core's registers read");
+        u32::from_le_bytes(bytes[..4].try_into().expect("four bytes"))
+    }
+
+    #[test]
+    fn an_interrupt_inside_an_it_block_keeps_its_condition() {
+        let fitted = Fitted {
+            multiranger: false,
+            flow: false,
+        };
+        let mut board = Board::new(image(), Faults::default(), fitted).expect("the machine builds");
+        // 2 ms at the machine's core clock (168 MHz): about 3 000 interrupts.
+        board.run_ns(2_000_000).expect("the program runs");
+        let (wrong, passes, interrupts, pc) = (
+            register(&mut board, 4),
+            register(&mut board, 5),
+            register(&mut board, 6),
+            register(&mut board, 15),
+        );
+        assert!(
+            (0x0800_0114..0x0800_012A).contains(&pc),
+            "the core left the program: pc {pc:#x}"
+        );
+        assert!(
+            interrupts > 300 && passes > 1000,
+            "SysTick {interrupts} times, {passes} loop passes"
+        );
+        assert_eq!(
+            wrong, 0,
+            "`addne` ran {wrong} times with Z set ({interrupts} interrupts, {passes} passes): ITSTATE was lost on \
+             an exception"
+        );
+    }
+}

@@ -42,6 +42,11 @@
 //! silent during a mission for `mission.linkTimeout` s of simulated time triggers the policy (a line on
 //! stderr says when).
 //!
+//! Truth (for end-to-end checks, tools/e2e/cflib_modes.py): every mission state change, every change of the
+//! supervisor's is-flying verdict (`flying`/`landed`) and the link-loss timeout print one stderr line with the
+//! estimate and the simulated body's true position (arena frame, z of its underside above the floor, m).
+//! Nothing of it goes over the radio: a client sees what it would see from a real drone.
+//!
 //! Memory (port 4): memory 0 is the drone's map (`cfnav::radio::map_mem`), each read answered at once from
 //! the live map; with `--map-json FILE`, every read of its CRC field (a download starting) and the end of a
 //! mission also write the simulator's own map of that moment to FILE (`crate::map::decode::SimMapDump`).
@@ -146,6 +151,23 @@ fn command_name(command: &Command) -> &'static str {
 /// Simulated seconds since power-on.
 fn seconds(drone: &SimDrone) -> f64 {
     drone.tick() as f64 * 1e-3
+}
+
+/// `estimate (x, y, z) truth (x, y, z)` for the stderr lines end-to-end checks read (module docs, Truth):
+/// the flight core's estimate and the simulated body's true position, both arena frame, z above the floor, m.
+fn estimate_and_truth(drone: &SimDrone) -> String {
+    let e = drone.core.estimate().position_m;
+    let p = drone.quad.position();
+    let bottom = drone.quad.params().bottom_offset_m;
+    format!(
+        "estimate ({:.3}, {:.3}, {:.3}) truth ({:.3}, {:.3}, {:.3})",
+        e[0],
+        e[1],
+        e[2],
+        p[0],
+        p[1],
+        p[2] - bottom
+    )
 }
 
 /// The radio side: the CRTP services and the client's address.
@@ -595,6 +617,7 @@ pub fn serve(
     let mut buf = [0u8; 64];
     let wall = Instant::now();
     let mut link_fired = None;
+    let mut last_flying = drone.core.supervisor().flying;
     loop {
         // The network: every datagram waiting.
         loop {
@@ -644,21 +667,25 @@ pub fn serve(
             if fired != link_fired && fired.is_some() {
                 let policy = drone.core.navigator().link_watch().config().policy;
                 eprintln!(
-                    "{:8.3} s  link lost: no packet for mission.linkTimeout, policy {policy:?}",
-                    seconds(&drone)
+                    "{:8.3} s  link lost: no packet for mission.linkTimeout, policy {policy:?}  {}",
+                    seconds(&drone),
+                    estimate_and_truth(&drone)
                 );
             }
             link_fired = fired;
             let state = drone.core.mission_state();
+            let flying = drone.core.supervisor().flying;
+            if flying != last_flying {
+                let what = if flying { "flying" } else { "landed" };
+                eprintln!("{:8.3} s  {what}  {}", seconds(&drone), estimate_and_truth(&drone));
+                last_flying = flying;
+            }
             if state != last_state {
-                let e = drone.core.estimate().position_m;
                 eprintln!(
-                    "{:8.3} s  state {:3} {state:?}  estimate ({:.2}, {:.2}, {:.2})",
+                    "{:8.3} s  state {:3} {state:?}  {}",
                     seconds(&drone),
                     state.code(),
-                    e[0],
-                    e[1],
-                    e[2]
+                    estimate_and_truth(&drone)
                 );
                 if state.is_final() {
                     let crc = MapView::of_mission(drone.core.mission()).crc32();

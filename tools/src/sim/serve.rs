@@ -15,8 +15,9 @@
 //!
 //! Commander (ports 3 and 7): each accepted setpoint packet is mapped by [`SetpointFollower`] and handed to
 //! `FlightCore::commander_setpoint` with its arrival time, once (so the supervisor's 500 ms / 2 s setpoint
-//! watchdog sees the real packet age), and only while no mission runs. Packets cfnav cannot fly (RPYT or
-//! manual with thrust, tilted z-distance, full state) or that are refused get a rate-limited console note.
+//! watchdog sees the real packet age), and only while no mission runs. Packets cfnav cannot fly (manual
+//! roll/pitch rates, tilted z-distance, full state) or that are refused get a rate-limited console note;
+//! RPYT (cflib `send_setpoint`) flies as an attitude/thrust setpoint.
 //!
 //! High-level commander (port 8): each accepted command goes to `FlightCore::high_level_command` with its
 //! arrival time; the flight core flies the trajectory and keeps its setpoint fresh. A command refused (by
@@ -140,7 +141,7 @@ fn supervisor_status(drone: &SimDrone) -> SupervisorStatus {
 fn command_name(command: &Command) -> &'static str {
     match command {
         Command::Stop => "stop",
-        Command::Attitude { .. } => "attitude/thrust (RPYT or manual)",
+        Command::Attitude { .. } => "manual roll/pitch-rate",
         Command::VelocityWorld { .. } => "velocity",
         Command::ZDistance { .. } => "z-distance",
         Command::Hover { .. } => "hover",
@@ -411,7 +412,7 @@ impl Radio {
             Some(setpoint) => drone.core.commander_setpoint(setpoint, received_us),
             None => {
                 let note = format!(
-                    "commander: {} setpoint not flown (cfnav flies stop, position, velocity, hover, level z-distance)",
+                    "commander: {} setpoint not flown (cfnav flies stop, attitude/thrust, position, velocity, hover, level z-distance)",
                     command_name(&command)
                 );
                 self.commander_note(drone, &note);
@@ -926,11 +927,15 @@ mod tests {
         assert_eq!(b.drone.core.mission_state(), MissionState::LinkLost);
     }
 
+    /// cflib `send_setpoint` as stock flies it: thrust 0 unlocks, a thrust above the hover command climbs
+    /// (before: not flown, one console line); a manual packet in roll/pitch-rate mode is not flown and says so.
     #[test]
-    fn rpyt_with_thrust_is_not_flown_and_says_so() {
+    fn rpyt_with_thrust_flies_and_a_rate_mode_manual_packet_says_why_not() {
         let mut b = Bench::new();
-        b.step_ms(100);
-        // cflib send_setpoint(0, 0, 0, 0) then (0, 0, 0, 40000): port 3, `<fffH`.
+        b.step_ms(1500); // estimator settles on the ground
+        let bottom = b.drone.quad.params().bottom_offset_m;
+        let z0 = b.drone.quad.position()[2] - bottom;
+        // cflib send_setpoint(roll, pitch, yawrate, thrust): port 3, `<fffH`.
         let rpyt = |thrust: u16| {
             let mut d = Vec::new();
             for v in [0.0f32, 0.0, 0.0] {
@@ -941,16 +946,35 @@ mod tests {
         };
         b.uplink(3, 0, &rpyt(0));
         assert_eq!(b.drone.core.setpoint(), Setpoint::Stop, "thrust 0 is a stop");
-        b.uplink(3, 0, &rpyt(40000));
-        assert_eq!(b.drone.core.setpoint(), Setpoint::Stop);
+        for _ in 0..75 {
+            b.uplink(3, 0, &rpyt(50000));
+            b.step_ms(20);
+        }
+        assert!(
+            matches!(b.drone.core.setpoint(), Setpoint::Attitude { thrust: 50000, .. }),
+            "{:?}",
+            b.drone.core.setpoint()
+        );
+        assert!(b.drone.core.supervisor().flying);
+        let climbed = b.drone.quad.position()[2] - bottom - z0;
+        assert!(climbed > 0.2, "climbed {climbed} m in 1.5 s");
+        b.uplink(3, 0, &rpyt(0));
+        assert_eq!(b.drone.core.setpoint(), Setpoint::Stop, "thrust 0 stops again");
+        b.step_ms(2500);
+        // cflib send_setpoint_manual(roll_rate, pitch_rate, yaw_rate, thrust_percentage, rate=True): port 7 ch 0,
+        // type 11, `<BfffHB` with the rate flag 1.
+        let mut manual = vec![11u8];
+        for v in [0.0f32, 0.0, 0.0] {
+            manual.extend_from_slice(&v.to_le_bytes());
+        }
+        manual.extend_from_slice(&30000u16.to_le_bytes());
+        manual.push(1);
+        b.uplink(7, 0, &manual);
         let mut text = String::new();
         while !text.ends_with('\n') {
             let p = b.received(0);
             text.push_str(std::str::from_utf8(&p[1..]).unwrap());
         }
-        assert!(text.contains("not flown"), "{text}");
-        b.step_ms(100);
-        assert_eq!(b.drone.core.duty(), cfnav::types::MotorDuty::default(), "motors off");
-        assert!(!b.drone.core.supervisor().flying);
+        assert!(text.contains("manual roll/pitch-rate setpoint not flown"), "{text}");
     }
 }

@@ -6,11 +6,11 @@ tools/e2e/sim_truth.py; never sent over the radio).
 Checks, each printed; exit 1 at the end if any failed:
 1. A malformed commander packet (port 3, 5 bytes instead of `<fffH`'s 14, sent with `Crazyflie.send_packet`)
    gets one console line.
-2. `send_setpoint(0, 0, 0, 0)` (stock: unlocks the thrust lock), then `send_setpoint(0, 0, 0, 45000)` for
-   2 s: cfnav does not fly roll/pitch/yaw-rate/thrust (README, "Flying it by hand"): one console line says
-   so, and nothing flies (the logged stateEstimate.z stays on the ground, the truth never takes off).
-3. `send_hover_setpoint` to 0.5 m, then 0.5 m along +x off the 10 cm home pad, at 10 Hz: the logged
-   stateEstimate.z rises to 0.5 m.
+2. A manual packet in roll/pitch-rate mode (`send_setpoint_manual(..., rate=True)`), which cfnav does not
+   fly, gets one console line.
+3. `send_setpoint(0, 0, 0, 0)` (stock: unlocks the thrust lock), then `send_setpoint(0, 0, 0, 48000)` at
+   10 Hz for 1 s: it flies (the truth's `flying` line) and the logged stateEstimate.z rises by > 15 cm. Then
+   `send_hover_setpoint` takes over: 0.5 m, then 0.5 m along +x off the 10 cm home pad, at 10 Hz.
 4. `send_stop_setpoint()` once, in the air, then no more setpoints (the link stays up): the drone falls and
    lands on the floor (the truth's `landed` line: z 0), and over the 3 s after touchdown every logged
    stateEstimate.z is within ±10 cm of that truth with a peak-to-peak swing under 8 cm (the issue saw 4.4 m; the impact's settling measured 0.1–4.7 cm); from the stop on, the
@@ -109,32 +109,36 @@ def main():
                   (len(lines) == 1 and "commander packet refused" in lines[0]) != wrong, repr(lines))
             time.sleep(2.2)  # console notes about the commander are at most one per 2 s
 
-            # 2. Roll/pitch/yaw-rate/thrust, stock semantics: thrust 0 first, then a hover-ish thrust.
+            # 2. A refused commander packet: manual roll/pitch rates (cflib send_setpoint_manual(rate=True)).
             mark = len(console_text())
-            ts_rpyt = last()[0]
-            cf.commander.send_setpoint(0, 0, 0, 0)
-            time.sleep(0.1)
-            for _ in range(20):
-                cf.commander.send_setpoint(0, 0, 0, 45000)
-                time.sleep(0.1)
+            cf.commander.send_setpoint_manual(0, 0, 0, 30, True)
             lines = wait_console(mark, "\n")
-            check("send_setpoint with thrust: one console line",
+            check("manual rate packet: one console line",
                   (len(lines) == 1 and "not flown" in lines[0]) != wrong, repr(lines))
-            zs = [z for _, z in z_since(ts_rpyt)]
-            took_off = sim.wait_event("flying", timeout_s=0.5)
-            check("send_setpoint with thrust: nothing flies",
-                  (max(zs) < z_ground + 0.05 and took_off is None) != wrong,
-                  f"logged z up to {max(zs):.3f} m (on the ground {z_ground:.3f} m), truth take-off: {took_off}")
             cf.commander.send_stop_setpoint()
             time.sleep(0.3)
 
-            # 3. Hover setpoints: up to 0.5 m, then off the pad to fall onto the floor.
+            # 3. Roll/pitch/yaw-rate/thrust, stock semantics: thrust 0 first (unlock), then above the hover
+            # thrust for 1 s: it climbs. Hover setpoints then take over (as a cflib script may switch), climb
+            # to 0.5 m and move 0.5 m along +x, off the 10 cm home pad, so the stop below falls to the floor.
+            ts_rpyt = last()[0]
+            cf.commander.send_setpoint(0, 0, 0, 0)
+            time.sleep(0.1)
+            for _ in range(10):
+                cf.commander.send_setpoint(0, 0, 0, 48000)
+                time.sleep(0.1)
+            zs = [z for _, z in z_since(ts_rpyt)]
+            took_off = sim.wait_event("flying", timeout_s=0.5)
+            climb = 0.0 if wrong else 0.15
+            check("send_setpoint with thrust 48000: flies, the logged z rises",
+                  max(zs) > z_ground + climb and (took_off is not None) != wrong,
+                  f"logged z up to {max(zs):.3f} m (on the ground {z_ground:.3f} m), truth: {took_off}")
             for i in range(55):
                 vx = 0.25 if 20 <= i < 40 else 0.0
                 cf.commander.send_hover_setpoint(vx, 0, 0, 0.5)
                 time.sleep(0.1)
             ts_air, air = last()
-            check("hover setpoints: the logged z rises", abs(air["stateEstimate.z"] - 0.5) < 0.1,
+            check("hover setpoints: at 0.5 m", abs(air["stateEstimate.z"] - 0.5) < 0.1,
                   f"z {air['stateEstimate.z']:.3f} m, x {air['stateEstimate.x'] - x0:+.2f} m from the start")
 
             # 4. One stop setpoint in the air, then nothing on the commander.

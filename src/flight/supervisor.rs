@@ -452,9 +452,7 @@ impl Supervisor {
                     Some((z_m.max(self.cfg.min_height_m), yaw_rad))
                 }
                 // Attitude and thrust has no height: levelling out holds the height and heading it had.
-                Setpoint::Attitude { .. } => {
-                    Some((input.estimate.position_m[2], input.estimate.attitude_rad[2]))
-                }
+                Setpoint::Attitude { .. } => Some((input.estimate.position_m[2], input.estimate.attitude_rad[2])),
                 _ => None,
             };
         }

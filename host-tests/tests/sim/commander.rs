@@ -248,7 +248,12 @@ fn rpyt_setpoints_fly_attitude_and_thrust() {
         assert!(v1[0] - v0[0] > 0.2, "seed {seed}: nose down: vx {} → {}", v0[0], v1[0]);
         fly(&mut drone, att(8.0, 0.0, 0.0, 46000), 3.1, 3.7);
         let v2 = drone.quad.velocity();
-        assert!(v2[1] - v1[1] < -0.2, "seed {seed}: right side down: vy {} → {}", v1[1], v2[1]);
+        assert!(
+            v2[1] - v1[1] < -0.2,
+            "seed {seed}: right side down: vy {} → {}",
+            v1[1],
+            v2[1]
+        );
         let yaw0 = drone.quad.attitude_rad()[2];
         fly(&mut drone, att(0.0, 0.0, 45.0, 46000), 3.7, 4.7);
         let turned = cfnav::math::wrap_angle(drone.quad.attitude_rad()[2] - yaw0).to_degrees();

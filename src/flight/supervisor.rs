@@ -41,7 +41,7 @@
 //! # Rules
 //! - **Setpoint watchdog** (Flying only): age > 500 ms → `level_out` (report;
 //!   [`Supervisor::guard_setpoint`] turns it into "zero velocity at the last height", for an Attitude
-//!   setpoint the estimated height and heading while it was fresh); > 2000 ms →
+//!   setpoint, which has none, the estimated height and heading when it went stale); > 2000 ms →
 //!   Locked, unless the setpoint in force is Stop (the motors-off rule makes that a landing). No setpoint ever = infinitely old.
 //! - **Tumble** (stock `isTumbledCheck`): acc.z < 0.5 g continuously for > 1 s, or acc.z < −0.2 g
 //!   continuously for > 100 ms (two separate timers; stock shares one timer, which can fire the upside-down
@@ -451,8 +451,6 @@ impl Supervisor {
                 Setpoint::Position { z_m, yaw_rad, .. } | Setpoint::Velocity { z_m, yaw_rad, .. } => {
                     Some((z_m.max(self.cfg.min_height_m), yaw_rad))
                 }
-                // Attitude and thrust has no height: levelling out holds the height and heading it had.
-                Setpoint::Attitude { .. } => Some((input.estimate.position_m[2], input.estimate.attitude_rad[2])),
                 _ => None,
             };
         }

@@ -17,7 +17,8 @@ Checks, each printed; exit 1 at the end if any failed:
    logged z never leaves [-0.2, 0.6] m (the old swing was ±2.2 m).
 
 Usage: cflib_setpoint.py --sim PATH/TO/cfnav [--port 19857] [--out DIR] [--expect-wrong]
-(`--expect-wrong` inverts every expectation: each check must then fail.)
+(`--expect-wrong` inverts every expectation: each check must then fail; `E2E_TRACE=1` prints the logged z
+from the stop on.)
 """
 
 import argparse

@@ -136,6 +136,19 @@ pub enum Setpoint {
         /// Target heading, rad.
         yaw_rad: f32,
     },
+    /// Fly an attitude with a collective thrust, no position or height loop: cflib's `send_setpoint`
+    /// (commander port 3, RPYT) as stock flies it. Angles in cfnav's convention (types.rs: positive pitch =
+    /// nose down), yaw as a rate.
+    Attitude {
+        /// Target roll, rad.
+        roll_rad: f32,
+        /// Target pitch, rad (positive: nose down).
+        pitch_rad: f32,
+        /// Yaw rate, rad/s (counter-clockwise positive).
+        yaw_rate_rad_s: f32,
+        /// Collective thrust command per motor, counts (0..=65535, stock units).
+        thrust: u16,
+    },
 }
 
 impl Setpoint {
@@ -156,6 +169,12 @@ impl Setpoint {
                 vz_m_s,
                 yaw_rad,
             } => [x_m, y_m, vz_m_s, yaw_rad].iter().all(|v| v.is_finite()),
+            Setpoint::Attitude {
+                roll_rad,
+                pitch_rad,
+                yaw_rate_rad_s,
+                ..
+            } => [roll_rad, pitch_rad, yaw_rate_rad_s].iter().all(|v| v.is_finite()),
         }
     }
 }

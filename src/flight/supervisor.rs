@@ -40,7 +40,8 @@
 //!
 //! # Rules
 //! - **Setpoint watchdog** (Flying only): age > 500 ms → `level_out` (report;
-//!   [`Supervisor::guard_setpoint`] turns it into "zero velocity at the last height"); > 2000 ms →
+//!   [`Supervisor::guard_setpoint`] turns it into "zero velocity at the last height", for an Attitude
+//!   setpoint, which has none, the estimated height and heading when it went stale); > 2000 ms →
 //!   Locked, unless the setpoint in force is Stop (the motors-off rule makes that a landing). No setpoint ever = infinitely old.
 //! - **Tumble** (stock `isTumbledCheck`): acc.z < 0.5 g continuously for > 1 s, or acc.z < −0.2 g
 //!   continuously for > 100 ms (two separate timers; stock shares one timer, which can fire the upside-down
@@ -53,7 +54,8 @@
 //!   than 1 s, `accel_fault` is raised and counts as a tumble (the attitude estimate is blind too; cutting
 //!   the motors limits the damage), so a dead IMU cannot mask a tumble forever.
 //! - **Touchdown** (Flying): the setpoint does not ask to be higher than the touchdown height (a Descend
-//!   with vz ≤ 0, or a Position/Velocity at most `touchdown_height_m` above the surface), the estimate's
+//!   with vz ≤ 0, a Position/Velocity at most `touchdown_height_m` above the surface, or an Attitude (its
+//!   thrust is the pilot's: the thrust and height conditions decide)), the estimate's
 //!   height above the surface below is < 3 cm, |vz| < 0.1 m/s, and the mean motor command is < 90 % of the
 //!   hover command, all continuously for > 0.3 s → Landed. The hover command is learned (mean command
 //!   low-passed with τ = 2 s while flying above 10 cm with |vz| < 0.2 m/s), starting from
@@ -466,6 +468,8 @@ impl Supervisor {
             Setpoint::Position { z_m, .. } | Setpoint::Velocity { z_m, .. } => {
                 z_m - est.surface_height_m <= self.cfg.touchdown_height_m
             }
+            // The thrust and the height decide (below): a pilot lowering the thrust near the floor lands.
+            Setpoint::Attitude { .. } => true,
             Setpoint::Stop => false,
         };
         let touching = self.state == SupervisorState::Flying

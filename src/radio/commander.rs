@@ -52,10 +52,11 @@
 //! **Stop (0) accepts any trailing bytes**, as the stock `stopDecoder` does: refusing a stop is the unsafe way.
 //!
 //! # Mapping to [`Setpoint`] ([`SetpointFollower::to_setpoint`])
-//! cfnav's `Setpoint` has Stop, Position, Velocity (arena-frame vx, vy at a height, absolute heading) and
-//! Descend. It has **no attitude/thrust setpoint**: RPYT and manual commands map to Stop when their thrust
-//! is 0 and are otherwise not flyable (`None`); z-distance maps to a Velocity of zero only when roll and pitch
-//! are both 0. Rates (yaw rate, vz) are integrated per packet into the held heading/height: between two
+//! cfnav's `Setpoint` has Stop, Position, Velocity (arena-frame vx, vy at a height, absolute heading),
+//! Descend and Attitude (roll, pitch, yaw rate, thrust). RPYT and manual commands map to Stop when their
+//! thrust is 0 and otherwise to Attitude, as stock flies them (the held height and heading are forgotten:
+//! the next rate command starts from the estimate); manual packets in rate mode (roll/pitch rates) are not
+//! flyable (`None`). z-distance maps to a Velocity of zero only when roll and pitch are both 0. Rates (yaw rate, vz) are integrated per packet into the held heading/height: between two
 //! packets `dt` is the time between their arrivals, capped at [`MAX_INTEGRATION_DT_US`]. Heights from
 //! z-distance and hover packets ("distance to the surface" in stock) are taken as height above the arena
 //! floor, the estimator's z. Velocity commands cannot land: the flight core raises Velocity heights to
@@ -649,7 +650,7 @@ impl SetpointFollower {
     }
 
     /// The setpoint for `command` received at `received_us`, given the current `estimate`; `None` when
-    /// cfnav's [`Setpoint`] cannot express it (attitude/thrust with thrust > 0, z-distance with a tilt) or the
+    /// cfnav's [`Setpoint`] cannot express it (manual roll/pitch rates, z-distance with a tilt) or the
     /// result would not be finite (huge values overflowing).
     /// The follower's held height/heading change only when a setpoint is returned.
     pub fn to_setpoint(
@@ -681,7 +682,26 @@ impl SetpointFollower {
                 self.last_us = Some(received_us);
                 return Some(Setpoint::Stop);
             }
-            Command::Attitude { .. } => return None,
+            Command::Attitude { rate_mode: true, .. } => return None,
+            Command::Attitude {
+                roll_rad,
+                pitch_rad,
+                yaw_rate_rad_s,
+                thrust,
+                rate_mode: false,
+            } => {
+                if !(roll_rad.is_finite() && pitch_rad.is_finite() && yaw_rate_rad_s.is_finite()) {
+                    return None;
+                }
+                self.reset();
+                self.last_us = Some(received_us);
+                return Some(Setpoint::Attitude {
+                    roll_rad,
+                    pitch_rad,
+                    yaw_rate_rad_s,
+                    thrust,
+                });
+            }
             Command::Position { position_m, yaw_rad } => {
                 let yaw = wrap_angle(yaw_rad);
                 let sp = Setpoint::Position {

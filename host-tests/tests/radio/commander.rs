@@ -501,8 +501,25 @@ fn follower_maps_what_setpoint_can_express() {
     );
     assert_eq!(
         f.to_setpoint(&att(30000), 30, &est),
+        Some(Setpoint::Attitude {
+            roll_rad: 0.1,
+            pitch_rad: 0.0,
+            yaw_rate_rad_s: 0.0,
+            thrust: 30000
+        }),
+        "RPYT with thrust flies as stock: attitude and thrust"
+    );
+    let rates = Command::Attitude {
+        roll_rad: 0.1,
+        pitch_rad: 0.0,
+        yaw_rate_rad_s: 0.0,
+        thrust: 30000,
+        rate_mode: true,
+    };
+    assert_eq!(
+        f.to_setpoint(&rates, 35, &est),
         None,
-        "no attitude/thrust setpoint in cfnav"
+        "no roll/pitch-rate setpoint in cfnav"
     );
     let tilted = Command::ZDistance {
         roll_rad: 0.1,

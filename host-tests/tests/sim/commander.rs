@@ -206,3 +206,85 @@ fn run_to_ms(drone: &mut SimDrone, world: &World, ms: u64) {
         drone.step(world);
     }
 }
+
+/// cflib's `send_setpoint` (RPYT) on the simulated drone, as stock flies it (attitude and thrust, no
+/// position or height loop), judged on the truth: a thrust above the hover command climbs; a nose-down pitch
+/// accelerates along +x and a right-side-down roll along −y (cfnav's convention, the decoded RPYT signs); a
+/// yaw rate turns counter-clockwise at about that rate; setpoints that stop arriving level out and hold the
+/// height it had when they went stale (the supervisor's 500 ms rule) instead of flying on at the last thrust
+/// or sinking to the minimum height; thrust 0 stops the motors. Before: the follower had no attitude setpoint
+/// and nothing flew.
+#[test]
+fn rpyt_setpoints_fly_attitude_and_thrust() {
+    let world = World::default_world();
+    let bottom = QuadParams::default().bottom_offset_m;
+    let deg = |d: f32| d.to_radians();
+    for seed in 1..=3 {
+        let mut drone = SimDrone::new(&world, seed, &Faults::default()).unwrap();
+        // Setpoints every 20 ms (cflib scripts send at 10–100 Hz) from `from_s` to `to_s`.
+        let fly = |drone: &mut SimDrone, sp: Setpoint, from_s: f64, to_s: f64| {
+            for tick in (from_s * 1000.0) as u64..(to_s * 1000.0) as u64 {
+                if tick.is_multiple_of(20) {
+                    drone.core.commander_setpoint(sp, tick * 1000);
+                }
+                drone.step(&world);
+            }
+        };
+        let att = |roll: f32, pitch: f32, yaw_rate: f32, thrust: u16| Setpoint::Attitude {
+            roll_rad: deg(roll),
+            pitch_rad: deg(pitch),
+            yaw_rate_rad_s: deg(yaw_rate),
+            thrust,
+        };
+        fly(&mut drone, Setpoint::Stop, 0.0, 1.5);
+        let z0 = drone.quad.position()[2] - bottom;
+        fly(&mut drone, att(0.0, 0.0, 0.0, 52000), 1.5, 2.5);
+        let z1 = drone.quad.position()[2] - bottom;
+        assert!(drone.core.supervisor().flying, "seed {seed}");
+        assert!(z1 - z0 > 0.1, "seed {seed}: climbed {} m at thrust 52000", z1 - z0);
+        // Hover-ish thrust with a tilt: the acceleration's sign follows the attitude.
+        let v0 = drone.quad.velocity();
+        fly(&mut drone, att(0.0, 8.0, 0.0, 46000), 2.5, 3.1);
+        let v1 = drone.quad.velocity();
+        assert!(v1[0] - v0[0] > 0.2, "seed {seed}: nose down: vx {} → {}", v0[0], v1[0]);
+        fly(&mut drone, att(8.0, 0.0, 0.0, 46000), 3.1, 3.7);
+        let v2 = drone.quad.velocity();
+        assert!(
+            v2[1] - v1[1] < -0.2,
+            "seed {seed}: right side down: vy {} → {}",
+            v1[1],
+            v2[1]
+        );
+        let yaw0 = drone.quad.attitude_rad()[2];
+        fly(&mut drone, att(0.0, 0.0, 45.0, 46000), 3.7, 4.7);
+        let turned = cfnav::math::wrap_angle(drone.quad.attitude_rad()[2] - yaw0).to_degrees();
+        assert!(
+            (30.0..60.0).contains(&turned),
+            "seed {seed}: 45°/s for 1 s turned {turned}°"
+        );
+        // Higher up (well above the 0.2 m minimum height, which a hold without a height would fly to), the
+        // setpoints stop: after 0.5 s the supervisor levels out and holds the height it had.
+        fly(&mut drone, att(0.0, 0.0, 0.0, 50000), 4.7, 5.4);
+        let z_stale = drone.quad.position()[2] - bottom;
+        assert!(z_stale > 0.7, "seed {seed}: climbed to {z_stale} m");
+        fly(&mut drone, att(0.0, 0.0, 0.0, 46000), 5.4, 5.42);
+        let mut z_min = f32::MAX;
+        let mut z_max = f32::MIN;
+        for _ in 0..1400 {
+            drone.step(&world);
+            let z = drone.quad.position()[2] - bottom;
+            z_min = z_min.min(z);
+            z_max = z_max.max(z);
+        }
+        assert!(
+            z_min > z_stale - 0.2 && z_max < z_stale + 0.2,
+            "seed {seed}: silent from {z_stale} m: height in [{z_min}, {z_max}]"
+        );
+        assert!(drone.core.supervisor().level_out, "seed {seed}");
+        // Thrust 0 (cflib's stop; the follower maps RPYT thrust 0 to Stop): motors off at once.
+        let now = drone.tick() * 1000;
+        drone.core.commander_setpoint(Setpoint::Stop, now);
+        drone.step(&world);
+        assert_eq!(drone.core.duty().0, [0; 4], "seed {seed}");
+    }
+}

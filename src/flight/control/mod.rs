@@ -7,8 +7,8 @@
 //! to cfnav's SI API and right-hand attitude convention.
 //!
 //! Non-goals: state estimation, deciding whether the motors may run (that is [`crate::flight::supervisor`]),
-//! trajectory generation or smoothing of setpoints (the mission's job), attitude or rate setpoints
-//! (the [`Setpoint`] enum has none), thrust-vectoring/INDI/Mellinger controllers.
+//! trajectory generation or smoothing of setpoints (the mission's job), rate setpoints (the [`Setpoint`]
+//! enum has none; [`Setpoint::Attitude`] is angles and thrust), thrust-vectoring/INDI/Mellinger controllers.
 //!
 //! # Rates
 //! [`Controller::update`] must be called at **1 kHz** (the gyro's data-ready, stock `RATE_MAIN_LOOP`). A
@@ -60,7 +60,8 @@
 //! Integrators are kept across switches between Position, Velocity and Descend (they share the inner
 //! loops; stock resets everything on a mode change, which with a heavier drone than the thrust base
 //! expects would drop the thrust for a moment at the start of every landing); the outer loop that a mode
-//! does not use is reset. [`Setpoint::Stop`] resets everything.
+//! does not use is reset. [`Setpoint::Attitude`] uses only the angle and rate loops (the position, velocity
+//! and height loops are reset). [`Setpoint::Stop`] resets everything.
 //!
 //! # Garbage in
 //! A non-finite setpoint or state component gives zero error on that axis (the loop holds its output);
@@ -750,6 +751,16 @@ impl Controller {
         let max_xy = self.cfg.max_xy_speed_m_s;
         let max_vz = self.cfg.max_vz_m_s;
         let mut garbage = false;
+        if let Setpoint::Attitude {
+            roll_rad,
+            pitch_rad,
+            thrust,
+            ..
+        } = *setpoint
+        {
+            self.attitude_thrust(roll_rad, pitch_rad, thrust);
+            return;
+        }
 
         // Position loop → velocity target (arena frame).
         let (mut vxt, mut vyt, vzt) = match *setpoint {
@@ -776,7 +787,7 @@ impl Controller {
                 self.z.reset();
                 (vx, vy, finite_or(vz_m_s, 0.0).clamp(-max_vz, max_vz))
             }
-            Setpoint::Stop => (0.0, 0.0, 0.0),
+            Setpoint::Stop | Setpoint::Attitude { .. } => (0.0, 0.0, 0.0),
         };
         self.garbage_setpoint = garbage;
         clamp_norm(&mut vxt, &mut vyt, max_xy);
@@ -845,6 +856,31 @@ impl Controller {
         self.collective = if thrust.is_finite() { thrust.clamp(lo, hi) } else { lo };
     }
 
+    /// Attitude and thrust (stock `controller_pid.c` with roll/pitch in absolute mode and no z mode, what
+    /// cflib's `send_setpoint` asks for): the roll and pitch targets straight from the setpoint (limited to
+    /// the maximum tilt), the collective straight from its thrust (no tilt compensation, as stock); the
+    /// position and velocity loops, which this mode does not use, are reset.
+    fn attitude_thrust(&mut self, roll_rad: f32, pitch_rad: f32, thrust: u16) {
+        self.x.reset();
+        self.y.reset();
+        self.z.reset();
+        self.vx.reset();
+        self.vy.reset();
+        self.vz.reset();
+        self.vel_target = [0.0; 3];
+        self.garbage_setpoint = !(roll_rad.is_finite() && pitch_rad.is_finite());
+        let mut roll = finite_or(roll_rad, 0.0) * RAD2DEG;
+        let mut pitch = finite_or(pitch_rad, 0.0) * RAD2DEG;
+        self.tilt_limited = clamp_norm(&mut pitch, &mut roll, self.cfg.max_tilt_rad * RAD2DEG);
+        self.tilt_sat = [0; 2];
+        self.att_target[0] = roll;
+        self.att_target[1] = pitch;
+        let thrust = f32::from(thrust).min(mixer::CMD_MAX);
+        self.thrust_sat = i8::from(thrust >= mixer::CMD_MAX);
+        self.capped_recent = false;
+        self.collective = thrust;
+    }
+
     fn xy_position(&mut self, x_m: f32, y_m: f32, s: &Sane, gate: Gate) -> (f32, f32) {
         let vx = self.x.update(err(x_m, s.pos[0]), s.vel[0], POS_DT, gate);
         let vy = self.y.update(err(y_m, s.pos[1]), s.vel[1], POS_DT, gate);
@@ -862,6 +898,16 @@ impl Controller {
             Setpoint::Position { yaw_rad, .. }
             | Setpoint::Velocity { yaw_rad, .. }
             | Setpoint::Descend { yaw_rad, .. } => yaw_rad,
+            // Stock: the heading target moves at the commanded rate (from the current heading when none is
+            // held yet).
+            Setpoint::Attitude { yaw_rate_rad_s, .. } => {
+                let held = if self.yaw_target_set {
+                    self.att_target[2]
+                } else {
+                    finite_or(s.att_deg[2], 0.0)
+                };
+                (held + finite_or(yaw_rate_rad_s, 0.0) * RAD2DEG * ATT_DT) * DEG2RAD
+            }
             Setpoint::Stop => f32::NAN,
         };
         if yaw_sp.is_finite() {

@@ -15,8 +15,9 @@
 //!
 //! Commander (ports 3 and 7): each accepted setpoint packet is mapped by [`SetpointFollower`] and handed to
 //! `FlightCore::commander_setpoint` with its arrival time, once (so the supervisor's 500 ms / 2 s setpoint
-//! watchdog sees the real packet age), and only while no mission runs. Packets cfnav cannot fly (RPYT or
-//! manual with thrust, tilted z-distance, full state) or that are refused get a rate-limited console note.
+//! watchdog sees the real packet age), and only while no mission runs. Packets cfnav cannot fly (manual
+//! roll/pitch rates, tilted z-distance, full state) or that are refused get a rate-limited console note;
+//! RPYT (cflib `send_setpoint`) flies as an attitude/thrust setpoint.
 //!
 //! High-level commander (port 8): each accepted command goes to `FlightCore::high_level_command` with its
 //! arrival time; the flight core flies the trajectory and keeps its setpoint fresh. A command refused (by
@@ -41,6 +42,11 @@
 //! keep-alives included, is a radio packet for the flight core's link-loss watch; a client that falls
 //! silent during a mission for `mission.linkTimeout` s of simulated time triggers the policy (a line on
 //! stderr says when).
+//!
+//! Truth (for end-to-end checks, tools/e2e/cflib_modes.py): every mission state change, every change of the
+//! supervisor's is-flying verdict (`flying`/`landed`) and the link-loss timeout print one stderr line with the
+//! estimate and the simulated body's true position (arena frame, z of its underside above the floor, m).
+//! Nothing of it goes over the radio: a client sees what it would see from a real drone.
 //!
 //! Memory (port 4): memory 0 is the drone's map (`cfnav::radio::map_mem`), each read answered at once from
 //! the live map; with `--map-json FILE`, every read of its CRC field (a download starting) and the end of a
@@ -135,7 +141,7 @@ fn supervisor_status(drone: &SimDrone) -> SupervisorStatus {
 fn command_name(command: &Command) -> &'static str {
     match command {
         Command::Stop => "stop",
-        Command::Attitude { .. } => "attitude/thrust (RPYT or manual)",
+        Command::Attitude { .. } => "manual roll/pitch-rate",
         Command::VelocityWorld { .. } => "velocity",
         Command::ZDistance { .. } => "z-distance",
         Command::Hover { .. } => "hover",
@@ -146,6 +152,23 @@ fn command_name(command: &Command) -> &'static str {
 /// Simulated seconds since power-on.
 fn seconds(drone: &SimDrone) -> f64 {
     drone.tick() as f64 * 1e-3
+}
+
+/// `estimate (x, y, z) truth (x, y, z)` for the stderr lines end-to-end checks read (module docs, Truth):
+/// the flight core's estimate and the simulated body's true position, both arena frame, z above the floor, m.
+fn estimate_and_truth(drone: &SimDrone) -> String {
+    let e = drone.core.estimate().position_m;
+    let p = drone.quad.position();
+    let bottom = drone.quad.params().bottom_offset_m;
+    format!(
+        "estimate ({:.3}, {:.3}, {:.3}) truth ({:.3}, {:.3}, {:.3})",
+        e[0],
+        e[1],
+        e[2],
+        p[0],
+        p[1],
+        p[2] - bottom
+    )
 }
 
 /// The radio side: the CRTP services and the client's address.
@@ -389,7 +412,7 @@ impl Radio {
             Some(setpoint) => drone.core.commander_setpoint(setpoint, received_us),
             None => {
                 let note = format!(
-                    "commander: {} setpoint not flown (cfnav flies stop, position, velocity, hover, level z-distance)",
+                    "commander: {} setpoint not flown (cfnav flies stop, attitude/thrust, position, velocity, hover, level z-distance)",
                     command_name(&command)
                 );
                 self.commander_note(drone, &note);
@@ -595,6 +618,7 @@ pub fn serve(
     let mut buf = [0u8; 64];
     let wall = Instant::now();
     let mut link_fired = None;
+    let mut last_flying = drone.core.supervisor().flying;
     loop {
         // The network: every datagram waiting.
         loop {
@@ -644,21 +668,25 @@ pub fn serve(
             if fired != link_fired && fired.is_some() {
                 let policy = drone.core.navigator().link_watch().config().policy;
                 eprintln!(
-                    "{:8.3} s  link lost: no packet for mission.linkTimeout, policy {policy:?}",
-                    seconds(&drone)
+                    "{:8.3} s  link lost: no packet for mission.linkTimeout, policy {policy:?}  {}",
+                    seconds(&drone),
+                    estimate_and_truth(&drone)
                 );
             }
             link_fired = fired;
             let state = drone.core.mission_state();
+            let flying = drone.core.supervisor().flying;
+            if flying != last_flying {
+                let what = if flying { "flying" } else { "landed" };
+                eprintln!("{:8.3} s  {what}  {}", seconds(&drone), estimate_and_truth(&drone));
+                last_flying = flying;
+            }
             if state != last_state {
-                let e = drone.core.estimate().position_m;
                 eprintln!(
-                    "{:8.3} s  state {:3} {state:?}  estimate ({:.2}, {:.2}, {:.2})",
+                    "{:8.3} s  state {:3} {state:?}  {}",
                     seconds(&drone),
                     state.code(),
-                    e[0],
-                    e[1],
-                    e[2]
+                    estimate_and_truth(&drone)
                 );
                 if state.is_final() {
                     let crc = MapView::of_mission(drone.core.mission()).crc32();
@@ -899,11 +927,15 @@ mod tests {
         assert_eq!(b.drone.core.mission_state(), MissionState::LinkLost);
     }
 
+    /// cflib `send_setpoint` as stock flies it: thrust 0 unlocks, a thrust above the hover command climbs
+    /// (before: not flown, one console line); a manual packet in roll/pitch-rate mode is not flown and says so.
     #[test]
-    fn rpyt_with_thrust_is_not_flown_and_says_so() {
+    fn rpyt_with_thrust_flies_and_a_rate_mode_manual_packet_says_why_not() {
         let mut b = Bench::new();
-        b.step_ms(100);
-        // cflib send_setpoint(0, 0, 0, 0) then (0, 0, 0, 40000): port 3, `<fffH`.
+        b.step_ms(1500); // estimator settles on the ground
+        let bottom = b.drone.quad.params().bottom_offset_m;
+        let z0 = b.drone.quad.position()[2] - bottom;
+        // cflib send_setpoint(roll, pitch, yawrate, thrust): port 3, `<fffH`.
         let rpyt = |thrust: u16| {
             let mut d = Vec::new();
             for v in [0.0f32, 0.0, 0.0] {
@@ -914,16 +946,35 @@ mod tests {
         };
         b.uplink(3, 0, &rpyt(0));
         assert_eq!(b.drone.core.setpoint(), Setpoint::Stop, "thrust 0 is a stop");
-        b.uplink(3, 0, &rpyt(40000));
-        assert_eq!(b.drone.core.setpoint(), Setpoint::Stop);
+        for _ in 0..75 {
+            b.uplink(3, 0, &rpyt(50000));
+            b.step_ms(20);
+        }
+        assert!(
+            matches!(b.drone.core.setpoint(), Setpoint::Attitude { thrust: 50000, .. }),
+            "{:?}",
+            b.drone.core.setpoint()
+        );
+        assert!(b.drone.core.supervisor().flying);
+        let climbed = b.drone.quad.position()[2] - bottom - z0;
+        assert!(climbed > 0.2, "climbed {climbed} m in 1.5 s");
+        b.uplink(3, 0, &rpyt(0));
+        assert_eq!(b.drone.core.setpoint(), Setpoint::Stop, "thrust 0 stops again");
+        b.step_ms(2500);
+        // cflib send_setpoint_manual(roll_rate, pitch_rate, yaw_rate, thrust_percentage, rate=True): port 7 ch 0,
+        // type 11, `<BfffHB` with the rate flag 1.
+        let mut manual = vec![11u8];
+        for v in [0.0f32, 0.0, 0.0] {
+            manual.extend_from_slice(&v.to_le_bytes());
+        }
+        manual.extend_from_slice(&30000u16.to_le_bytes());
+        manual.push(1);
+        b.uplink(7, 0, &manual);
         let mut text = String::new();
         while !text.ends_with('\n') {
             let p = b.received(0);
             text.push_str(std::str::from_utf8(&p[1..]).unwrap());
         }
-        assert!(text.contains("not flown"), "{text}");
-        b.step_ms(100);
-        assert_eq!(b.drone.core.duty(), cfnav::types::MotorDuty::default(), "motors off");
-        assert!(!b.drone.core.supervisor().flying);
+        assert!(text.contains("manual roll/pitch-rate setpoint not flown"), "{text}");
     }
 }

@@ -114,11 +114,17 @@ impl<const CELLS: usize, const QUEUE: usize> Mission<CELLS, QUEUE> {
                 continue;
             };
             let (ux, uy) = (c * bx - s * by, s * bx + c * by);
-            step = (step.0 - (TAKE_OFF_CLEAR_M - d) * ux, step.1 - (TAKE_OFF_CLEAR_M - d) * uy);
+            step = (
+                step.0 - (TAKE_OFF_CLEAR_M - d) * ux,
+                step.1 - (TAKE_OFF_CLEAR_M - d) * uy,
+            );
         }
         let length = libm::hypotf(step.0, step.1);
         if length > TAKE_OFF_MAX_STEP_M {
-            (step.0 * TAKE_OFF_MAX_STEP_M / length, step.1 * TAKE_OFF_MAX_STEP_M / length)
+            (
+                step.0 * TAKE_OFF_MAX_STEP_M / length,
+                step.1 * TAKE_OFF_MAX_STEP_M / length,
+            )
         } else {
             step
         }
@@ -426,7 +432,11 @@ impl<const CELLS: usize, const QUEUE: usize> Mission<CELLS, QUEUE> {
             }
             None
         };
-        let later = if follow_path { self.waypoints.get(2..).unwrap_or(&[]) } else { &[] };
+        let later = if follow_path {
+            self.waypoints.get(2..).unwrap_or(&[])
+        } else {
+            &[]
+        };
         let corners = core::iter::once(target).chain(later.iter().map(|c| self.shape.center_of(*c)));
         let mut from = here;
         let mut travelled = 0.0f32;
@@ -459,12 +469,17 @@ impl<const CELLS: usize, const QUEUE: usize> Mission<CELLS, QUEUE> {
     /// search holds no heading of its own, so the least turn wins).
     pub(super) fn look_with_nearest_beam(heading: f32, here: (f32, f32), point: (f32, f32)) -> f32 {
         let bearing = libm::atan2f(point.1 - here.1, point.0 - here.0);
-        let offset = [0.0, core::f32::consts::FRAC_PI_2, -core::f32::consts::FRAC_PI_2, core::f32::consts::PI]
-            .into_iter()
-            .map(|beam| wrap_angle(bearing - beam - heading))
-            .fold(core::f32::consts::PI, |best, o| {
-                if libm::fabsf(o) < libm::fabsf(best) { o } else { best }
-            });
+        let offset = [
+            0.0,
+            core::f32::consts::FRAC_PI_2,
+            -core::f32::consts::FRAC_PI_2,
+            core::f32::consts::PI,
+        ]
+        .into_iter()
+        .map(|beam| wrap_angle(bearing - beam - heading))
+        .fold(core::f32::consts::PI, |best, o| {
+            if libm::fabsf(o) < libm::fabsf(best) { o } else { best }
+        });
         wrap_angle(heading + offset)
     }
 

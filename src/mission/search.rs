@@ -1,12 +1,14 @@
 //! The pad search: the coarse lawnmower around the nominal goal, then refinement lines across and along the
 //! first crossing until the detector locks, every line clipped to keep its clearance from mapped obstacles
 //! and the arena walls, and bounded by what the horizontal beams read now (the map in the estimate frame
-//! can miss a thin cylinder or a face it confirmed late).
+//! can miss a thin cylinder or a face it confirmed late), slowing before regions no beam has looked into
+//! and turning the nearest beam onto them (the heading is otherwise held: a line may run diagonally to all
+//! four beams).
 //! The rules are in the [mission's documentation](super).
 
 use super::landing::{MAX_REFUSALS, Touchdown};
-use super::{Mission, Phase, Search};
 use super::navigate::{SEARCH_UNOBSERVED_APPROACH_GAIN, SEARCH_UNOBSERVED_MIN_SPEED_M_S};
+use super::{Mission, Phase, Search};
 use crate::landing::gate::Target;
 use crate::landing::sweep::{ArenaBounds, LawnmowerSweep, SweepAxis};
 use crate::nav::map::{CELL_SIZE_M, Cell};

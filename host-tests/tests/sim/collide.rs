@@ -43,7 +43,6 @@ fn search_lines_respect_the_live_beams() {
     }
 }
 
-
 /// The default world with the home pad moved beside the take-off point, its side `gap_m` beyond the body's
 /// radius (the start on the floor, as the widened generator places one world in six).
 fn home_pad_beside_start(gap_m: f32) -> World {

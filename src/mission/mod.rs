@@ -38,7 +38,10 @@
 //!   (a drone already on that line flies on along it instead of turning back to its start), until the
 //!   [`PadDetector`] has a first crossing (on every line, and on the approach back to a locked centre, the
 //!   speed towards each horizontal beam's return the arena's walls do not explain is bounded by what that
-//!   beam reads now, and a line ends where such a beam within 45° of its direction reads closer than 0.2 m); then short refinement stages
+//!   beam reads now, and a line ends where such a beam within 45° of its direction reads closer than 0.2 m;
+//!   a line that passes within 0.15 m of an unobserved region slows before it like navigation, and the
+//!   beam nearest to the region's first cell turns onto it: a line may run diagonally to all four beams);
+//!   then short refinement stages
 //!   centred on the latest estimate —
 //!   lines across the first crossing (which fix the other coordinate), then lines along it, four rounds
 //!   in all with a fresh detector every round (the estimate drifts) — until the detector locks (three
@@ -52,7 +55,9 @@
 //!   lock the search widens and re-centres on the best estimate once; if that fails too, the drone lands
 //!   on the estimate only where the descent gate allows it, else clear of the pad, and the mission ends
 //!   with [`MissionState::PadNotFound`] after flying the rest of the round trip (see `landing`).
-//! - **Take-off**: climb at [`MissionConfig::climb_speed_m_s`]; navigation takes over 0.1 m above the
+//! - **Take-off**: climb at [`MissionConfig::climb_speed_m_s`], first stepping away (up to 0.1 m) from
+//!   any horizontal beam's return within 0.14 m on the ground (a start beside the home pad's side, one body
+//!   radius away, is valid); navigation takes over 0.1 m above the
 //!   minimum height, and the rest of the climb overlaps the first metres of travel.
 //! - **Land**: fly back over the pad centre (a velocity profile down to 6 cm from it, then position hold),
 //!   until within [`MissionConfig::settle_tolerance_m`] and slow and the

@@ -9,7 +9,7 @@ use crate::math::wrap_angle;
 use crate::nav::dstar::{PlanError, PlanStatus};
 use crate::nav::map::{CELL_SIZE_M, Cell, GridShape, Traversability};
 use crate::nav::path::{extract_path, simplify};
-use crate::types::{Micros, Setpoint, StateEstimate};
+use crate::types::{Micros, MultiRangerSample, Setpoint, StateEstimate};
 
 /// Speed at a waypoint where the path turns by 90° or more, m/s.
 const CORNER_MIN_SPEED_M_S: f32 = 0.15;
@@ -32,9 +32,18 @@ const UNOBSERVED_MIN_SPEED_M_S: f32 = 0.2;
 const UNOBSERVED_APPROACH_GAIN: f32 = 1.0;
 /// Largest turn away from the direction of travel to look at an unobserved region, rad.
 const LOOK_MAX_OFFSET_RAD: f32 = 0.8;
+/// See [`UNOBSERVED_MIN_SPEED_M_S`] and [`UNOBSERVED_APPROACH_GAIN`]: the search lines use the same rule.
+pub(super) const SEARCH_UNOBSERVED_MIN_SPEED_M_S: f32 = UNOBSERVED_MIN_SPEED_M_S;
+pub(super) const SEARCH_UNOBSERVED_APPROACH_GAIN: f32 = UNOBSERVED_APPROACH_GAIN;
 /// Heading sweep while navigating: amplitude, rad, and period, s.
 const SCAN_AMPLITUDE_RAD: f32 = 0.6;
 const SCAN_PERIOD_S: f32 = 2.0;
+
+/// A horizontal beam reading closer than this on the ground moves the take-off point away from its return,
+/// m: the body's radius (0.06 m) and 8 cm for the lift-off's drift and the estimate's.
+const TAKE_OFF_CLEAR_M: f32 = 0.14;
+/// Longest such step, m.
+const TAKE_OFF_MAX_STEP_M: f32 = 0.1;
 
 /// A map whose blocked cells grow by one cell (8-neighbourhood): the margin shortcuts keep.
 struct Dilated<'a, M: Traversability>(&'a M);
@@ -67,6 +76,14 @@ impl<const CELLS: usize, const QUEUE: usize> Mission<CELLS, QUEUE> {
         self.sweep = None;
         self.avoidance.reset();
         let (x, y) = (state.position_m[0], state.position_m[1]);
+        // Something beside the drone on the ground (a generated start may lie one body radius from the home
+        // pad's side): the climb first steps away from it, so the lift-off's drift cannot touch it.
+        let (x, y) = if matches!(leg, Leg::Outbound | Leg::Return) {
+            let (dx, dy) = self.take_off_step_away(state.attitude_rad[2]);
+            (x + dx, y + dy)
+        } else {
+            (x, y)
+        };
         let z_target = state.position_m[2].max(0.0);
         self.phase = Phase::TakeOff { x, y, z_target };
         Setpoint::Position {
@@ -74,6 +91,42 @@ impl<const CELLS: usize, const QUEUE: usize> Mission<CELLS, QUEUE> {
             y_m: y,
             z_m: z_target,
             yaw_rad: self.heading,
+        }
+    }
+
+    /// The step away from what the horizontal beams read within [`TAKE_OFF_CLEAR_M`] while the drone stands
+    /// on the ground, arena frame, m (at most [`TAKE_OFF_MAX_STEP_M`] long; zero when nothing is that close).
+    /// Each such return pushes the take-off point away along its beam by the shortfall.
+    pub(super) fn take_off_step_away(&self, yaw: f32) -> (f32, f32) {
+        if !yaw.is_finite() {
+            return (0.0, 0.0);
+        }
+        let (c, s) = (libm::cosf(yaw), libm::sinf(yaw));
+        let ranges = [
+            self.last_ranges.front,
+            self.last_ranges.back,
+            self.last_ranges.left,
+            self.last_ranges.right,
+        ];
+        let mut step = (0.0f32, 0.0f32);
+        for (range, (bx, by)) in ranges.into_iter().zip(MultiRangerSample::HORIZONTAL_BEAMS_BODY) {
+            let Some(d) = range.filter(|d| d.is_finite() && *d >= 0.0 && *d < TAKE_OFF_CLEAR_M) else {
+                continue;
+            };
+            let (ux, uy) = (c * bx - s * by, s * bx + c * by);
+            step = (
+                step.0 - (TAKE_OFF_CLEAR_M - d) * ux,
+                step.1 - (TAKE_OFF_CLEAR_M - d) * uy,
+            );
+        }
+        let length = libm::hypotf(step.0, step.1);
+        if length > TAKE_OFF_MAX_STEP_M {
+            (
+                step.0 * TAKE_OFF_MAX_STEP_M / length,
+                step.1 * TAKE_OFF_MAX_STEP_M / length,
+            )
+        } else {
+            step
         }
     }
 
@@ -333,6 +386,17 @@ impl<const CELLS: usize, const QUEUE: usize> Mission<CELLS, QUEUE> {
     /// four beams have not seen yet; the drone slows there until the sweep has looked.
     /// Also returns the centre of the unobserved cell found first, if any, for a beam to look at.
     pub(super) fn observed_ahead_m(&self, here: (f32, f32), target: (f32, f32)) -> (f32, Option<(f32, f32)>) {
+        self.observed_along(here, target, true)
+    }
+
+    /// [`Self::observed_ahead_m`] along the straight line `here → target` only (`follow_path` false: a
+    /// search line), or on along the planned path's later waypoints (`follow_path` true).
+    pub(super) fn observed_along(
+        &self,
+        here: (f32, f32),
+        target: (f32, f32),
+        follow_path: bool,
+    ) -> (f32, Option<(f32, f32)>) {
         const STEP_M: f32 = CELL_SIZE_M;
         let reach = libm::ceilf(UNOBSERVED_CLEARANCE_M / CELL_SIZE_M) as i32;
         // Only what lies ahead matters: regions beside and behind the drone were passed already.
@@ -368,7 +432,12 @@ impl<const CELLS: usize, const QUEUE: usize> Mission<CELLS, QUEUE> {
             }
             None
         };
-        let corners = core::iter::once(target).chain(self.waypoints.iter().skip(2).map(|c| self.shape.center_of(*c)));
+        let later = if follow_path {
+            self.waypoints.get(2..).unwrap_or(&[])
+        } else {
+            &[]
+        };
+        let corners = core::iter::once(target).chain(later.iter().map(|c| self.shape.center_of(*c)));
         let mut from = here;
         let mut travelled = 0.0f32;
         // Distance along the current segment of the next sample.
@@ -394,6 +463,24 @@ impl<const CELLS: usize, const QUEUE: usize> Mission<CELLS, QUEUE> {
             from = to;
         }
         (UNOBSERVED_LOOKAHEAD_M, None)
+    }
+
+    /// The heading nearest `heading` that points one of the four beams from `here` at `point`, rad (the
+    /// search holds no heading of its own, so the least turn wins).
+    pub(super) fn look_with_nearest_beam(heading: f32, here: (f32, f32), point: (f32, f32)) -> f32 {
+        let bearing = libm::atan2f(point.1 - here.1, point.0 - here.0);
+        let offset = [
+            0.0,
+            core::f32::consts::FRAC_PI_2,
+            -core::f32::consts::FRAC_PI_2,
+            core::f32::consts::PI,
+        ]
+        .into_iter()
+        .map(|beam| wrap_angle(bearing - beam - heading))
+        .fold(core::f32::consts::PI, |best, o| {
+            if libm::fabsf(o) < libm::fabsf(best) { o } else { best }
+        });
+        wrap_angle(heading + offset)
     }
 
     /// The heading within [`LOOK_MAX_OFFSET_RAD`] of `travel` that points the front, left or right beam

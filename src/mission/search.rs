@@ -1,10 +1,13 @@
 //! The pad search: the coarse lawnmower around the nominal goal, then refinement lines across and along the
 //! first crossing until the detector locks, every line clipped to keep its clearance from mapped obstacles
 //! and the arena walls, and bounded by what the horizontal beams read now (the map in the estimate frame
-//! can miss a thin cylinder or a face it confirmed late).
+//! can miss a thin cylinder or a face it confirmed late), slowing before regions no beam has looked into
+//! and turning the nearest beam onto them (the heading is otherwise held: a line may run diagonally to all
+//! four beams).
 //! The rules are in the [mission's documentation](super).
 
 use super::landing::{MAX_REFUSALS, Touchdown};
+use super::navigate::{SEARCH_UNOBSERVED_APPROACH_GAIN, SEARCH_UNOBSERVED_MIN_SPEED_M_S};
 use super::{Mission, Phase, Search};
 use crate::landing::gate::Target;
 use crate::landing::sweep::{ArenaBounds, LawnmowerSweep, SweepAxis};
@@ -129,7 +132,7 @@ impl<const CELLS: usize, const QUEUE: usize> Mission<CELLS, QUEUE> {
     /// Fly towards `target` at the search speed (stopping short of mapped obstacles, see
     /// [`Self::clip_to_clearance`], and of what the live beams see, see [`Self::live_beam_guard`]); `true`
     /// once within 3 cm of where it can get, or when a beam closes the way ahead.
-    pub(super) fn fly_to(&self, state: &StateEstimate, target: (f32, f32)) -> (Setpoint, bool) {
+    pub(super) fn fly_to(&mut self, state: &StateEstimate, target: (f32, f32)) -> (Setpoint, bool) {
         let (x, y) = (state.position_m[0], state.position_m[1]);
         let target = self.clip_to_clearance((x, y), target);
         let (dx, dy) = (target.0 - x, target.1 - y);
@@ -137,7 +140,17 @@ impl<const CELLS: usize, const QUEUE: usize> Mission<CELLS, QUEUE> {
         // Line ends lie off the pad, so they need no precision; a firm approach (about 2.5 m/s² of
         // deceleration demand, 4 cm tolerance) keeps each line short in time, and with it the drift
         // between the crossings the detector compares.
-        let speed = self.config.search_speed_m_s.min(0.05 + 2.5 * d);
+        let mut speed = self.config.search_speed_m_s.min(0.05 + 2.5 * d);
+        // A line may run diagonally to all four beams into a region none has looked into (a cylinder
+        // beside the pad, first seen at 0.1 m): as while navigating, slow down before it and turn the
+        // beam nearest to it onto it until it is seen.
+        if d > 0.05 {
+            let (observed, unobserved) = self.observed_along((x, y), target, false);
+            speed = speed.min(SEARCH_UNOBSERVED_MIN_SPEED_M_S + SEARCH_UNOBSERVED_APPROACH_GAIN * observed);
+            if let Some(cell) = unobserved {
+                self.heading = Self::look_with_nearest_beam(self.heading, (x, y), cell);
+            }
+        }
         let (vx, vy) = if d > 1e-3 {
             (speed * dx / d, speed * dy / d)
         } else {

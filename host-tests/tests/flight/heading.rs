@@ -108,8 +108,12 @@ fn wall_fixes_hold_the_heading_against_a_gyro_drift() {
     // Measured (seeds 3, 7, 11): with 2.0–3.3° and 3.1–3.9 cm, without 6.2–10.8° and 12–66 cm. The heading
     // error with the fixes is a lag (the filter has no gyro-bias state: each fix removes part of what the
     // unknown bias turned since the last one), bounded; without them it is the bias integrated.
+    // Since the pad search turns a beam onto unobserved regions (session 8), the flights' paths differ:
+    // with 2.5–3.9° and 3.3–4.6 cm, without 5.2–8.4° and 11–20 cm (seed 3 without: 5.2°, was ≥ 6.2°);
+    // the yaw bounds moved from 3.7° / 5.7° to 4.3° / 4.9°, still separating every run with the fixes
+    // from every run without them.
     assert!(
-        worst_on.0 <= 0.065,
+        worst_on.0 <= 0.075,
         "with the heading fixes the late yaw error reaches {}",
         worst_on.0
     );
@@ -119,7 +123,13 @@ fn wall_fixes_hold_the_heading_against_a_gyro_drift() {
         worst_on.1
     );
     assert!(
-        worst_off.0 > 0.10,
+        worst_on.0 < worst_off.0,
+        "with {} vs without {}",
+        worst_on.0,
+        worst_off.0
+    );
+    assert!(
+        worst_off.0 > 0.085,
         "without them the yaw error stays at {}",
         worst_off.0
     );

@@ -1,12 +1,13 @@
 //! Zero collisions (issue 14): motions near obstacles also respect what the Multi-ranger's beams read now,
 //! not only the map in the estimate frame. Judged on the simulator's truth (the runner's collision count and
-//! minimum clearance of the body disc, `world.clearance − BODY_RADIUS_M`), on generated worlds of the
-//! training seeds (`cfnav sim --random 200 --seed S`, S in 20–29: worlds S 000 000 + k) in which the code before this
-//! work flew a pad-search line into an obstacle its map did not hold, a beam reading it closer and closer.
+//! minimum clearance of the body disc, `world.clearance − BODY_RADIUS_M`), on worlds in which the code before
+//! each change touched an obstacle: generated worlds of the training seeds (`cfnav sim --random 200 --seed S`,
+//! S in 20–29: worlds S 000 000 + k), some written out as world files, and hand-made variants of the default
+//! world.
 
 use cfnav_tools::sim::runner::{RunOptions, RunReport, run};
 use cfnav_tools::sim::stress::Stress;
-use cfnav_tools::sim::world::World;
+use cfnav_tools::sim::world::{BODY_RADIUS_M, World};
 use std::path::PathBuf;
 
 fn fly(world: &World) -> RunReport {
@@ -39,5 +40,147 @@ fn search_lines_respect_the_live_beams() {
         let clearance = report.min_clearance_m.expect("flew");
         assert!(clearance > 0.0, "{}: min clearance {clearance} m", world.name);
         assert_eq!(report.outcome, "completed", "{report:?}");
+    }
+}
+
+/// The default world with the home pad moved beside the take-off point, its side `gap_m` beyond the body's
+/// radius (the start on the floor, as the widened generator places one world in six).
+fn home_pad_beside_start(gap_m: f32) -> World {
+    let mut world = World::default_world();
+    let start = world.mission.start;
+    let home = world.pads.first_mut().expect("a home pad");
+    home.center = [start[0] - home.size[0] / 2.0 - BODY_RADIUS_M - gap_m, start[1]];
+    world.name = format!("home-pad-{gap_m}-m-beside");
+    world
+}
+
+#[test]
+fn take_off_steps_away_from_a_pad_beside_the_start() {
+    // A start 0.5 mm beyond one body radius from the home pad's side (valid: the body does not touch it;
+    // the generator made one exactly one radius away, world 23 000 223). Before, the lift-off's first
+    // millimetres of drift touched the pad's side on noise seeds 2, 3 and 4 (state 10). Now the climb
+    // first steps away from the back beam's return (0.06 m), and the body never touches the pad.
+    for seed in 1..=4u64 {
+        let mut world = home_pad_beside_start(0.0005);
+        world.validate().expect("a valid world: the body clears the pad");
+        let pad = &world.pads[0];
+        let side = pad.center[0] + pad.size[0] / 2.0;
+        assert!((world.mission.start[0] - side - BODY_RADIUS_M - 0.0005).abs() < 1e-4);
+        world.sim.seed = seed;
+        let report = fly(&world);
+        assert_eq!(report.collisions, 0, "seed {seed}: {report:?}");
+        assert!(report.min_clearance_m.expect("flew") >= 0.0, "seed {seed}: {report:?}");
+        assert_eq!(report.outcome, "completed", "seed {seed}: {report:?}");
+    }
+}
+
+/// Generated worlds 20 000 186 and 24 000 101 (`--random 200 --seed 20`, `--seed 24`), written out as files.
+const CYLINDER_BESIDE_THE_GOAL_PAD: &str = r#"
+name = "random-20000186"
+
+[arena]
+size = [4.4, 2.8]
+ceiling = 2.1
+
+[mission]
+start = [0.89, 1.3]
+goal = [3.62, 0.41]
+height = 0.5
+speed = 0.5
+
+[[pads]]
+center = [0.9, 1.27]
+size = [0.3, 0.3]
+height = 0.1
+
+[[pads]]
+center = [3.8, 0.69]
+size = [0.3, 0.3]
+height = 0.1
+
+[[boxes]]
+min = [1.79, 0.0]
+max = [1.85, 2.03]
+height = 2.1
+
+[[cylinders]]
+center = [3.8, 1.09]
+radius = 0.09
+height = 1.01
+
+[sim]
+seed = 20000186
+time_limit = 300.0
+"#;
+const CYLINDER_ON_A_SEARCH_LINE: &str = r#"
+name = "random-24000101"
+
+[arena]
+size = [5.85, 2.9]
+ceiling = 2.1
+
+[mission]
+start = [0.52, 0.87]
+goal = [5.07, 1.92]
+height = 0.5
+speed = 0.5
+
+[[pads]]
+center = [0.49, 0.85]
+size = [0.3, 0.3]
+height = 0.1
+
+[[pads]]
+center = [5.05, 1.66]
+size = [0.3, 0.3]
+height = 0.1
+
+[[boxes]]
+min = [1.42, 0.71]
+max = [1.58, 2.9]
+height = 2.1
+
+[[boxes]]
+min = [2.71, 0.0]
+max = [2.9, 2.07]
+height = 2.1
+
+[[cylinders]]
+center = [4.68, 1.89]
+radius = 0.09
+height = 1.66
+
+[[cylinders]]
+center = [3.6, 0.26]
+radius = 0.12
+height = 2.1
+
+[[cylinders]]
+center = [2.52, 1.62]
+radius = 0.12
+height = 2.02
+
+[sim]
+seed = 24000101
+time_limit = 300.0
+"#;
+
+#[test]
+fn search_lines_look_at_unobserved_regions_before_flying_into_them() {
+    // Under worlds/stress.toml with their own noise seeds, the code before this change flew a search line
+    // (state 12) into a thin cylinder (r 0.09 m) no beam had seen: the line ran 45–50° off all four beams
+    // (heading −63°, travel 68°), the back beam first returned from it at 0.11 m; in the second the right
+    // beam, 23° off the travel, passed beside it. The map held none of its cells (the estimate was within
+    // 1–2 cm). Now a search line slows before an unobserved region within 0.15 m of it and turns the
+    // nearest beam onto it (as navigation does): no contact, the cylinder kept at ≥ 7 cm.
+    for (text, name) in [
+        (CYLINDER_BESIDE_THE_GOAL_PAD, "cylinder-beside-the-goal-pad"),
+        (CYLINDER_ON_A_SEARCH_LINE, "cylinder-on-a-search-line"),
+    ] {
+        let world = stressed(World::from_toml_str(text, name).unwrap_or_else(|e| panic!("{e}")));
+        let report = fly(&world);
+        assert_eq!(report.collisions, 0, "{name}: {report:?}");
+        assert!(report.min_clearance_m.expect("flew") > 0.03, "{name}: {report:?}");
+        assert_eq!(report.outcome, "completed", "{name}: {report:?}");
     }
 }

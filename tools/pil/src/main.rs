@@ -186,6 +186,9 @@ struct Report {
     spi1_dma: [u32; 8],
     /// GPIOA IDR (PA4 = the nRF's flow control, bit 4).
     gpioa_idr: u32,
+    /// The motor PWM compare registers at the end, M1..M4: TIM2 CCR2, CCR4, CCR1 and TIM4 CCR4 (RM0090
+    /// §18.4.13–16; the same channels `physics.rs` reads): all zero = motors off.
+    motor_ccr: [u32; 4],
     boots_logged: usize,
     faults_logged: Vec<String>,
     log_lines: usize,
@@ -618,6 +621,7 @@ fn run(args: &Args) -> Result<(Report, bool)> {
             board.peek32(0x4002_6400).unwrap_or(0),
         ],
         gpioa_idr: board.peek32(0x4002_0010).unwrap_or(0),
+        motor_ccr: [0x4000_0038, 0x4000_0040, 0x4000_0034, 0x4000_0840].map(|a| board.peek32(a).unwrap_or(0)),
         boots_logged,
         faults_logged,
         log_lines: log.len(),

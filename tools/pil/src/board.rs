@@ -135,6 +135,8 @@ pub struct Board {
     pub imu: Arc<Bmi088>,
     /// The gyroscope's data-ready line (PC14).
     pub imu_int3: PinHandle,
+    /// The nRF51's RTS (flow control) into PA4: low (send) unless `--fault rts-high`.
+    pub nrf_rts: PinHandle,
     /// The Multi-ranger and the Flow deck's height ranger on I2C1.
     pub deck: Arc<DeckSensors>,
     /// The Flow deck's PMW3901 on SPI1.
@@ -192,11 +194,17 @@ impl Board {
             })
             .map_err(|e| anyhow!("binding pil.cs: {e}"))?;
         let imu_int3 = PinHandle::default();
-        let handle = imu_int3.clone();
+        let nrf_rts = PinHandle::default();
+        let (int3_handle, rts_handle) = (imu_int3.clone(), nrf_rts.clone());
         options
             .bindings
-            .bind(pin::CLASS_NAME, move |_props| {
-                Ok(Arc::new(pin::Pin::new(handle.clone())))
+            .bind(pin::CLASS_NAME, move |props| {
+                let handle = if pin::is_nrf_rts(props) {
+                    rts_handle.clone()
+                } else {
+                    int3_handle.clone()
+                };
+                Ok(Arc::new(pin::Pin::new(handle)))
             })
             .map_err(|e| anyhow!("binding pil.pin: {e}"))?;
         options
@@ -240,6 +248,7 @@ impl Board {
             syslink,
             imu,
             imu_int3,
+            nrf_rts,
             deck: deck_sensors,
             flow: pmw,
             sensors_sda,

@@ -36,6 +36,8 @@ pub struct Faults {
     pub sensor_bus_stuck: Option<crate::stuck::Release>,
     /// The same on the deck bus, I2C1.
     pub deck_bus_stuck: Option<crate::stuck::Release>,
+    /// The nRF51 holds RTS (PA4) high from power-on.
+    pub rts_high: bool,
 }
 
 /// Counters a report prints.

@@ -82,7 +82,7 @@ struct Args {
     /// Inject a fault: bmi088-reset-nack (the IMU does not acknowledge its soft reset), sensor-bus-dead
     /// (nothing on I2C3 acknowledges), sensor-bus-stuck[:K|never] / deck-bus-stuck[:K|never] (a slave holds
     /// SDA of I2C3 / I2C1 low from power-on and lets go after K falling SCL edges, 1..=9, default 9, or
-    /// never). Repeatable.
+    /// never), rts-high (the nRF51 holds its RTS, PA4, high from power-on: "stop sending"). Repeatable.
     #[arg(long = "fault")]
     faults: Vec<String>,
     /// The nRF51 end stays silent (no echo of the radio settings): a syslink whose radio chip does not answer.
@@ -261,6 +261,7 @@ fn parse_faults(names: &[String]) -> Result<Faults> {
         match n.as_str() {
             "bmi088-reset-nack" => f.bmi088_reset_nack = true,
             "sensor-bus-dead" => f.sensor_bus_dead = true,
+            "rts-high" => f.rts_high = true,
             other => {
                 let (name, arg) = other.split_once(':').map_or((other, None), |(n, a)| (n, Some(a)));
                 let release = || stuck::Release::parse(arg).map_err(|e| anyhow::anyhow!("--fault {name}: {e}"));
@@ -338,6 +339,7 @@ fn run(args: &Args) -> Result<(Report, bool)> {
         flow: !args.no_flow,
     };
     let mut board = Board::new(image.flash.clone(), faults, fitted)?;
+    board.nrf_rts.set(faults.rts_high);
     let mut nrf = nrf51::Nrf51::new(args.silent_nrf);
     let mut bridge = match &args.serve {
         Some(addr) => {

@@ -29,9 +29,9 @@
 //! of them is modelled as a separate holder of the line), no SDA edges seen by the slave (the recovery's
 //! START/STOP after the clocks is not needed to release it), no re-sticking after a release.
 //!
-//! Units: SCL edges, ns of virtual time (set by the host). Sources: RM0090 rev 19 §27 (I2C), §8.3.10
-//! (GPIO open-drain input path); NXP UM10204 §3.1.16 (bus clear: "the master should send nine clock
-//! pulses"); the firmware's recovery, `cfnav::drivers::i2c_guard`.
+//! Units: SCL edges, ms of virtual time (set by the host). Sources: RM0090 §27 (I2C; §25 in rev. 4, as
+//! rsemu cites it), §8.3.10 (GPIO open-drain input path); NXP UM10204 §3.1.16 (bus clear: nine clock
+//! pulses while SDA is stuck low); the firmware's recovery, `cfnav::drivers::i2c_guard`.
 
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::{Arc, Mutex, OnceLock};

@@ -49,35 +49,52 @@ const I2C_PROBE_TIMEOUT: Duration = Duration::from_millis(20);
 /// driver owns the pins, so the recovery switches their mode (MODER: alternate function ↔ output; they
 /// are already open-drain, OTYPER, as the I2C driver set them) and drives them through BSRR while the
 /// peripheral is disabled, then resets the peripheral (CR1.SWRST, the F4 errata workaround embassy also
-/// applies at init) and restores its timing registers (RM0090 §27.6.1, §8.4).
+/// applies at init) and restores its timing registers (RM0090 §27.6.1, §8.4). Each recovery whose count
+/// is a power of two is logged ("I2C3 (IMU): bus recovery 1: 9 SCL clocks, SDA released"), so a stuck
+/// slave shows in the log whether or not it let go.
 pub struct I2cRecoveryPins {
     i2c: pac::i2c::I2c,
     scl_port: pac::gpio::Gpio,
     scl: usize,
     sda_port: pac::gpio::Gpio,
     sda: usize,
+    /// For the log line: the bus's name, the recoveries so far, and of the one running the SCL clocks
+    /// given while SDA was read low and whether SDA read high at the end of them.
+    name: &'static str,
+    recoveries: u32,
+    clocks: u32,
+    clocking: bool,
+    sda_high: bool,
 }
 
 impl I2cRecoveryPins {
     /// Deck bus I2C1: SCL PB6, SDA PB7 (`crazyflie-hardware.md` §5).
     pub fn deck() -> Self {
-        Self {
-            i2c: pac::I2C1,
-            scl_port: pac::GPIOB,
-            scl: 6,
-            sda_port: pac::GPIOB,
-            sda: 7,
-        }
+        Self::new(pac::I2C1, (pac::GPIOB, 6), (pac::GPIOB, 7), "I2C1 (deck)")
     }
 
     /// Sensor bus I2C3: SCL PA8, SDA PC9 (stock `i2c_drv.c` `sensorBusDef`).
     pub fn sensors() -> Self {
+        Self::new(pac::I2C3, (pac::GPIOA, 8), (pac::GPIOC, 9), "I2C3 (IMU)")
+    }
+
+    fn new(
+        i2c: pac::i2c::I2c,
+        (scl_port, scl): (pac::gpio::Gpio, usize),
+        (sda_port, sda): (pac::gpio::Gpio, usize),
+        name: &'static str,
+    ) -> Self {
         Self {
-            i2c: pac::I2C3,
-            scl_port: pac::GPIOA,
-            scl: 8,
-            sda_port: pac::GPIOC,
-            sda: 9,
+            i2c,
+            scl_port,
+            scl,
+            sda_port,
+            sda,
+            name,
+            recoveries: 0,
+            clocks: 0,
+            clocking: false,
+            sda_high: true,
         }
     }
 
@@ -94,9 +111,14 @@ impl<'d> BusRecovery<I2c<'d, Async, I2cMaster>> for I2cRecoveryPins {
         self.set_scl(true);
         self.set_sda(true);
         self.set_mode(gpio_vals::Moder::OUTPUT);
+        self.clocks = 0;
+        self.clocking = true;
     }
 
     fn set_scl(&mut self, high: bool) {
+        if !high && self.clocking {
+            self.clocks = self.clocks.saturating_add(1);
+        }
         let n = self.scl;
         self.scl_port
             .bsrr()
@@ -104,6 +126,10 @@ impl<'d> BusRecovery<I2c<'d, Async, I2cMaster>> for I2cRecoveryPins {
     }
 
     fn set_sda(&mut self, high: bool) {
+        // SDA driven low is the START that follows the clocks (`i2c_guard::GuardedI2c::recover`).
+        if !high {
+            self.clocking = false;
+        }
         let n = self.sda;
         self.sda_port
             .bsrr()
@@ -111,7 +137,8 @@ impl<'d> BusRecovery<I2c<'d, Async, I2cMaster>> for I2cRecoveryPins {
     }
 
     fn sda_is_high(&mut self) -> bool {
-        self.sda_port.idr().read().idr(self.sda) == gpio_vals::Idr::HIGH
+        self.sda_high = self.sda_port.idr().read().idr(self.sda) == gpio_vals::Idr::HIGH;
+        self.sda_high
     }
 
     fn end(&mut self, _bus: &mut I2c<'d, Async, I2cMaster>) {
@@ -127,6 +154,16 @@ impl<'d> BusRecovery<I2c<'d, Async, I2cMaster>> for I2cRecoveryPins {
         self.i2c.ccr().write_value(ccr);
         self.i2c.trise().write_value(trise);
         self.i2c.cr1().modify(|w| w.set_pe(true));
+        self.recoveries = self.recoveries.saturating_add(1);
+        if self.recoveries.is_power_of_two() {
+            warn!(
+                "{=str}: bus recovery {}: {} SCL clocks, SDA {=str}",
+                self.name,
+                self.recoveries,
+                self.clocks,
+                if self.sda_high { "released" } else { "still held low" }
+            );
+        }
     }
 }
 

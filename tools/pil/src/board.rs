@@ -24,6 +24,7 @@ use crate::deck::{DeckSensors, Fitted};
 use crate::devices::{Bmi088, Eeprom, Faults, default_config_block};
 use crate::flow::{self, CsTarget, Pmw3901};
 use crate::pin::{self, PinHandle};
+use crate::stuck::{self, StuckLine};
 use crate::{apb8, dreq};
 
 /// The machine description (derived from rsemu's STM32F407 board).
@@ -134,10 +135,15 @@ pub struct Board {
     pub imu: Arc<Bmi088>,
     /// The gyroscope's data-ready line (PC14).
     pub imu_int3: PinHandle,
+    /// The nRF51's RTS (flow control) into PA4: low (send) unless `--fault rts-high`.
+    pub nrf_rts: PinHandle,
     /// The Multi-ranger and the Flow deck's height ranger on I2C1.
     pub deck: Arc<DeckSensors>,
     /// The Flow deck's PMW3901 on SPI1.
     pub flow: Arc<Pmw3901>,
+    /// SDA of I2C3 and of I2C1, held low by a stuck slave when a fault asks for it (`crate::stuck`).
+    pub sensors_sda: StuckLine,
+    pub deck_sda: StuckLine,
     mem: Arc<AddressSpace>,
 }
 
@@ -157,11 +163,28 @@ impl Board {
         registry
             .add(&flow::CS_CLASS)
             .map_err(|e| anyhow!("registering pil.cs: {e}"))?;
+        registry
+            .add(&stuck::CLASS)
+            .map_err(|e| anyhow!("registering pil.stuck: {e}"))?;
         let mut options = catalog::build_options().map_err(|e| anyhow!("rsemu build options: {e}"))?;
         options.classes.insert(dreq::schema());
         options.classes.insert(apb8::schema());
         options.classes.insert(pin::schema());
         options.classes.insert(flow::cs_schema());
+        options.classes.insert(stuck::schema());
+        let sensors_sda = StuckLine::new(faults.sensor_bus_stuck);
+        let deck_sda = StuckLine::new(faults.deck_bus_stuck);
+        let (s_line, d_line) = (sensors_sda.clone(), deck_sda.clone());
+        options
+            .bindings
+            .bind(stuck::CLASS_NAME, move |props| {
+                let line = match stuck::bus_name(props)?.as_str() {
+                    "sensors" => s_line.clone(),
+                    _ => d_line.clone(),
+                };
+                Ok(Arc::new(stuck::Stuck::new(line)))
+            })
+            .map_err(|e| anyhow!("binding pil.stuck: {e}"))?;
         let cs_target = CsTarget::default();
         let cs_handle = cs_target.clone();
         options
@@ -171,11 +194,17 @@ impl Board {
             })
             .map_err(|e| anyhow!("binding pil.cs: {e}"))?;
         let imu_int3 = PinHandle::default();
-        let handle = imu_int3.clone();
+        let nrf_rts = PinHandle::default();
+        let (int3_handle, rts_handle) = (imu_int3.clone(), nrf_rts.clone());
         options
             .bindings
-            .bind(pin::CLASS_NAME, move |_props| {
-                Ok(Arc::new(pin::Pin::new(handle.clone())))
+            .bind(pin::CLASS_NAME, move |props| {
+                let handle = if pin::is_nrf_rts(props) {
+                    rts_handle.clone()
+                } else {
+                    int3_handle.clone()
+                };
+                Ok(Arc::new(pin::Pin::new(handle)))
             })
             .map_err(|e| anyhow!("binding pil.pin: {e}"))?;
         options
@@ -192,12 +221,14 @@ impl Board {
         sensors
             .attach(Arc::clone(&imu) as _)
             .map_err(|e| anyhow!("attaching the BMI088: {e}"))?;
+        sensors_sda.hold_bus(&sensors)?;
         let deck = buses::open(&hosts, "deck").map_err(|e| anyhow!("I2C1 bus: {e}"))?;
         deck.attach(Arc::new(Eeprom::new(&default_config_block())))
             .map_err(|e| anyhow!("attaching the EEPROM: {e}"))?;
         let deck_sensors = Arc::new(DeckSensors::new(fitted));
         deck.attach(Arc::clone(&deck_sensors) as _)
             .map_err(|e| anyhow!("attaching the deck rangers: {e}"))?;
+        deck_sda.hold_bus(&deck)?;
         let spi = rsemu::bus::spi::buses::open(&hosts, "flowdeck").map_err(|e| anyhow!("SPI1 bus: {e}"))?;
         let pmw = Arc::new(Pmw3901::new(fitted.flow));
         spi.attach(rsemu::bus::spi::ChipSelect(0), Arc::clone(&pmw) as _)
@@ -217,8 +248,11 @@ impl Board {
             syslink,
             imu,
             imu_int3,
+            nrf_rts,
             deck: deck_sensors,
             flow: pmw,
+            sensors_sda,
+            deck_sda,
             mem,
         })
     }
@@ -250,5 +284,63 @@ impl Board {
         self.mem
             .write(addr, Width::U32, u64::from(value), MemAttrs::DEBUG)
             .is_ok()
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::stuck::Release;
+
+    /// A guest-style (not debug) 32-bit write, as the firmware's STR would make.
+    fn write32(board: &Board, addr: u64, value: u32) {
+        board
+            .mem
+            .write(addr, Width::U32, u64::from(value), MemAttrs::DEFAULT)
+            .expect("write");
+    }
+
+    /// What the firmware's recovery does (`src/board/sensors.rs` `I2cRecoveryPins`), by register, on the
+    /// machine's own GPIO model: SCL PA8 and SDA PC9 as open-drain outputs, released; reading IDR shows
+    /// the stuck slave; each BSRR reset/set of PA8 is one SCL clock.
+    #[test]
+    fn the_machines_i2c3_pins_see_the_stuck_slave_and_its_release_after_k_clocks() {
+        const GPIOA: u64 = 0x4002_0000;
+        const GPIOC: u64 = 0x4002_0800;
+        const I2C3_SR2: u64 = 0x4000_5C18;
+        let faults = Faults {
+            sensor_bus_stuck: Some(Release::AfterClocks(3)),
+            ..Faults::default()
+        };
+        let fitted = Fitted {
+            multiranger: false,
+            flow: false,
+        };
+        let board = Board::new(vec![0xFF; FLASH_SIZE], faults, fitted).expect("machine");
+        // RCC_AHB1ENR: GPIOA, GPIOC (RM0090 §7.3.10); RCC_APB1ENR: I2C3EN bit 23 (§7.3.13).
+        write32(&board, 0x4002_3830, 0b101);
+        write32(&board, 0x4002_3840, 1 << 23);
+        assert_ne!(board.peek32(I2C3_SR2).unwrap() & 0b10, 0, "SR2.BUSY while SDA is held");
+        for (port, pin) in [(GPIOA, 8u32), (GPIOC, 9)] {
+            write32(&board, port + 0x18, 1 << pin); // BSRR: released before the mode switch
+            write32(&board, port + 0x04, 1 << pin); // OTYPER: open-drain
+            let moder = board.peek32(port).unwrap() & !(0b11 << (2 * pin));
+            write32(&board, port, moder | (0b01 << (2 * pin))); // MODER: output
+        }
+        let sda_high = || board.peek32(GPIOC + 0x10).unwrap() & (1 << 9) != 0;
+        assert!(!sda_high(), "IDR reads the slave holding SDA low although ODR is 1");
+        for clock in 1..=3 {
+            assert!(!sda_high(), "still held before clock {clock}");
+            write32(&board, GPIOA + 0x18, 1 << (8 + 16)); // SCL low
+            write32(&board, GPIOA + 0x18, 1 << 8); // SCL high
+        }
+        assert!(sda_high(), "released after the third clock");
+        let stats = board.sensors_sda.stats();
+        assert_eq!((stats.clocks_seen, stats.holding), (3, false));
+        assert_eq!(
+            board.deck_sda.stats().clocks_seen,
+            0,
+            "the deck bus's line is another net"
+        );
     }
 }

@@ -8,7 +8,7 @@
 //!
 //! Fault injection ([`Faults`]): the BMI088 that does not acknowledge the soft-reset command byte (issue 12
 //! item 2: it resets at once and NACKs), and a sensor bus where no device acknowledges anything (an IMU that
-//! is not there or a bus held by a dead chip, as the I2C master sees it).
+//! is not there, as the I2C master sees it). A bus whose SDA is held low by a slave is `crate::stuck`.
 //!
 //! Non-goals: no physics yet (milestone 3 feeds the simulator's truth), no data-ready pulses on PC14, no
 //! write-cycle timing in the EEPROM.
@@ -32,6 +32,12 @@ pub struct Faults {
     pub bmi088_reset_nack: bool,
     /// Nothing on I2C3 acknowledges its address.
     pub sensor_bus_dead: bool,
+    /// A slave holds I2C3's SDA low from power-on (`crate::stuck`), letting go as this says.
+    pub sensor_bus_stuck: Option<crate::stuck::Release>,
+    /// The same on the deck bus, I2C1.
+    pub deck_bus_stuck: Option<crate::stuck::Release>,
+    /// The nRF51 holds RTS (PA4) high from power-on.
+    pub rts_high: bool,
 }
 
 /// Counters a report prints.

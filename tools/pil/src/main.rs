@@ -33,6 +33,7 @@ mod physics;
 mod pin;
 mod probe;
 mod rtt;
+mod stuck;
 mod udp_bridge;
 
 /// The simulator's own models (`cfnav sim`), compiled in unchanged from `tools/src/sim` (milestone 3): the
@@ -79,7 +80,9 @@ struct Args {
     #[arg(long, default_value = "ready")]
     expect: String,
     /// Inject a fault: bmi088-reset-nack (the IMU does not acknowledge its soft reset), sensor-bus-dead
-    /// (nothing on I2C3 acknowledges). Repeatable.
+    /// (nothing on I2C3 acknowledges), sensor-bus-stuck[:K|never] / deck-bus-stuck[:K|never] (a slave holds
+    /// SDA of I2C3 / I2C1 low from power-on and lets go after K falling SCL edges, 1..=9, default 9, or
+    /// never), rts-high (the nRF51 holds its RTS, PA4, high from power-on: "stop sending"). Repeatable.
     #[arg(long = "fault")]
     faults: Vec<String>,
     /// The nRF51 end stays silent (no echo of the radio settings): a syslink whose radio chip does not answer.
@@ -183,6 +186,9 @@ struct Report {
     spi1_dma: [u32; 8],
     /// GPIOA IDR (PA4 = the nRF's flow control, bit 4).
     gpioa_idr: u32,
+    /// The motor PWM compare registers at the end, M1..M4: TIM2 CCR2, CCR4, CCR1 and TIM4 CCR4 (RM0090
+    /// §18.4.13–16; the same channels `physics.rs` reads): all zero = motors off.
+    motor_ccr: [u32; 4],
     boots_logged: usize,
     faults_logged: Vec<String>,
     log_lines: usize,
@@ -200,6 +206,9 @@ struct Report {
     ranger_addresses: [Option<u8>; 6],
     /// The PMW3901 model's counters.
     flow_sensor: flow::FlowStats,
+    /// The stuck-SDA slaves on I2C3 and I2C1 (`--fault sensor-bus-stuck` / `deck-bus-stuck`).
+    sensor_bus_sda: stuck::StuckStats,
+    deck_bus_sda: stuck::StuckStats,
     /// The world flown in (milestone 3), if the physics ran.
     world: Option<String>,
     /// The hover test's verdict on the truth (`--hover`).
@@ -252,7 +261,19 @@ fn parse_faults(names: &[String]) -> Result<Faults> {
         match n.as_str() {
             "bmi088-reset-nack" => f.bmi088_reset_nack = true,
             "sensor-bus-dead" => f.sensor_bus_dead = true,
-            other => bail!("unknown fault `{other}` (known: bmi088-reset-nack, sensor-bus-dead)"),
+            "rts-high" => f.rts_high = true,
+            other => {
+                let (name, arg) = other.split_once(':').map_or((other, None), |(n, a)| (n, Some(a)));
+                let release = || stuck::Release::parse(arg).map_err(|e| anyhow::anyhow!("--fault {name}: {e}"));
+                match name {
+                    "sensor-bus-stuck" => f.sensor_bus_stuck = Some(release()?),
+                    "deck-bus-stuck" => f.deck_bus_stuck = Some(release()?),
+                    _ => bail!(
+                        "unknown fault `{other}` (known: bmi088-reset-nack, sensor-bus-dead, \
+                         sensor-bus-stuck[:K|never], deck-bus-stuck[:K|never])"
+                    ),
+                }
+            }
         }
     }
     Ok(f)
@@ -318,6 +339,7 @@ fn run(args: &Args) -> Result<(Report, bool)> {
         flow: !args.no_flow,
     };
     let mut board = Board::new(image.flash.clone(), faults, fitted)?;
+    board.nrf_rts.set(faults.rts_high);
     let mut nrf = nrf51::Nrf51::new(args.silent_nrf);
     let mut bridge = match &args.serve {
         Some(addr) => {
@@ -417,6 +439,8 @@ fn run(args: &Args) -> Result<(Report, bool)> {
             }
         }
         let t_ms = board.now_ns() / 1_000_000;
+        board.sensors_sda.tick(t_ms);
+        board.deck_sda.tick(t_ms);
         let pins = leds::Pins {
             gpioc_moder: board.peek32(GPIOC_ODR - 0x14).unwrap_or(0),
             gpioc_odr: board.peek32(GPIOC_ODR).unwrap_or(0),
@@ -599,6 +623,7 @@ fn run(args: &Args) -> Result<(Report, bool)> {
             board.peek32(0x4002_6400).unwrap_or(0),
         ],
         gpioa_idr: board.peek32(0x4002_0010).unwrap_or(0),
+        motor_ccr: [0x4000_0038, 0x4000_0040, 0x4000_0034, 0x4000_0840].map(|a| board.peek32(a).unwrap_or(0)),
         boots_logged,
         faults_logged,
         log_lines: log.len(),
@@ -612,6 +637,8 @@ fn run(args: &Args) -> Result<(Report, bool)> {
         deck_bus: board.deck.stats(),
         ranger_addresses: board.deck.addresses(),
         flow_sensor: board.flow.stats(),
+        sensor_bus_sda: board.sensors_sda.stats(),
+        deck_bus_sda: board.deck_sda.stats(),
         world: physics.as_ref().map(|_| {
             args.world
                 .as_ref()

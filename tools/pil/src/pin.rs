@@ -1,4 +1,5 @@
-//! `pil.pin`: one output line the host drives (the BMI088's INT3 data-ready line into PC14).
+//! `pil.pin`: one output line the host drives (the BMI088's INT3 data-ready line into PC14; the nRF51's RTS
+//! into PA4). `net` names which (`"imu-int3"`, the default, or `"nrf-rts"`), so the host gets one handle each.
 //!
 //! Job: give the host a [`WireSource`] on a net of the machine, so a device model that lives outside rsemu
 //! (an [`rsemu::bus::i2c::I2cSlave`] has no pins) can still raise a GPIO/EXTI edge. The host sets the level
@@ -8,11 +9,13 @@
 
 use std::sync::{Arc, Mutex};
 
+use rsemu::core::device::PropertySpec;
 use rsemu::core::device::{Device, DeviceClass, RealizeCtx, ResetKind};
 use rsemu::core::error::{Error, Result};
+use rsemu::core::props::{Props, ValueKind};
 use rsemu::core::wire::{Level, WireSource};
 use rsemu::machine::Instance;
-use rsemu::machine::validate::{ClassSchema, PortDir};
+use rsemu::machine::validate::{ClassSchema, PortDir, PropSchema};
 
 /// The class name a machine file writes.
 pub const CLASS_NAME: &str = "pil.pin";
@@ -74,11 +77,23 @@ pub static CLASS: DeviceClass = DeviceClass {
     name: CLASS_NAME,
     version: 1,
     summary: "an output line driven by the host (cfnav PIL)",
-    properties: &[],
+    properties: &[PropertySpec {
+        name: "net",
+        kind: ValueKind::Str,
+        required: false,
+        summary: "which line: \"imu-int3\" (default) or \"nrf-rts\"",
+    }],
     construct: |_props| Ok(Box::new(Pin::new(PinHandle::default()))),
 };
 
 /// What the validator should know about `pil.pin`.
 pub fn schema() -> ClassSchema {
-    ClassSchema::new(CLASS_NAME).port("out", PortDir::Out)
+    ClassSchema::new(CLASS_NAME)
+        .prop(PropSchema::new("net", ValueKind::Str).values(&["imu-int3", "nrf-rts"]))
+        .port("out", PortDir::Out)
+}
+
+/// Whether an instance is the nRF51's RTS line (`net = "nrf-rts"`).
+pub fn is_nrf_rts(props: &Props) -> bool {
+    props.get("net").and_then(|v| v.as_str()) == Some("nrf-rts")
 }

@@ -54,6 +54,11 @@ pub const PAGE_LEN: usize = 32;
 pub const SLOT_LEN: usize = 20 * PAGE_LEN;
 /// Bytes of the whole region (two slots), read at boot from [`REGION_START`].
 pub const REGION_LEN: usize = 2 * SLOT_LEN;
+/// Most bytes one EEPROM read transfer asks for: [`read_chunks`] cuts the boot read and the read-back into
+/// pieces of this size. Why: every deck-bus transfer has a deadline (the board's I2C guard, 10 ms), and one
+/// sequential read of the whole region (1280 bytes, ≈ 29 ms at 400 kHz) or of a slot (640 bytes, ≈ 15 ms)
+/// overruns it, so the store could never be read. 128 bytes plus the addressing is ≈ 3 ms at 400 kHz.
+pub const READ_CHUNK_LEN: usize = 128;
 /// Bytes of the slot header.
 pub const HEADER_LEN: usize = 16;
 /// Bytes of one record: key u32, type u8, value 4 bytes.
@@ -157,6 +162,16 @@ impl PendingWrite {
             .enumerate()
             .map(move |(i, c)| (base + (i * PAGE_LEN) as u16, c))
     }
+}
+
+/// The pieces of a sequential read of `len` bytes from EEPROM address `start`: `(address, range in the
+/// caller's buffer)`, each at most [`READ_CHUNK_LEN`] bytes, in order, covering `0..len` exactly. A read that
+/// would run past the 16-bit address space stops there (the 24AA64 has 8 KiB; nothing here reads near it).
+pub fn read_chunks(start: u16, len: usize) -> impl Iterator<Item = (u16, core::ops::Range<usize>)> {
+    let len = len.min(usize::from(u16::MAX - start) + 1);
+    (0..len)
+        .step_by(READ_CHUNK_LEN)
+        .map(move |at| (start + at as u16, at..(at + READ_CHUNK_LEN).min(len)))
 }
 
 /// EEPROM address of slot 0 or 1.

@@ -5,8 +5,8 @@
 use std::collections::BTreeMap;
 
 use cfnav::system::persistent_params::{
-    FORMAT_VERSION, LoadReport, MAGIC, MAX_RECORDS, PAGE_LEN, PendingWrite, PersistentParams, REGION_LEN, REGION_START,
-    Record, SLOT_LEN, SlotStatus, StoreError, param_key, slot_address,
+    FORMAT_VERSION, LoadReport, MAGIC, MAX_RECORDS, PAGE_LEN, PendingWrite, PersistentParams, READ_CHUNK_LEN,
+    REGION_LEN, REGION_START, Record, SLOT_LEN, SlotStatus, StoreError, param_key, read_chunks, slot_address,
 };
 
 /// What a power cut does to the page being written.
@@ -391,4 +391,66 @@ fn the_mock_catches_an_in_place_rewrite_that_a_cut_would_break() {
         lost > SLOT_LEN / 2,
         "an in-place rewrite lost the latest set at {lost} cut points"
     );
+}
+
+/// Bus time of one 24AA64 random-address sequential read of `n` bytes at `hz` (DS21189 §8.3): device
+/// address (write), two memory address bytes, repeated start, device address (read), `n` data bytes; 9
+/// clocks a byte (8 bits + ACK) and ≈ 3 clocks for the start, the repeated start and the stop.
+fn i2c_read_us(n: usize, hz: u64) -> u64 {
+    let clocks = (4 + n as u64) * 9 + 3;
+    (clocks * 1_000_000).div_ceil(hz)
+}
+
+#[test]
+fn read_chunks_cover_the_region_in_order_with_matching_addresses() {
+    for (start, len) in [
+        (REGION_START, REGION_LEN),
+        (slot_address(1), SLOT_LEN),
+        (0, 1),
+        (0x1f00, 300),
+        (7, 0),
+    ] {
+        let chunks: Vec<_> = read_chunks(start, len).collect();
+        let mut next = 0usize;
+        for (addr, range) in &chunks {
+            assert_eq!(range.start, next, "chunks are contiguous");
+            assert!(!range.is_empty() && range.len() <= READ_CHUNK_LEN);
+            assert_eq!(
+                usize::from(*addr),
+                usize::from(start) + range.start,
+                "address follows the offset"
+            );
+            next = range.end;
+        }
+        assert_eq!(next, len, "chunks cover the whole read");
+    }
+}
+
+#[test]
+fn every_eeprom_read_transfer_fits_the_deck_bus_deadline() {
+    // The deck bus guard's per-transfer deadline (src/board/sensors.rs DECK_GUARD.timeout_us) at the deck
+    // bus's 400 kHz (src/main.rs). One read of the whole region (≈ 29 ms) or of a slot (≈ 15 ms) did not fit:
+    // the boot log said "EEPROM read failed (Timeout)" in the emulator and the store never loaded.
+    const DECK_DEADLINE_US: u64 = 10_000;
+    assert!(
+        i2c_read_us(REGION_LEN, 400_000) > DECK_DEADLINE_US,
+        "the oracle sees the old single read fail"
+    );
+    for (start, len) in [
+        (REGION_START, REGION_LEN),
+        (slot_address(0), SLOT_LEN),
+        (slot_address(1), SLOT_LEN),
+    ] {
+        for (_, range) in read_chunks(start, len) {
+            let us = i2c_read_us(range.len(), 400_000);
+            assert!(us * 2 < DECK_DEADLINE_US, "a {}-byte read takes {us} µs", range.len());
+        }
+    }
+}
+
+#[test]
+fn read_chunks_stop_at_the_end_of_the_address_space() {
+    let chunks: Vec<_> = read_chunks(0xfff0, 100).collect();
+    let total: usize = chunks.iter().map(|(_, r)| r.len()).sum();
+    assert_eq!(total, 16);
 }

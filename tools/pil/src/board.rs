@@ -147,6 +147,17 @@ pub struct Board {
     mem: Arc<AddressSpace>,
 }
 
+/// The scheduler's quantum, ns: the longest the DMA controllers wait between two turns.
+///
+/// rsemu's `st.dma` moves its beats only when the scheduler gives it a turn (`Device::run`, once a round),
+/// and with the default 1 ms quantum a round lasts until the next event anywhere on the board. SPI1 shifts a
+/// byte every 6.1 µs (1.3125 MHz): when no other event ended a round within two byte times of a received
+/// byte, the next byte landed on the unread one (SR.OVR, RM0090 §28.3.10), the RX stream waited for a byte
+/// that never came and the flow read timed out (bench boot, 2 s: 4 timeouts and a failed re-sync with 1 ms;
+/// none with 2 µs, at no measurable wall-time cost). On the part a request is served within a few AHB
+/// cycles, so this was the emulator's, not the firmware's. 2 µs is a third of a byte time.
+pub const QUANTUM_NS: u64 = 2_000;
+
 impl Board {
     /// Builds the machine around `flash` with the device models and faults.
     pub fn new(flash: Vec<u8>, faults: Faults, fitted: Fitted) -> Result<Self> {
@@ -185,6 +196,7 @@ impl Board {
                 Ok(Arc::new(stuck::Stuck::new(line)))
             })
             .map_err(|e| anyhow!("binding pil.stuck: {e}"))?;
+        options.realize.scheduler.quantum = rsemu::core::clock::GlobalTime::from_nanos(QUANTUM_NS);
         let cs_target = CsTarget::default();
         let cs_handle = cs_target.clone();
         options

@@ -17,7 +17,6 @@ Usage: cflib_persistent.py --sim PATH/TO/cfnav [--port 19853] [--store FILE]
 
 import argparse
 import os
-import subprocess
 import sys
 import tempfile
 import threading
@@ -27,7 +26,9 @@ import cflib.crtp
 from cflib.crazyflie import Crazyflie
 from cflib.crazyflie.syncCrazyflie import SyncCrazyflie
 
-HERE = os.path.dirname(os.path.abspath(__file__))
+sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
+from sim_truth import Sim  # noqa: E402
+
 # (name, value written, power-on default): a float, a uint16 and a uint8.
 PARAMS = [("pid_rate.roll_kp", 180.0, 250.0), ("posCtlPid.thrustBase", 40000, None), ("avoid.mode", 1, 0)]
 TIMEOUT_S = 10.0
@@ -42,30 +43,9 @@ def ok(text):
     print(f"ok: {text}", flush=True)
 
 
-class Sim:
-    """`cfnav sim --serve` with the store file, started and stopped like a power cycle."""
-
-    def __init__(self, binary, port, store, log):
-        self.cmd = [binary, "sim", "--serve", "--port", str(port), "--param-store", store]
-        self.port = port
-        self.log = log
-        self.proc = None
-
-    def __enter__(self):
-        self.proc = subprocess.Popen(self.cmd, stdout=self.log, stderr=self.log)
-        wait = subprocess.run([sys.executable, os.path.join(HERE, "wait_for_sim.py"), str(self.port), "60"])
-        if wait.returncode != 0:
-            self.proc.kill()
-            fail(f"the simulator did not come up: {' '.join(self.cmd)}")
-        return self
-
-    def __exit__(self, *exc):
-        self.proc.terminate()
-        try:
-            self.proc.wait(timeout=10)
-        except subprocess.TimeoutExpired:
-            self.proc.kill()
-            self.proc.wait()
+def power_on(binary, port, store, log_path):
+    """`cfnav sim --serve` with the store file, started and stopped like a power cycle (sim_truth.Sim)."""
+    return Sim(binary, port, None, log_path, extra=["--param-store", store], append=True)
 
 
 def call(fn, name):
@@ -126,13 +106,13 @@ def main():
     if os.path.exists(store):
         os.remove(store)
     uri = f"udp://127.0.0.1:{args.port}"
-    log = open(os.path.join(tmp.name, "serve.log"), "w")
+    log = os.path.join(tmp.name, "serve.log")
     cflib.crtp.init_drivers()
     defaults = {}
 
     try:
         # Boot 1: a blank store.
-        with Sim(args.sim, args.port, store, log):
+        with power_on(args.sim, args.port, store, log):
             scf = connect(uri)
             cf = scf.cf
             for name, _, _ in PARAMS:
@@ -161,7 +141,7 @@ def main():
             fail(f"{store} is not an 8 KB EEPROM image")
 
         # Boot 2: the values are back; clear the first.
-        with Sim(args.sim, args.port, store, log):
+        with power_on(args.sim, args.port, store, log):
             scf = connect(uri)
             cf = scf.cf
             for name, written, _ in PARAMS:
@@ -181,7 +161,7 @@ def main():
             scf.close_link()
 
         # Boot 3: the cleared one is at its default, the others still stored.
-        with Sim(args.sim, args.port, store, log):
+        with power_on(args.sim, args.port, store, log):
             scf = connect(uri)
             cf = scf.cf
             if value(cf, cleared) != defaults[cleared]:
@@ -194,7 +174,7 @@ def main():
             ok(f"after another restart {cleared} is at its default, the others kept their values; cleared")
             scf.close_link()
     finally:
-        log.close()
+        tmp.cleanup()
     print("persistent parameters over cflib: all checks passed", flush=True)
 
 

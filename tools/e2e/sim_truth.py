@@ -1,5 +1,5 @@
 #!/usr/bin/env python3
-"""Shared by cflib_modes.py and cflib_setpoint.py: start `cfnav sim --serve` with its stderr in a file, and read
+"""Shared by cflib_modes.py, cflib_setpoint.py and cflib_persistent.py: start `cfnav sim --serve` with its stderr in a file, and read
 the simulator's truth lines from it (tools/src/sim/serve.rs, module docs "Truth").
 
 The truth never goes over the radio: the checks compare what cflib logged from the drone with what the
@@ -43,19 +43,24 @@ class TruthEvent:
 
 
 class Sim:
-    """`cfnav sim --serve --port PORT --speed SPEED [--world FILE]`, stderr to `log_path`; a context manager."""
+    """`cfnav sim --serve --port PORT [--speed SPEED] [--world FILE] [EXTRA...]`, stdout and stderr to
+    `log_path` (appended to with `append`, e.g. one log over several power cycles); a context manager."""
 
-    def __init__(self, binary, port, speed, log_path, world=None):
-        self.cmd = [binary, "sim", "--serve", "--port", str(port), "--speed", str(speed)]
+    def __init__(self, binary, port, speed, log_path, world=None, extra=(), append=False):
+        self.cmd = [binary, "sim", "--serve", "--port", str(port)]
+        if speed is not None:
+            self.cmd += ["--speed", str(speed)]
         if world:
             self.cmd += ["--world", world]
+        self.cmd += list(extra)
         self.port = port
         self.log_path = log_path
+        self.append = append
         self.proc = None
         self.log = None
 
     def __enter__(self):
-        self.log = open(self.log_path, "w")
+        self.log = open(self.log_path, "a" if self.append else "w")
         self.proc = subprocess.Popen(self.cmd, stdout=self.log, stderr=self.log)
         if not answers_scan_probe(self.port, 60):
             self.proc.kill()

@@ -153,10 +153,13 @@ pub struct Board {
 /// and with the default 1 ms quantum a round lasts until the next event anywhere on the board. SPI1 shifts a
 /// byte every 6.1 µs (1.3125 MHz): when no other event ended a round within two byte times of a received
 /// byte, the next byte landed on the unread one (SR.OVR, RM0090 §28.3.10), the RX stream waited for a byte
-/// that never came and the flow read timed out (bench boot, 2 s: 4 timeouts and a failed re-sync with 1 ms;
-/// none with 2 µs, at no measurable wall-time cost). On the part a request is served within a few AHB
-/// cycles, so this was the emulator's, not the firmware's. 2 µs is a third of a byte time.
-pub const QUANTUM_NS: u64 = 2_000;
+/// that never came and the flow read timed out (bench boot, 3 s: 32 timeouts with 1 ms, 16 with 20 µs,
+/// none with 5, 4 or 2 µs). On the part a request is served within a few AHB cycles, so this was the
+/// emulator's, not the firmware's. Every round costs scheduler time whether anything happens or not (about
+/// half of the emulator's time once a sleeping core skips its idle cycles): 4 µs, two thirds of a byte time,
+/// is the longest quantum that still serves every byte before the next lands, with a margin (docs/pil.md,
+/// "Speed").
+pub const QUANTUM_NS: u64 = 4_000;
 
 impl Board {
     /// Builds the machine around `flash` with the device models and faults.

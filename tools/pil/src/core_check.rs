@@ -6,7 +6,10 @@
 //! entry must stack ITSTATE with xPSR and the return must restore it (ARMv7-M ARM, DDI 0403E, B1.5.6
 //! PushStack and B1.5.8 ExceptionReturn), so an interrupt inside an `IT` block leaves the rest of the block
 //! conditional. rsemu 0.0.7 stacked xPSR with the IT bits cleared; `patches/` fixes it, and
-//! `an_interrupt_inside_an_it_block_keeps_its_condition` fails without the patch (docs/pil.md).
+//! `an_interrupt_inside_an_it_block_keeps_its_condition` fails without the patch (docs/pil.md). The second:
+//! a core asleep in `WFI` is woken by SysTick on the very cycle the counter reaches zero, also when the
+//! emulator charges its idle cycles a budget at a time (`patches/rsemu-0.0.7-v7m-sleep-skip.patch`), which
+//! `a_sleeping_core_wakes_on_the_systick_cycle` checks from the cycle counter read in the handler.
 //! Non-goals: an instruction-set test suite (rsemu has its own corpus). Units: addresses as the core sees them.
 
 #[cfg(test)]
@@ -100,6 +103,84 @@ mod tests {
             wrong, 0,
             "`addne` ran {wrong} times with Z set ({interrupts} interrupts, {passes} passes): ITSTATE was lost on \
              an exception"
+        );
+    }
+
+    /// SysTick's reload for the sleep check: a period of 3 000 cycles, longer than a scheduler budget
+    /// (`board::QUANTUM_NS` at 168 MHz), so a sleep skip that ran past the wrap would show.
+    const SLEEP_RELOAD: u32 = 2_999;
+    /// Where the SysTick handler of the sleep check logs `DWT_CYCCNT`, one word per entry.
+    const CYCLE_LOG: u32 = 0x2000_0000;
+
+    /// A core that sleeps in `WFI` between SysTick interrupts; the handler appends `DWT_CYCCNT` to
+    /// [`CYCLE_LOG`].
+    fn sleeping_image() -> Vec<u8> {
+        // Thumb-16 encodings (DDI 0403E A7.7); `ldr rT, [pc, #imm]` loads the literals at 0x130.
+        let code: [u16; 24] = [
+            0x480B, // 0x100 ldr r0, =SYST_CSR
+            0x490C, // 0x102 ldr r1, =SLEEP_RELOAD
+            0x6041, // 0x104 str r1, [r0, #4]    ; SYST_RVR
+            0x2100, // 0x106 movs r1, #0
+            0x6081, // 0x108 str r1, [r0, #8]    ; SYST_CVR
+            0x4A0B, // 0x10a ldr r2, =DEMCR
+            0x490B, // 0x10c ldr r1, =TRCENA
+            0x6011, // 0x10e str r1, [r2]
+            0x4B0B, // 0x110 ldr r3, =DWT_CTRL
+            0x2101, // 0x112 movs r1, #1         ; CYCCNTENA
+            0x6019, // 0x114 str r1, [r3]
+            0x2600, // 0x116 movs r6, #0         ; SysTick handler entries
+            0x4F0A, // 0x118 ldr r7, =CYCLE_LOG
+            0x2107, // 0x11a movs r1, #7         ; ENABLE | TICKINT | CLKSOURCE
+            0x6001, // 0x11c str r1, [r0]        ; SYST_CSR
+            0xBF30, // 0x11e loop: wfi
+            0xE7FD, // 0x120 b loop
+            0x6859, // 0x122 systick: ldr r1, [r3, #4] ; DWT_CYCCNT
+            0x6039, // 0x124 str r1, [r7]
+            0x3704, // 0x126 adds r7, #4
+            0x3601, // 0x128 adds r6, #1
+            0x4770, // 0x12a bx lr
+            0xE7FE, // 0x12c parked: b .
+            0xBF00, // 0x12e nop (literal alignment)
+        ];
+        let literals: [u32; 6] = [0xE000_E010, SLEEP_RELOAD, 0xE000_EDFC, 1 << 24, 0xE000_1000, CYCLE_LOG];
+        let mut flash = vec![0xFF; 0x1000];
+        let mut word = |at: usize, value: u32| flash[at..at + 4].copy_from_slice(&value.to_le_bytes());
+        word(0, STACK_TOP);
+        for vector in 1..16 {
+            word(vector * 4, 0x0800_012D); // parked (Thumb bit set)
+        }
+        word(4, 0x0800_0101); // reset
+        word(15 * 4, 0x0800_0123); // SysTick
+        for (k, value) in literals.iter().enumerate() {
+            word(0x130 + 4 * k, *value);
+        }
+        for (k, half) in code.iter().enumerate() {
+            flash[CODE + 2 * k..CODE + 2 * k + 2].copy_from_slice(&half.to_le_bytes());
+        }
+        flash
+    }
+
+    /// SysTick pends on the clock its counter reaches zero and reloads on the next (DDI 0403E B3.3.1), so
+    /// with the core asleep every handler entry is exactly `SLEEP_RELOAD + 1` cycles after the one before,
+    /// however the emulator batches the idle cycles.
+    #[test]
+    fn a_sleeping_core_wakes_on_the_systick_cycle() {
+        let fitted = Fitted {
+            multiranger: false,
+            flow: false,
+        };
+        let mut board = Board::new(sleeping_image(), Faults::default(), fitted).expect("the machine builds");
+        // 2 ms at 168 MHz: about 110 periods.
+        board.run_ns(2_000_000).expect("the program runs");
+        let entries = register(&mut board, 6);
+        assert!(entries > 100, "SysTick ran its handler {entries} times");
+        let log: Vec<u32> = (0..entries)
+            .map(|k| board.peek32(u64::from(CYCLE_LOG + 4 * k)).expect("RAM reads"))
+            .collect();
+        let gaps: Vec<u32> = log.windows(2).map(|w| w[1].wrapping_sub(w[0])).collect();
+        assert!(
+            gaps.iter().all(|&gap| gap == SLEEP_RELOAD + 1),
+            "cycles between SysTick handler entries: {gaps:?}"
         );
     }
 }

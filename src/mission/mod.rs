@@ -45,7 +45,9 @@
 //!   centred on the latest estimate —
 //!   lines across the first crossing (which fix the other coordinate), then lines along it, four rounds
 //!   in all with a fresh detector every round (the estimate drifts) — until the detector locks (three
-//!   inlier crossings covering both directions: usually the first crossing and two lines across it). A
+//!   inlier crossings covering both directions: usually the first crossing and two lines across it), or
+//!   two crossings, one each way, agree on a square pad (confidence ≥ 0.8, no outlier: a pad boxed in by a
+//!   wall and an obstacle gives no third, and elsewhere it saves a line). A
 //!   line ends as soon as it gave a crossing (its rest only costs time), and in the first round a stage
 //!   ends once its direction has two inlier crossings; later rounds fly all three lines of a stage.
 //!   A line cut short by the clearance while the drone is on the pad (a wall or an obstacle 0.1–0.25 m

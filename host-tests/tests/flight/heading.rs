@@ -111,7 +111,10 @@ fn wall_fixes_hold_the_heading_against_a_gyro_drift() {
     // Since the pad search turns a beam onto unobserved regions (session 8), the flights' paths differ:
     // with 2.5–3.9° and 3.3–4.6 cm, without 5.2–8.4° and 11–20 cm (seed 3 without: 5.2°, was ≥ 6.2°);
     // the yaw bounds moved from 3.7° / 5.7° to 4.3° / 4.9°, still separating every run with the fixes
-    // from every run without them.
+    // from every run without them. The two-crossing lock (session 9) shortens each search by a line, so
+    // the flights are ≈ 4 s shorter and the bias has less time to act: with 2.9–3.9° and 3.0–3.3 cm,
+    // without 5.5–8.4° and 9.3–19.9 cm (seed 3 without: 9.3 cm, was ≥ 11 cm); the position bound without
+    // moved from 10 cm to 8 cm, plus an explicit "every run with below every run without".
     assert!(
         worst_on.0 <= 0.075,
         "with the heading fixes the late yaw error reaches {}",
@@ -134,7 +137,13 @@ fn wall_fixes_hold_the_heading_against_a_gyro_drift() {
         worst_off.0
     );
     assert!(
-        worst_off.1 > 0.10,
+        worst_on.1 < worst_off.1,
+        "position with {} vs without {}",
+        worst_on.1,
+        worst_off.1
+    );
+    assert!(
+        worst_off.1 > 0.08,
         "without them the position error stays at {}",
         worst_off.1
     );

@@ -244,3 +244,51 @@ fn the_discharge_watch_measures_a_linear_discharge() {
     // 3 m home at 0.5 m/s + 15 s of search and landing, times 1.5.
     assert!((needed_s(3.0, 0.5, 1.5) - 31.5).abs() < 1e-3);
 }
+
+/// The whole Flow deck lost in flight (found in the emulator, `cfnav-pil --fault flow-deck-lost`): no flow and
+/// no height reading, so the estimate stays invalid down to the floor and the supervisor, which never counts
+/// a touchdown on an invalid estimate, never reports one. The blind descent must still end with the motors
+/// stopped, within the time a descent from the last valid height can take; and not before that time, so a
+/// descent that is still in the air keeps its thrust.
+#[test]
+fn a_blind_descent_stops_the_motors_after_its_time_bound() {
+    let mut m = started_on_the_pad();
+    let inputs = armed();
+    let mut now = 20_000u64;
+    // Fly: take off and climb to 0.6 m with a valid estimate.
+    for k in 0..200 {
+        now += 20_000;
+        let z = (k as f32 * 0.005).min(0.6);
+        m.tick(now, &at(0.6, 1.3, z), &inputs);
+    }
+    assert!(!m.state().is_final(), "{:?}", m.state());
+    // The estimate is lost at 0.6 m and never comes back.
+    let lost_at = now;
+    let blind = StateEstimate {
+        valid: false,
+        ..at(0.6, 1.3, 0.6)
+    };
+    let mut stopped_at = None;
+    while now < lost_at + 20_000_000 {
+        now += 20_000;
+        let sp = m.tick(now, &blind, &inputs);
+        if sp == Setpoint::Stop {
+            stopped_at = Some(now);
+            break;
+        }
+        assert!(
+            matches!(sp, Setpoint::Descend { vz_m_s, .. } if vz_m_s < 0.0),
+            "a blind descent: {sp:?}"
+        );
+        assert_eq!(m.state(), MissionState::EmergencyLanding);
+    }
+    let stopped_after_s = (stopped_at.expect("the motors stop") - lost_at) as f32 * 1e-6;
+    // From 0.6 m at the slowest commanded rate (0.2 m/s) with 0.2 m of margin it is down after 4 s; the
+    // bound is 5 s: the motors must keep turning until then and stop right after.
+    assert!(
+        (4.0..=5.1).contains(&stopped_after_s),
+        "the motors stopped {stopped_after_s} s after the estimate was lost"
+    );
+    assert_eq!(m.state(), MissionState::EstimatorFault);
+    assert_eq!(m.tick(now + 20_000, &blind, &inputs), Setpoint::Stop);
+}

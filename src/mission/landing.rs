@@ -87,6 +87,19 @@ impl<const CELLS: usize, const QUEUE: usize> Mission<CELLS, QUEUE> {
         }
     }
 
+    /// The longest a descent without a valid estimate may take, µs: from the last valid height above the
+    /// surface (clamped to 0..3 m) plus 0.2 m for a pad edge or a height error, at the slowest rate
+    /// [`Self::fault_descent_speed`] may command, plus 1 s. From 0.6 m: 5 s.
+    pub(super) fn blind_descent_bound_us(&self) -> u64 {
+        let height_m = if self.last_valid_height_m.is_finite() {
+            self.last_valid_height_m.clamp(0.0, 3.0)
+        } else {
+            3.0
+        };
+        let slowest_m_s = self.config.descent_speed_m_s.clamp(0.05, FAULT_DESCENT_SPEED_M_S);
+        (((height_m + 0.2) / slowest_m_s + 1.0) * 1e6) as u64
+    }
+
     /// The pad's height as the detector measured it (median of its crossings' steps), m.
     pub(super) fn pad_height(&self) -> f32 {
         let mut steps = [0.0f32; 8];

@@ -299,6 +299,10 @@ pub struct Mission<const CELLS: usize, const QUEUE: usize> {
     leg: Leg,
     last_ranges: RangerReadings,
     last_tick: Option<Micros>,
+    /// Height above the surface below in the last valid estimate, m (bounds a blind descent).
+    last_valid_height_m: f32,
+    /// A descent without a valid estimate stops the motors at this time if nothing saw the touchdown.
+    blind_descent_until: Option<Micros>,
     pad_not_found: bool,
     /// The link-loss policy turned the drone home: the home landing ends with [`MissionState::LinkLostHome`].
     link_lost_home: bool,
@@ -374,6 +378,8 @@ impl<const CELLS: usize, const QUEUE: usize> Mission<CELLS, QUEUE> {
             leg: Leg::Outbound,
             last_ranges: RangerReadings::NONE,
             last_tick: None,
+            last_valid_height_m: 0.0,
+            blind_descent_until: None,
             pad_not_found: false,
             link_lost_home: false,
             planner_needs_reset: false,
@@ -416,6 +422,8 @@ impl<const CELLS: usize, const QUEUE: usize> Mission<CELLS, QUEUE> {
                 leg: _,
                 last_ranges: _,
                 last_tick: _,
+                last_valid_height_m: _,
+                blind_descent_until: _,
                 pad_not_found: _,
                 link_lost_home: _,
                 planner_needs_reset: _,
@@ -443,6 +451,8 @@ impl<const CELLS: usize, const QUEUE: usize> Mission<CELLS, QUEUE> {
             addr_of_mut!((*slot).leg).write(Leg::Outbound);
             addr_of_mut!((*slot).last_ranges).write(RangerReadings::NONE);
             addr_of_mut!((*slot).last_tick).write(None);
+            addr_of_mut!((*slot).last_valid_height_m).write(0.0);
+            addr_of_mut!((*slot).blind_descent_until).write(None);
             addr_of_mut!((*slot).pad_not_found).write(false);
             addr_of_mut!((*slot).link_lost_home).write(false);
             addr_of_mut!((*slot).planner_needs_reset).write(false);
@@ -555,6 +565,8 @@ impl<const CELLS: usize, const QUEUE: usize> Mission<CELLS, QUEUE> {
         self.leg = Leg::Outbound;
         self.pad_not_found = false;
         self.link_lost_home = false;
+        self.blind_descent_until = None;
+        self.last_valid_height_m = 0.0;
         self.planner_needs_reset = true;
         self.stats = MissionStats::default();
         self.explorer = explore::Explorer::new();
@@ -716,14 +728,19 @@ impl<const CELLS: usize, const QUEUE: usize> Mission<CELLS, QUEUE> {
                 self.phase = Phase::Ended(MissionState::Crashed);
                 return Setpoint::Stop;
             }
+            if state.valid {
+                self.last_valid_height_m = state.position_m[2] - state.surface_height_m;
+            }
             if !state.valid && !matches!(self.phase, Phase::EmergencyLand { .. }) {
                 // Without a usable estimate nothing can be flown safely; descend blind at the last known spot
-                // and let the supervisor's touchdown or timeout stop the motors.
+                // and let the supervisor's touchdown stop the motors, or the time bound below when the
+                // touchdown cannot be seen (no height reading: the whole Flow deck lost).
                 self.phase = Phase::EmergencyLand {
                     x,
                     y,
                     then: MissionState::EstimatorFault,
                 };
+                self.blind_descent_until = Some(now.saturating_add(self.blind_descent_bound_us()));
             } else if inputs.battery_low && !matches!(self.phase, Phase::EmergencyLand { .. } | Phase::Land { .. }) {
                 self.land_where_it_is(state, MissionState::BatteryLow);
             }
@@ -828,6 +845,16 @@ impl<const CELLS: usize, const QUEUE: usize> Mission<CELLS, QUEUE> {
             }
             Phase::EmergencyLand { x: lx, y: ly, then } => {
                 if inputs.landed {
+                    self.phase = Phase::Ended(then);
+                    return Setpoint::Stop;
+                }
+                // The supervisor never counts a touchdown on an invalid estimate, so a descent that stays
+                // blind would keep the motors turning on the floor: after the time the descent can take,
+                // stop them (the drone is down or within a few cm of it).
+                if then == MissionState::EstimatorFault
+                    && !state.valid
+                    && self.blind_descent_until.is_some_and(|t| now >= t)
+                {
                     self.phase = Phase::Ended(then);
                     return Setpoint::Stop;
                 }

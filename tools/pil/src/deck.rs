@@ -301,6 +301,16 @@ impl DeckSensors {
         });
     }
 
+    /// The Flow deck's height ranger leaves the bus (`--fault flow-deck-lost`): it no longer acknowledges
+    /// its address.
+    pub fn unplug_flow(&self) {
+        self.with(|s| {
+            s.fitted.flow = false;
+            let now = s.now_ns;
+            s.rangers[DOWN].set_power(false, now);
+        });
+    }
+
     pub fn stats(&self) -> DeckStats {
         self.with(|s| s.stats)
     }

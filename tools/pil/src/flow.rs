@@ -121,6 +121,12 @@ impl Pmw3901 {
         self.with(|s| s.tracking = tracking);
     }
 
+    /// The deck stops answering (`--fault flow-deck-lost`): from now on MISO floats high, as when the deck
+    /// is not fitted.
+    pub fn unplug(&self) {
+        self.with(|s| s.fitted = false);
+    }
+
     pub fn stats(&self) -> FlowStats {
         let mut st = *self.stats.lock().unwrap_or_else(|e| e.into_inner());
         st.configured = self.with(|s| s.configured);

@@ -82,7 +82,9 @@ struct Args {
     /// Inject a fault: bmi088-reset-nack (the IMU does not acknowledge its soft reset), sensor-bus-dead
     /// (nothing on I2C3 acknowledges), sensor-bus-stuck[:K|never] / deck-bus-stuck[:K|never] (a slave holds
     /// SDA of I2C3 / I2C1 low from power-on and lets go after K falling SCL edges, 1..=9, default 9, or
-    /// never), rts-high (the nRF51 holds its RTS, PA4, high from power-on: "stop sending"). Repeatable.
+    /// never), rts-high (the nRF51 holds its RTS, PA4, high from power-on: "stop sending"),
+    /// flow-deck-lost:SECONDS (from that virtual time on the Flow deck answers nothing: the PMW3901's MISO
+    /// floats high, its height ranger leaves the deck bus). Repeatable.
     #[arg(long = "fault")]
     faults: Vec<String>,
     /// The nRF51 end stays silent (no echo of the radio settings): a syslink whose radio chip does not answer.
@@ -160,6 +162,8 @@ struct Report {
     /// FNV-1a of the ELF file, to tell images apart.
     elf_fnv: String,
     faults: Vec<String>,
+    /// Virtual ms at which `--fault flow-deck-lost` unplugged the deck.
+    flow_deck_lost_at_ms: Option<u64>,
     outcome: &'static str,
     ready: bool,
     /// Virtual ms at which the first whole second of "ready" began.
@@ -268,9 +272,18 @@ fn parse_faults(names: &[String]) -> Result<Faults> {
                 match name {
                     "sensor-bus-stuck" => f.sensor_bus_stuck = Some(release()?),
                     "deck-bus-stuck" => f.deck_bus_stuck = Some(release()?),
+                    "flow-deck-lost" => {
+                        let at_s = arg
+                            .and_then(|a| a.parse::<f64>().ok())
+                            .filter(|s| s.is_finite() && (0.0..=3600.0).contains(s))
+                            .with_context(|| {
+                                format!("--fault {other}: give the time in seconds, e.g. flow-deck-lost:5")
+                            })?;
+                        f.flow_deck_lost_at_ms = Some((at_s * 1000.0).round() as u64);
+                    }
                     _ => bail!(
-                        "unknown fault `{other}` (known: bmi088-reset-nack, sensor-bus-dead, \
-                         sensor-bus-stuck[:K|never], deck-bus-stuck[:K|never])"
+                        "unknown fault `{other}` (known: bmi088-reset-nack, sensor-bus-dead, rts-high, \
+                         sensor-bus-stuck[:K|never], deck-bus-stuck[:K|never], flow-deck-lost:SECONDS)"
                     ),
                 }
             }
@@ -390,6 +403,7 @@ fn run(args: &Args) -> Result<(Report, bool)> {
     let mut drdy_pulses = 0u64;
     let mut last_ms = u64::MAX;
     let mut landed_at_ns: Option<u64> = None;
+    let mut flow_deck_lost_at_ms: Option<u64> = None;
     while board.now_ns() < end_ns && !served_budget_spent(args, first_request_ms, board.now_ns()) {
         board.deck.advance(board.now_ns());
         if let Some(p) = physics.as_mut() {
@@ -439,6 +453,14 @@ fn run(args: &Args) -> Result<(Report, bool)> {
             }
         }
         let t_ms = board.now_ns() / 1_000_000;
+        if faults.flow_deck_lost_at_ms.is_some_and(|at| t_ms >= at) && flow_deck_lost_at_ms.is_none() {
+            board.flow.unplug();
+            board.deck.unplug_flow();
+            flow_deck_lost_at_ms = Some(t_ms);
+            if args.log {
+                println!("{:>9.3} | fault: the Flow deck stops answering", t_ms as f64 / 1e3);
+            }
+        }
         board.sensors_sda.tick(t_ms);
         board.deck_sda.tick(t_ms);
         let pins = leds::Pins {
@@ -597,6 +619,7 @@ fn run(args: &Args) -> Result<(Report, bool)> {
             format!("{:016x}", h.0)
         },
         faults: args.faults.clone(),
+        flow_deck_lost_at_ms,
         outcome: if ready { "ready" } else { "not_ready" },
         ready,
         ready_at_ms,

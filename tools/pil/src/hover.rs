@@ -209,13 +209,14 @@ pub struct HoverReport {
     pub took_off: bool,
     pub took_off_at_s: Option<f64>,
     pub max_height_m: f32,
-    /// The hold: first and last time within the band of the target height.
+    /// The hold: from the first time within the band of the target height, for the hover time, until the
+    /// first sample out of the band (the search for the pad's edges that follows is not judged).
     pub hold_start_s: Option<f64>,
     pub hold_end_s: Option<f64>,
     pub held_s: f64,
     /// Worst horizontal distance from the take-off point during the hold, m.
     pub hold_dev_xy_m: f32,
-    /// Worst |z − target| during the hold (between its first and last time in the band), m.
+    /// Worst |z − target| over the hold's window (the hover time from its start), m.
     pub hold_dev_z_m: f32,
     /// RMS horizontal deviation over the hold, m.
     pub hold_rms_xy_m: f32,
@@ -291,25 +292,31 @@ impl HoverJudge {
         };
         let r = &mut self.report;
         let target_z = start[2] + r.target_height_m;
-        let in_band: Vec<usize> = self
-            .track
-            .iter()
-            .enumerate()
-            .filter(|(_, (_, p))| (p[2] - target_z).abs() <= AT_HEIGHT_M)
-            .map(|(i, _)| i)
-            .collect();
-        if let (Some(&a), Some(&b)) = (in_band.first(), in_band.last()) {
-            r.hold_start_s = Some(self.track[a].0);
-            r.hold_end_s = Some(self.track[b].0);
-            r.held_s = self.track[b].0 - self.track[a].0;
+        // The hold is the commanded one: from the first time in the band for the hover time (the image's
+        // HoverHold starts as it reaches the height and lasts `mission.hoverTime`); after it the hover test
+        // searches for its pad's edges at the same height, which is not part of the hold. `held_s` runs until
+        // the first sample out of the band (or the window's end).
+        let in_band = |p: &[f32; 3]| (p[2] - target_z).abs() <= AT_HEIGHT_M;
+        if let Some(a) = self.track.iter().position(|(_, p)| in_band(p)) {
+            let t0 = self.track[a].0;
+            let window_end = t0 + f64::from(r.hover_time_s);
+            let exit = self.track[a..]
+                .iter()
+                .find(|(_, p)| !in_band(p))
+                .map_or_else(|| self.track.last().map_or(t0, |s| s.0), |s| s.0);
+            r.held_s = exit.min(window_end) - t0;
+            r.hold_start_s = Some(t0);
+            r.hold_end_s = Some(t0 + r.held_s);
             let mut sum = 0.0f64;
-            for (_, p) in &self.track[a..=b] {
+            let mut n = 0usize;
+            for (_, p) in self.track[a..].iter().take_while(|(t, _)| *t <= window_end) {
                 let dxy = ((p[0] - start[0]).powi(2) + (p[1] - start[1]).powi(2)).sqrt();
                 r.hold_dev_xy_m = r.hold_dev_xy_m.max(dxy);
                 r.hold_dev_z_m = r.hold_dev_z_m.max((p[2] - target_z).abs());
                 sum += f64::from(dxy * dxy);
+                n += 1;
             }
-            r.hold_rms_xy_m = (sum / (b - a + 1) as f64).sqrt() as f32;
+            r.hold_rms_xy_m = (sum / n.max(1) as f64).sqrt() as f32;
         }
         // Held the hover for its time (less the margin the band's edges take), landed, and the image's
         // mission says it completed (100: `MissionState::Completed`).
@@ -399,6 +406,8 @@ mod tests {
             (2.0, [1.1, 1.0, 0.48], false, on),
             (3.0, [1.0, 1.05, 0.53], false, on),
             (4.2, [1.0, 1.0, 0.5], false, on),
+            // After the hold the search flies off at the same height: not part of the hold.
+            (4.5, [1.5, 1.0, 0.5], false, on),
             (5.0, [1.0, 1.0, 0.2], false, on),
             (6.0, [1.02, 1.0, 0.0], true, MotorDuty::default()),
         ] {
@@ -407,8 +416,8 @@ mod tests {
         j.log_line("1.2 INFO mission ended: state 100");
         let r = j.finish();
         assert!(r.took_off && r.landed && r.passed);
-        assert!((r.held_s - 2.2).abs() < 1e-9);
-        assert!((r.hold_dev_xy_m - 0.1).abs() < 1e-6);
+        assert!((r.held_s - 2.0).abs() < 1e-9, "{}", r.held_s);
+        assert!((r.hold_dev_xy_m - 0.1).abs() < 1e-6, "{}", r.hold_dev_xy_m);
         assert!((r.hold_dev_z_m - 0.03).abs() < 1e-6);
         assert!((r.landing_offset_m.unwrap() - 0.02).abs() < 1e-6);
         // Never took off: fails.

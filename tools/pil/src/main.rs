@@ -28,6 +28,7 @@ mod dreq;
 mod flow;
 mod hover;
 mod leds;
+mod mission;
 mod nrf51;
 mod physics;
 mod pin;
@@ -137,7 +138,7 @@ struct Args {
     world: Option<PathBuf>,
     /// Hover test without cflib: the nRF51 injects `mission.mode` = 1, `mission.hoverTime` = SECONDS,
     /// `mission.height` (the world's) and `mission.start` = 1 after RADIO_READY; the run ends once the drone
-    /// has landed (and the image's 10 s load line came) or at --seconds. Exit 0 when it took off, held the
+    /// has landed (and the image's 10 s load line came) or at --seconds (at least SECONDS + 25). Exit 0 when it took off, held the
     /// height for SECONDS and landed, with no watchdog reset. Implies the physics (the default world without
     /// --world).
     #[arg(long, num_args = 0..=1, default_missing_value = "10", value_name = "SECONDS")]
@@ -145,6 +146,18 @@ struct Args {
     /// Seed of the sensor noise streams (as `cfnav sim --seed`).
     #[arg(long, default_value_t = 1)]
     seed: u64,
+    /// The round trip without cflib (milestone 4): the nRF51 injects `mission.mode` = 0, `mission.height`
+    /// (the world's) and `mission.start` = 1; the flight is scored on the truth as `cfnav sim` scores it
+    /// (collisions, landings, distance, mission time; `tools/pil/compare_sitl.py` compares the two). The run
+    /// ends 1 s after the mission ended with the drone at rest, or at --seconds (at least 120). Exit 0 when
+    /// it completed. Implies the physics (the default world without --world).
+    #[arg(long, conflicts_with = "hover")]
+    mission: bool,
+    /// With --hover or --mission: a log block of the image's estimate, yaw, downward range and mission state (every 50 ms,
+    /// through the emulated radio), printed with the truth (position, yaw, the z-ranger's true range) as
+    /// `trace` lines.
+    #[arg(long)]
+    trace: bool,
 }
 
 #[derive(Debug, Serialize)]
@@ -217,6 +230,8 @@ struct Report {
     world: Option<String>,
     /// The hover test's verdict on the truth (`--hover`).
     hover: Option<hover::HoverReport>,
+    /// The round trip's score on the truth (`--mission`), in `cfnav sim --json`'s terms.
+    mission: Option<mission::MissionReport>,
     /// When the scripted parameter writes went in, virtual ms.
     script_sent_at_ms: Vec<u64>,
     /// The image's load figures from its defmt log (the last "load" line), if one came.
@@ -312,7 +327,7 @@ fn run(args: &Args) -> Result<(Report, bool)> {
     {
         bail!("--hover SECONDS must be in [1, 60]");
     }
-    let mut physics = if args.world.is_some() || args.hover.is_some() {
+    let mut physics = if args.world.is_some() || args.hover.is_some() || args.mission {
         let world = match &args.world {
             Some(p) => sim::world::World::load(p).map_err(|e| anyhow::anyhow!("{}: {e}", p.display()))?,
             None => sim::world::World::default_world(),
@@ -325,6 +340,14 @@ fn run(args: &Args) -> Result<(Report, bool)> {
         let height = physics.as_ref().map_or(0.5, |p| p.world.mission.height);
         hover::Script::hover(h, height)
     });
+    if let (true, Some(p)) = (args.mission, physics.as_ref()) {
+        script = Some(hover::Script::round_trip(&p.world));
+    }
+    if args.trace {
+        script = script.map(hover::Script::with_trace);
+    }
+    let mut mission_judge = args.mission.then(mission::MissionJudge::new);
+    let mut mission_done_at_ns: Option<u64> = None;
     let mut judge = args.hover.map(|h| {
         let height = physics.as_ref().map_or(0.5, |p| p.world.mission.height);
         hover::HoverJudge::new(height, h)
@@ -384,9 +407,12 @@ fn run(args: &Args) -> Result<(Report, bool)> {
     }
     let wall = Instant::now();
     let step_ns = 1_000_000u64;
-    // A hover run needs the boot, the take-off, the hold and the landing: at least SECONDS + 15 s.
+    // A hover run needs the boot and the start (≈ 1.8 s), the take-off (≈ 2.2 s), the hold, the search for the
+    // take-off pad's edges (SITL: ≈ 8 s on the default world, more with bad luck), the approach and the landing
+    // (≈ 3 s): at least SECONDS + 25 s. (+ 15 s cut the default world's search short: docs/pil.md.)
     let seconds = match args.hover {
-        Some(h) => args.seconds.max(f64::from(h) + 15.0),
+        Some(h) => args.seconds.max(f64::from(h) + 25.0),
+        None if args.mission => args.seconds.max(120.0),
         None => args.seconds,
     };
     let end_ns = (seconds * 1e9) as u64;
@@ -441,6 +467,15 @@ fn run(args: &Args) -> Result<(Report, bool)> {
                     att[2].to_degrees(),
                     p.duty.0,
                     p.battery_v()
+                );
+            }
+            if let Some(j) = mission_judge.as_mut() {
+                j.sample(
+                    &p.world,
+                    board.now_ns() as f64 * 1e-9,
+                    p.quad.position(),
+                    p.quad.on_ground(),
+                    p.duty,
                 );
             }
             if let Some(j) = judge.as_mut() {
@@ -511,6 +546,9 @@ fn run(args: &Args) -> Result<(Report, bool)> {
             if let Some(j) = judge.as_mut() {
                 j.log_line(&line.text);
             }
+            if let Some(j) = mission_judge.as_mut() {
+                j.log_line(&line.text);
+            }
             if args.log {
                 println!("{:>9.3} | {}", line.read_at_ns as f64 / 1e9, line.text);
             }
@@ -530,6 +568,31 @@ fn run(args: &Args) -> Result<(Report, bool)> {
                     if let Ok(n) = encode(&answer, &mut out) {
                         board.syslink.feed(&out[..n]);
                     }
+                }
+                if let (true, Some(t), Some(p)) = (
+                    args.trace,
+                    to_host.as_deref().and_then(hover::TraceSample::parse),
+                    physics.as_ref(),
+                ) {
+                    let pos = p.quad.position();
+                    let yaw = p.quad.attitude_rad()[2].to_degrees();
+                    let down = p.down_range_m().map_or(-1.0, |m| m * 1000.0);
+                    println!(
+                        "{:>9.3} | trace image t {} ms state {} est x {:.3} y {:.3} z {:.3} yaw {:.1} zrange {} mm | truth x {:.3} y {:.3} z {:.3} yaw {:.1} down {:.0} mm",
+                        now_ns as f64 / 1e9,
+                        t.at_ms,
+                        t.mission_state,
+                        t.position_m[0],
+                        t.position_m[1],
+                        t.position_m[2],
+                        t.yaw_deg,
+                        t.zrange_mm,
+                        pos[0],
+                        pos[1],
+                        pos[2],
+                        yaw,
+                        down
+                    );
                 }
                 if let (Some(crtp), Some(bridge)) = (to_host.as_ref(), bridge.as_mut()) {
                     bridge.send(crtp);
@@ -564,6 +627,17 @@ fn run(args: &Args) -> Result<(Report, bool)> {
         }
         if stdin_closed.load(std::sync::atomic::Ordering::Acquire) {
             break;
+        }
+        if let Some(j) = mission_judge.as_ref() {
+            // The mission run ends 1 s after the mission ended with the drone at rest.
+            if j.done() {
+                if now_ns >= *mission_done_at_ns.get_or_insert(now_ns) + 1_000_000_000 {
+                    break;
+                }
+            } else {
+                mission_done_at_ns = None;
+            }
+            continue;
         }
         if let Some(j) = judge.as_ref() {
             // The hover run ends 1 s after the landing once the image's load line came (or at --seconds).
@@ -607,9 +681,14 @@ fn run(args: &Args) -> Result<(Report, bool)> {
         .collect();
     let ready = ready_at_ms.is_some();
     let hover_report = judge.map(hover::HoverJudge::finish);
-    let passed = match &hover_report {
-        Some(h) => h.passed && !iwdg_reset_flag,
-        None => expected_at_ms.is_some() && !iwdg_reset_flag && client.as_ref().is_none_or(|c| c.stats.done),
+    let mission_report = match (mission_judge, physics.as_ref()) {
+        (Some(j), Some(p)) => Some(j.finish(&p.world)),
+        _ => None,
+    };
+    let passed = match (&hover_report, &mission_report) {
+        (_, Some(m)) => m.passed && !iwdg_reset_flag,
+        (Some(h), _) => h.passed && !iwdg_reset_flag,
+        (None, None) => expected_at_ms.is_some() && !iwdg_reset_flag && client.as_ref().is_none_or(|c| c.stats.done),
     };
     let report = Report {
         elf: elf_path.display().to_string(),
@@ -668,6 +747,7 @@ fn run(args: &Args) -> Result<(Report, bool)> {
                 .map_or_else(|| "default".to_string(), |p| p.display().to_string())
         }),
         hover: hover_report,
+        mission: mission_report,
         script_sent_at_ms: script.map(|s| s.sent_at_ms).unwrap_or_default(),
         load,
         nrf: nrf.stats.clone(),
@@ -778,6 +858,34 @@ fn main() -> ExitCode {
             }
             for f in &report.faults_logged {
                 println!("firmware fault: {f}");
+            }
+            if let Some(h) = &report.hover {
+                println!(
+                    "hover: passed={} took_off_at_s={:?} held_s={:.2} dev_xy_m={:.3} rms_xy_m={:.3} dev_z_m={:.3} landed_at_s={:?} \
+                     landing_offset_m={:?} end_state={:?}",
+                    h.passed,
+                    h.took_off_at_s,
+                    h.held_s,
+                    h.hold_dev_xy_m,
+                    h.hold_rms_xy_m,
+                    h.hold_dev_z_m,
+                    h.landed_at_s,
+                    h.landing_offset_m,
+                    h.mission_end_state
+                );
+            }
+            if let Some(m) = &report.mission {
+                println!(
+                    "mission: outcome={} state={:?} mission_time_s={:?} collisions={} min_clearance_m={:?} distance_m={:.2} \
+                     landings={:?}",
+                    m.outcome,
+                    m.mission_state,
+                    m.mission_time_s,
+                    m.collisions,
+                    m.min_clearance_m,
+                    m.distance_m,
+                    m.landings
+                );
             }
             if let Some(path) = &args.json {
                 let text = match serde_json::to_string_pretty(&report) {

@@ -129,6 +129,11 @@ impl Physics {
         }
     }
 
+    /// The z-ranger's latest reading from the simulator's model (noise included), m; `None` = no return.
+    pub fn down_range_m(&self) -> Option<f32> {
+        self.ranges_m[crate::deck::DOWN]
+    }
+
     /// The battery's loaded voltage, V.
     pub fn battery_v(&self) -> f32 {
         self.quad.battery_voltage()

@@ -112,19 +112,7 @@ impl MissionJudge {
     }
 
     fn land(&mut self, world: &World, p: [f32; 3]) {
-        let (pad, on_pad) = match world.pad_index_at(p[0], p[1]) {
-            Some(i) => (i, true),
-            None => {
-                let nearest = world
-                    .pads
-                    .iter()
-                    .enumerate()
-                    .map(|(i, pad)| (i, (pad.center[0] - p[0]).hypot(pad.center[1] - p[1])))
-                    .min_by(|a, b| a.1.total_cmp(&b.1))
-                    .map_or(0, |(i, _)| i);
-                (nearest, false)
-            }
-        };
+        let (pad, on_pad) = world.landing_pad_at(p[0], p[1]);
         let c = world.pads.get(pad).map_or([p[0], p[1]], |pd| pd.center);
         self.report.landings.push(Landing {
             pad,

@@ -202,6 +202,24 @@ impl World {
             .position(|p| (x - p.center[0]).abs() <= p.size[0] / 2.0 && (y - p.center[1]).abs() <= p.size[1] / 2.0)
     }
 
+    /// The pad a landing at (x, y) is scored against: the pad under it (`true`), else the nearest pad
+    /// (`false`); index 0 when the world has none.
+    pub fn landing_pad_at(&self, x: f32, y: f32) -> (usize, bool) {
+        match self.pad_index_at(x, y) {
+            Some(i) => (i, true),
+            None => {
+                let nearest = self
+                    .pads
+                    .iter()
+                    .enumerate()
+                    .map(|(i, pad)| (i, (pad.center[0] - x).hypot(pad.center[1] - y)))
+                    .min_by(|a, b| a.1.total_cmp(&b.1))
+                    .map_or(0, |(i, _)| i);
+                (nearest, false)
+            }
+        }
+    }
+
     /// Row-major cells of `shape` whose centre lies outside the arena or inside an obstacle (box, cylinder or
     /// pad) taller than [`OCCUPANCY_MIN_HEIGHT_M`]: what a perfect map would hold.
     pub fn true_occupancy(&self, shape: GridShape) -> Vec<bool> {

@@ -27,6 +27,26 @@ mod tests {
     /// interrupts do not fall into step with the loop.
     const FIRST_RELOAD: u8 = 100;
 
+    /// A flash image: the vector table (SP = [`STACK_TOP`], reset at [`CODE`], SysTick at `systick`, every
+    /// other vector at `parked`, a `b .`), the Thumb `code` from [`CODE`] and `literals` from 0x130.
+    fn flash_image(code: &[u16], systick: u32, parked: u32, literals: &[u32]) -> Vec<u8> {
+        let mut flash = vec![0xFF; 0x1000];
+        let mut word = |at: usize, value: u32| flash[at..at + 4].copy_from_slice(&value.to_le_bytes());
+        word(0, STACK_TOP);
+        for vector in 1..16 {
+            word(vector * 4, 0x0800_0000 | parked | 1); // Thumb bit set
+        }
+        word(4, 0x0800_0000 | CODE as u32 | 1);
+        word(15 * 4, 0x0800_0000 | systick | 1);
+        for (k, value) in literals.iter().enumerate() {
+            word(0x130 + 4 * k, *value);
+        }
+        for (k, half) in code.iter().enumerate() {
+            flash[CODE + 2 * k..CODE + 2 * k + 2].copy_from_slice(&half.to_le_bytes());
+        }
+        flash
+    }
+
     /// The flash image: vectors (reset, SysTick, the rest parked on a `b .`), then the program.
     fn image() -> Vec<u8> {
         // Thumb-16 encodings (DDI 0403E A7.7), at CODE:
@@ -56,18 +76,7 @@ mod tests {
             0xE010,                         // 0x12c .word 0xE000E010 (SYST_CSR), low half
             0xE000,                         //       high half
         ];
-        let mut flash = vec![0xFF; 0x1000];
-        let mut word = |at: usize, value: u32| flash[at..at + 4].copy_from_slice(&value.to_le_bytes());
-        word(0, STACK_TOP);
-        for vector in 1..16 {
-            word(vector * 4, 0x0800_012B); // parked (Thumb bit set)
-        }
-        word(4, 0x0800_0101); // reset
-        word(15 * 4, 0x0800_011F); // SysTick
-        for (k, half) in code.iter().enumerate() {
-            flash[CODE + 2 * k..CODE + 2 * k + 2].copy_from_slice(&half.to_le_bytes());
-        }
-        flash
+        flash_image(&code, 0x11E, 0x12A, &[])
     }
 
     fn register(board: &mut Board, n: usize) -> u32 {
@@ -143,21 +152,7 @@ mod tests {
             0xBF00, // 0x12e nop (literal alignment)
         ];
         let literals: [u32; 6] = [0xE000_E010, SLEEP_RELOAD, 0xE000_EDFC, 1 << 24, 0xE000_1000, CYCLE_LOG];
-        let mut flash = vec![0xFF; 0x1000];
-        let mut word = |at: usize, value: u32| flash[at..at + 4].copy_from_slice(&value.to_le_bytes());
-        word(0, STACK_TOP);
-        for vector in 1..16 {
-            word(vector * 4, 0x0800_012D); // parked (Thumb bit set)
-        }
-        word(4, 0x0800_0101); // reset
-        word(15 * 4, 0x0800_0123); // SysTick
-        for (k, value) in literals.iter().enumerate() {
-            word(0x130 + 4 * k, *value);
-        }
-        for (k, half) in code.iter().enumerate() {
-            flash[CODE + 2 * k..CODE + 2 * k + 2].copy_from_slice(&half.to_le_bytes());
-        }
-        flash
+        flash_image(&code, 0x122, 0x12C, &literals)
     }
 
     /// SysTick pends on the clock its counter reaches zero and reloads on the next (DDI 0403E B3.3.1), so

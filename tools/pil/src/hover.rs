@@ -453,7 +453,11 @@ mod tests {
     fn the_judge_measures_the_images_hold_against_the_truth() {
         let r = judge(&flight(0.63), &HOLD_LINES);
         assert!(r.took_off && r.landed && r.passed, "{r:?}");
-        assert_eq!((r.hold_start_s, r.hold_end_s), (Some(2.0), Some(4.0)), "the lines' own timestamps");
+        assert_eq!(
+            (r.hold_start_s, r.hold_end_s),
+            (Some(2.0), Some(4.0)),
+            "the lines' own timestamps"
+        );
         assert!((r.held_s - 2.0).abs() < 1e-9, "{}", r.held_s);
         // The search at 4.5 s (0.5 m off) is outside the hold.
         assert!((r.hold_dev_xy_m - 0.05).abs() < 1e-6, "{}", r.hold_dev_xy_m);
@@ -471,7 +475,10 @@ mod tests {
         let mut lines = HOLD_LINES;
         lines[3] = "6.1 INFO mission ended: state 204";
         let r = judge(&flight(0.63), &lines);
-        assert!(r.took_off && r.landed && r.mission_end_state == Some(204) && !r.passed, "{r:?}");
+        assert!(
+            r.took_off && r.landed && r.mission_end_state == Some(204) && !r.passed,
+            "{r:?}"
+        );
         // A hold cut short (1.5 s of 2).
         let mut lines = HOLD_LINES;
         lines[2] = "3.5 INFO mission state 51";
@@ -481,7 +488,10 @@ mod tests {
         let r = judge(&flight(0.63), &["6.1 INFO mission ended: state 100"]);
         assert!(r.hold_start_s.is_none() && !r.passed, "{r:?}");
         // Never took off.
-        let ground = [(0.0, [1.0, 1.0, 0.0], true, MotorDuty::default()), (9.0, [1.0, 1.0, 0.0], true, MotorDuty::default())];
+        let ground = [
+            (0.0, [1.0, 1.0, 0.0], true, MotorDuty::default()),
+            (9.0, [1.0, 1.0, 0.0], true, MotorDuty::default()),
+        ];
         assert!(!judge(&ground, &HOLD_LINES).passed);
     }
 

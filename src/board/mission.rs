@@ -84,6 +84,9 @@ async fn send_to_control(command: MissionCommand) {
 pub async fn mission_task(nav: &'static mut FwNavigator) {
     let mut ticker = Ticker::every(TICK);
     let mut was_running = false;
+    // The last state logged: one line per change, so a probe's log (and the emulator's judges) see the
+    // mission's phases with the image's own timestamps (a few lines per flight, nothing per tick).
+    let mut logged_state = None;
     let mut tuning_seen = 0u32;
     loop {
         ticker.next().await;
@@ -156,8 +159,13 @@ pub async fn mission_task(nav: &'static mut FwNavigator) {
             send_to_control(command).await;
         }
         MISSION_RUNNING.store(running, Ordering::Release);
+        if running && logged_state != Some(state) {
+            info!("mission state {}", state.code());
+            logged_state = Some(state);
+        }
         if was_running && !running {
             info!("mission ended: state {}", state.code());
+            logged_state = None;
         }
         was_running = running;
         // Map memory reads from the radio (port 4), answered from the map as it is between two ticks.

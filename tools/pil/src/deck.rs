@@ -20,7 +20,9 @@
 //!   RESULT__OSC_CALIBRATE_VAL · 1.075, the ULD's formula, at least [`MIN_PERIOD_NS`]), written to
 //!   RESULT__RANGE_STATUS (0x89: 9 = valid, 4 = signal fail past [`MAX_RANGE_M`]) and
 //!   RESULT__FINAL_CROSSTALK_CORRECTED_RANGE_MM_SD0 (0x96) and flagged on GPIO__TIO_HV_STATUS (0x31) bit 0
-//!   at the polarity GPIO_HV_MUX__CTRL (0x30) bit 4 selects. A result that is not cleared
+//!   at the polarity GPIO_HV_MUX__CTRL (0x30) bit 4 selects. A result holds the range the host set at the
+//!   middle of its period: the chip integrates over its timing budget and reports at the end, so a moving
+//!   drone's reading is about half a period old when it is flagged (the host sets ranges every 1 ms). A result that is not cleared
 //!   (SYSTEM__INTERRUPT_CLEAR 0x86 = 0x01) stays: the next ones are not written over it (stale data, as a
 //!   driver that forgets the clear would see). Two chips at one address answer together (wired-AND of
 //!   their bytes, as on the open-drain bus).
@@ -93,6 +95,9 @@ struct Vl53 {
     ranging: bool,
     next_result_ns: u64,
     ready: bool,
+    /// The range of the result being integrated, taken at the middle of its ranging period; `None` until
+    /// then (`Some(None)`: no target at that instant).
+    mid_period_range_m: Option<Option<f32>>,
 }
 
 impl Vl53 {
@@ -108,6 +113,7 @@ impl Vl53 {
             ranging: false,
             next_result_ns: 0,
             ready: false,
+            mid_period_range_m: None,
         };
         v.reset_registers();
         v
@@ -198,10 +204,14 @@ impl Vl53 {
 
     fn advance(&mut self, now_ns: u64, range_m: Option<f32>, index: usize, stats: &mut DeckStats) {
         if !self.powered || !self.ranging {
+            self.mid_period_range_m = None;
             return;
         }
         let period = self.period_ns();
         while now_ns >= self.next_result_ns {
+            // A clock step past the middle of the period (only in tests: the host advances 1 ms at a time)
+            // takes the range as it is now.
+            let range_m = self.mid_period_range_m.take().unwrap_or(range_m);
             if self.ready {
                 stats.stale_skips += 1;
             } else {
@@ -215,6 +225,11 @@ impl Vl53 {
                 stats.results[index] += 1;
             }
             self.next_result_ns += period;
+        }
+        // The chip integrates the returns over its timing budget (which the period bounds) and reports when
+        // it ends: a moving drone's result is the range about half a period before it is flagged.
+        if self.mid_period_range_m.is_none() && now_ns + period / 2 >= self.next_result_ns {
+            self.mid_period_range_m = Some(range_m);
         }
     }
 }
@@ -543,6 +558,36 @@ mod tests {
         assert!(write(&dev, 0x29, &[0x00, 0x86, 0x01]));
         dev.advance(2_000_000 + 100_000_000);
         assert_eq!(read16(&dev, 0x29, 0x0089, 1), Some(vec![4]));
+    }
+
+    #[test]
+    fn a_result_holds_the_range_from_the_middle_of_its_period() {
+        let dev = DeckSensors::new(Fitted {
+            multiranger: false,
+            flow: true,
+        });
+        // The drone climbs 1 mm per ms; the host sets the range every 1 ms, as `physics.rs` does.
+        let range_at = |t_ms: u64| Some(0.5 + t_ms as f32 * 0.001);
+        let mut ranges = [None; 6];
+        ranges[DOWN] = range_at(2);
+        dev.set_ranges(ranges);
+        dev.advance(2_000_000);
+        assert!(write(&dev, 0x29, &[0x00, 0x6C, 0, 0, 0x03, 0xE2])); // 25 ms
+        assert!(write(&dev, 0x29, &[0x00, 0x87, 0x40])); // first result at 27 ms
+        let mut results = Vec::new();
+        for t_ms in 3..=80u64 {
+            ranges[DOWN] = range_at(t_ms);
+            dev.set_ranges(ranges);
+            dev.advance(t_ms * 1_000_000);
+            if read16(&dev, 0x29, 0x0031, 1) == Some(vec![0x01]) {
+                let mm = read16(&dev, 0x29, 0x0096, 2).unwrap();
+                results.push((t_ms, u16::from_be_bytes([mm[0], mm[1]])));
+                assert!(write(&dev, 0x29, &[0x00, 0x86, 0x01]));
+            }
+        }
+        // Flagged at 27, 52 and 77 ms, each with the range of 12.5 ms before (taken at the first 1 ms step
+        // at or past the middle: 15, 40 and 65 ms).
+        assert_eq!(results, vec![(27, 515), (52, 540), (77, 565)]);
     }
 
     #[test]

@@ -8,10 +8,13 @@
 //! `mission.hoverTime`, `mission.height`, then `mission.start` = 1. The nRF keeps polling (null packets,
 //! as cflib's radio driver does when idle) so the image's answers leave it.
 //!
-//! Judge (truth, arena frame, metres): took off = the body rose [`TAKEOFF_M`] above where it stood; the
-//! hold = from the first time it came within [`AT_HEIGHT_M`] of the target height to the last time it
-//! was; the deviation over the hold: horizontal from the take-off point, vertical from the target height;
-//! landed = back on a surface with all four duties 0 after having flown.
+//! Judge (truth, arena frame, metres), the simulator's hover test's (`host-tests/tests/sim/modes.rs`): took
+//! off = the body rose [`TAKEOFF_M`] above where it stood; the hold = the image's own HoverHold phase, from
+//! its "mission state 50" log line to the next state line (the image's timestamps); over the hold the truth's
+//! worst horizontal distance from the take-off point and worst |z − (take-off z + target height)|; landed =
+//! back on a surface with all four duties 0 after having flown. Passed: held the hover time (±0.1 s), worst
+//! deviations under [`HOLD_DEV_XY_M`] / [`HOLD_DEV_Z_M`], landed within [`LANDING_OFFSET_M`] of the take-off
+//! point, and the image's mission ended completed.
 
 use cfnav::radio::crtp::CrtpPacket;
 use cfnav::radio::log::{CH_DATA, CH_SETTINGS, CMD_CREATE_BLOCK_V2, CMD_START_BLOCK_V2, PORT_LOG};
@@ -33,8 +36,15 @@ pub const POLL_AFTER_NS: u64 = 200_000_000;
 pub const COMPLETED: u32 = 100;
 /// Rise that counts as a take-off, m.
 pub const TAKEOFF_M: f32 = 0.10;
-/// Band around the target height that counts as holding it, m.
-pub const AT_HEIGHT_M: f32 = 0.05;
+/// The hold's bounds on the truth, m: the simulator's hover test's (`HOVER_TRUE_DEV_*` in
+/// `host-tests/tests/sim/modes.rs`), so the emulated image is judged as the algorithms are in SITL.
+pub const HOLD_DEV_XY_M: f32 = 0.10;
+pub const HOLD_DEV_Z_M: f32 = 0.08;
+pub const LANDING_OFFSET_M: f32 = 0.10;
+/// How far the hold's length may differ from `mission.hoverTime`, s (the mission's 20 ms tick, plus margin).
+pub const HOLD_TIME_TOLERANCE_S: f64 = 0.1;
+/// `MissionState::HoverHold` (`src/mission/mod.rs`).
+pub const HOVER_HOLD: u32 = 50;
 
 /// The trace's log block id (`--trace`).
 pub const TRACE_BLOCK: u8 = 1;
@@ -209,14 +219,14 @@ pub struct HoverReport {
     pub took_off: bool,
     pub took_off_at_s: Option<f64>,
     pub max_height_m: f32,
-    /// The hold: from the first time within the band of the target height, for the hover time, until the
-    /// first sample out of the band (the search for the pad's edges that follows is not judged).
+    /// The hold: the image's HoverHold phase (its "mission state 50" line to the next state line); the
+    /// search for the pad's edges that follows is not judged.
     pub hold_start_s: Option<f64>,
     pub hold_end_s: Option<f64>,
     pub held_s: f64,
     /// Worst horizontal distance from the take-off point during the hold, m.
     pub hold_dev_xy_m: f32,
-    /// Worst |z − target| over the hold's window (the hover time from its start), m.
+    /// Worst |z − target| over the hold, m (target: the take-off point's z + the target height).
     pub hold_dev_z_m: f32,
     /// RMS horizontal deviation over the hold, m.
     pub hold_rms_xy_m: f32,
@@ -235,7 +245,21 @@ pub struct HoverJudge {
     start: Option<[f32; 3]>,
     /// (t, x, y, z) while airborne.
     track: Vec<(f64, [f32; 3])>,
+    /// The image's HoverHold phase as its log lines timed it, s.
+    hold_from_s: Option<f64>,
+    hold_until_s: Option<f64>,
     report: HoverReport,
+}
+
+/// The defmt timestamp a decoded line starts with ("3.300123 INFO ..."), s.
+fn line_time_s(text: &str) -> Option<f64> {
+    text.split_whitespace().next()?.parse().ok()
+}
+
+/// The number after `key` in `text`.
+fn number_after(text: &str, key: &str) -> Option<u32> {
+    let rest = &text[text.find(key)? + key.len()..];
+    rest.split(|c: char| !c.is_ascii_digit()).next()?.parse().ok()
 }
 
 impl HoverJudge {
@@ -243,6 +267,8 @@ impl HoverJudge {
         Self {
             start: None,
             track: Vec::new(),
+            hold_from_s: None,
+            hold_until_s: None,
             report: HoverReport {
                 target_height_m,
                 hover_time_s,
@@ -270,13 +296,21 @@ impl HoverJudge {
         }
     }
 
-    /// A defmt line of the image: remembers the mission's end state.
-    pub fn log_line(&mut self, text: &str) {
-        if let Some(at) = text.find("mission ended: state ") {
-            self.report.mission_end_state = text[at + 21..]
-                .split(|c: char| !c.is_ascii_digit())
-                .next()
-                .and_then(|n| n.parse().ok());
+    /// A defmt line of the image, read at `read_at_s` (virtual): the mission's state changes (the hold's
+    /// window, at the line's own timestamp when it has one) and its end state.
+    pub fn log_line(&mut self, read_at_s: f64, text: &str) {
+        let at_s = line_time_s(text).unwrap_or(read_at_s);
+        let ended = number_after(text, "mission ended: state ");
+        if ended.is_some() {
+            self.report.mission_end_state = ended;
+        }
+        let state = number_after(text, "mission state ").or(ended);
+        match state {
+            Some(HOVER_HOLD) if self.hold_from_s.is_none() => self.hold_from_s = Some(at_s),
+            Some(s) if s != HOVER_HOLD && self.hold_from_s.is_some() && self.hold_until_s.is_none() => {
+                self.hold_until_s = Some(at_s);
+            }
+            _ => {}
         }
     }
 
@@ -292,24 +326,20 @@ impl HoverJudge {
         };
         let r = &mut self.report;
         let target_z = start[2] + r.target_height_m;
-        // The hold is the commanded one: from the first time in the band for the hover time (the image's
-        // HoverHold starts as it reaches the height and lasts `mission.hoverTime`); after it the hover test
-        // searches for its pad's edges at the same height, which is not part of the hold. `held_s` runs until
-        // the first sample out of the band (or the window's end).
-        let in_band = |p: &[f32; 3]| (p[2] - target_z).abs() <= AT_HEIGHT_M;
-        if let Some(a) = self.track.iter().position(|(_, p)| in_band(p)) {
-            let t0 = self.track[a].0;
-            let window_end = t0 + f64::from(r.hover_time_s);
-            let exit = self.track[a..]
-                .iter()
-                .find(|(_, p)| !in_band(p))
-                .map_or_else(|| self.track.last().map_or(t0, |s| s.0), |s| s.0);
-            r.held_s = exit.min(window_end) - t0;
-            r.hold_start_s = Some(t0);
-            r.hold_end_s = Some(t0 + r.held_s);
+        // The hold is the image's HoverHold phase; after it the hover test searches for its pad's edges at the
+        // same height, which is not part of the hold. A hold still open at the end runs to the last sample.
+        if let Some(from) = self.hold_from_s {
+            let until = self
+                .hold_until_s
+                .or_else(|| self.track.last().map(|s| s.0))
+                .unwrap_or(from)
+                .max(from);
+            r.hold_start_s = Some(from);
+            r.hold_end_s = Some(until);
+            r.held_s = until - from;
             let mut sum = 0.0f64;
             let mut n = 0usize;
-            for (_, p) in self.track[a..].iter().take_while(|(t, _)| *t <= window_end) {
+            for (_, p) in self.track.iter().filter(|(t, _)| (from..=until).contains(t)) {
                 let dxy = ((p[0] - start[0]).powi(2) + (p[1] - start[1]).powi(2)).sqrt();
                 r.hold_dev_xy_m = r.hold_dev_xy_m.max(dxy);
                 r.hold_dev_z_m = r.hold_dev_z_m.max((p[2] - target_z).abs());
@@ -318,11 +348,13 @@ impl HoverJudge {
             }
             r.hold_rms_xy_m = (sum / n.max(1) as f64).sqrt() as f32;
         }
-        // Held the hover for its time (less the margin the band's edges take), landed, and the image's
-        // mission says it completed (100: `MissionState::Completed`).
         r.passed = r.took_off
             && r.landed
-            && r.held_s + 0.5 >= f64::from(r.hover_time_s)
+            && r.hold_start_s.is_some()
+            && (r.held_s - f64::from(r.hover_time_s)).abs() <= HOLD_TIME_TOLERANCE_S
+            && r.hold_dev_xy_m < HOLD_DEV_XY_M
+            && r.hold_dev_z_m < HOLD_DEV_Z_M
+            && r.landing_offset_m.is_some_and(|d| d < LANDING_OFFSET_M)
             && r.mission_end_state == Some(COMPLETED);
         self.report
     }
@@ -380,51 +412,87 @@ mod tests {
         assert_eq!(&last.data[..2], &ID_START.to_le_bytes());
     }
 
-    #[test]
-    fn the_judge_measures_the_hold_against_the_truth() {
-        let mut j = HoverJudge::new(0.5, 2.0);
+    type Sample = (f64, [f32; 3], bool, MotorDuty);
+
+    /// A hover flight: take off at 1 s, the image's hold 2.0–4.0 s (target 0.5 m above the start), a search
+    /// flying off at the hold's height at 4.5 s, landed at 6 s 2 cm from the take-off point. `z_at_3` is the
+    /// truth's height at 3 s, in the hold.
+    fn flight(z_at_3: f32) -> Vec<Sample> {
         let on = MotorDuty([150; 4]);
-        j.sample(0.0, [1.0, 1.0, 0.0], true, MotorDuty::default());
-        j.sample(1.0, [1.0, 1.0, 0.3], false, on);
-        j.sample(2.0, [1.1, 1.0, 0.48], false, on);
-        j.sample(3.0, [1.0, 1.05, 0.53], false, on);
-        j.sample(4.2, [1.0, 1.0, 0.5], false, on);
-        j.sample(5.0, [1.0, 1.0, 0.2], false, on);
-        j.sample(6.0, [1.02, 1.0, 0.0], true, MotorDuty::default());
-        let mut j2 = HoverJudge::new(0.5, 2.0);
-        std::mem::swap(&mut j, &mut j2);
-        // The same flight ended by the image in an estimator fault does not pass.
-        j2.log_line("mission ended: state 204");
-        let r2 = j2.finish();
-        assert_eq!(r2.mission_end_state, Some(204));
-        assert!(r2.took_off && r2.landed && !r2.passed);
-        let _ = j;
+        vec![
+            (0.0, [1.0, 1.0, 0.1], true, MotorDuty::default()),
+            (1.0, [1.0, 1.0, 0.4], false, on),
+            (2.0, [1.05, 1.0, 0.58], false, on),
+            (3.0, [1.0, 1.04, z_at_3], false, on),
+            (4.0, [1.0, 1.0, 0.6], false, on),
+            (4.5, [1.5, 1.0, 0.6], false, on),
+            (5.0, [1.0, 1.0, 0.3], false, on),
+            (6.0, [1.02, 1.0, 0.1], true, MotorDuty::default()),
+        ]
+    }
+
+    fn judge(samples: &[Sample], lines: &[&str]) -> HoverReport {
         let mut j = HoverJudge::new(0.5, 2.0);
-        for (t, p, g, d) in [
-            (0.0, [1.0, 1.0, 0.0], true, MotorDuty::default()),
-            (1.0, [1.0, 1.0, 0.3], false, on),
-            (2.0, [1.1, 1.0, 0.48], false, on),
-            (3.0, [1.0, 1.05, 0.53], false, on),
-            (4.2, [1.0, 1.0, 0.5], false, on),
-            // After the hold the search flies off at the same height: not part of the hold.
-            (4.5, [1.5, 1.0, 0.5], false, on),
-            (5.0, [1.0, 1.0, 0.2], false, on),
-            (6.0, [1.02, 1.0, 0.0], true, MotorDuty::default()),
-        ] {
+        for &(t, p, g, d) in samples {
             j.sample(t, p, g, d);
         }
-        j.log_line("1.2 INFO mission ended: state 100");
-        let r = j.finish();
-        assert!(r.took_off && r.landed && r.passed);
+        for (k, l) in lines.iter().enumerate() {
+            j.log_line(10.0 + k as f64, l);
+        }
+        j.finish()
+    }
+
+    const HOLD_LINES: [&str; 4] = [
+        "0.900000 INFO mission state 10",
+        "2.000000 INFO mission state 50",
+        "4.000000 INFO mission state 51",
+        "6.100000 INFO mission ended: state 100",
+    ];
+
+    #[test]
+    fn the_judge_measures_the_images_hold_against_the_truth() {
+        let r = judge(&flight(0.63), &HOLD_LINES);
+        assert!(r.took_off && r.landed && r.passed, "{r:?}");
+        assert_eq!(
+            (r.hold_start_s, r.hold_end_s),
+            (Some(2.0), Some(4.0)),
+            "the lines' own timestamps"
+        );
         assert!((r.held_s - 2.0).abs() < 1e-9, "{}", r.held_s);
-        assert!((r.hold_dev_xy_m - 0.1).abs() < 1e-6, "{}", r.hold_dev_xy_m);
-        assert!((r.hold_dev_z_m - 0.03).abs() < 1e-6);
+        // The search at 4.5 s (0.5 m off) is outside the hold.
+        assert!((r.hold_dev_xy_m - 0.05).abs() < 1e-6, "{}", r.hold_dev_xy_m);
+        assert!((r.hold_dev_z_m - 0.03).abs() < 1e-6, "{}", r.hold_dev_z_m);
         assert!((r.landing_offset_m.unwrap() - 0.02).abs() < 1e-6);
-        // Never took off: fails.
-        let mut j = HoverJudge::new(0.5, 2.0);
-        j.sample(0.0, [1.0, 1.0, 0.0], true, MotorDuty::default());
-        j.sample(9.0, [1.0, 1.0, 0.0], true, MotorDuty::default());
-        assert!(!j.finish().passed);
+        assert_eq!(r.mission_end_state, Some(100));
+    }
+
+    #[test]
+    fn the_judge_fails_a_hold_off_height_an_unfinished_mission_or_no_hold() {
+        // 9 cm low during the hold.
+        let r = judge(&flight(0.51), &HOLD_LINES);
+        assert!((r.hold_dev_z_m - 0.09).abs() < 1e-6 && !r.passed, "{r:?}");
+        // The same flight ended by the image in an estimator fault.
+        let mut lines = HOLD_LINES;
+        lines[3] = "6.1 INFO mission ended: state 204";
+        let r = judge(&flight(0.63), &lines);
+        assert!(
+            r.took_off && r.landed && r.mission_end_state == Some(204) && !r.passed,
+            "{r:?}"
+        );
+        // A hold cut short (1.5 s of 2).
+        let mut lines = HOLD_LINES;
+        lines[2] = "3.5 INFO mission state 51";
+        let r = judge(&flight(0.63), &lines);
+        assert!((r.held_s - 1.5).abs() < 1e-9 && !r.passed, "{r:?}");
+        // An image that never logs its hold (no state lines): nothing to judge, not passed.
+        let r = judge(&flight(0.63), &["6.1 INFO mission ended: state 100"]);
+        assert!(r.hold_start_s.is_none() && !r.passed, "{r:?}");
+        // Never took off.
+        let ground = [
+            (0.0, [1.0, 1.0, 0.0], true, MotorDuty::default()),
+            (9.0, [1.0, 1.0, 0.0], true, MotorDuty::default()),
+        ];
+        assert!(!judge(&ground, &HOLD_LINES).passed);
     }
 
     #[test]

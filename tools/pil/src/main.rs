@@ -544,7 +544,7 @@ fn run(args: &Args) -> Result<(Report, bool)> {
                 load = Some(l);
             }
             if let Some(j) = judge.as_mut() {
-                j.log_line(&line.text);
+                j.log_line(line.read_at_ns as f64 * 1e-9, &line.text);
             }
             if let Some(j) = mission_judge.as_mut() {
                 j.log_line(&line.text);

@@ -27,9 +27,12 @@ use crate::sim::world::World;
 const TIM2: u64 = 0x4000_0000;
 const TIM4: u64 = 0x4000_0800;
 
-/// Rates of the simulator's range and flow models (`sensors.rs`), in ns.
-const ZRANGE_PERIOD_NS: u64 = 25_000_000;
-const BEAM_PERIOD_NS: u64 = 100_000_000;
+/// How often the simulator's range models (`sensors.rs`) are sampled for the deck's rangers, in ns: every
+/// slice, so the VL53L1x model can take each result's range at the middle of its own ranging period (the
+/// image sets the periods: 25 ms down, 100 ms for the beams), not at an instant of the host's choosing.
+const ZRANGE_PERIOD_NS: u64 = 1_000_000;
+const BEAM_PERIOD_NS: u64 = 1_000_000;
+/// The flow model's rate, ns.
 const FLOW_PERIOD_NS: u64 = 10_000_000;
 
 /// The world, the body and the sensor models.

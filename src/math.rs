@@ -241,19 +241,3 @@ pub fn body_to_arena(v: V3, attitude_rad: V3) -> V3 {
 pub fn arena_to_body(v: V3, attitude_rad: V3) -> V3 {
     mul_m3t_v3(&rotation(attitude_rad), v)
 }
-
-/// The unit vector within `±half_angle_rad` of the unit vector `axis` nearest the unit vector `n` (2-D),
-/// and its cosine to `n`: `n` itself when it lies inside that cone, else the cone's edge on `n`'s side. A
-/// ranger with a cone-shaped field of view meets a plane of normal `n` first along it (see
-/// `nav::cone`).
-pub fn nearest_bearing_in_cone(axis: (f32, f32), n: (f32, f32), half_angle_rad: f32) -> ((f32, f32), f32) {
-    let cos_axis = (axis.0 * n.0 + axis.1 * n.1).clamp(-1.0, 1.0);
-    let (sh, ch) = (libm::sinf(half_angle_rad), libm::cosf(half_angle_rad));
-    if cos_axis >= ch {
-        return (n, 1.0);
-    }
-    // Turn the axis towards `n`: counter-clockwise when axis × n ≥ 0.
-    let s = if axis.0 * n.1 - axis.1 * n.0 >= 0.0 { sh } else { -sh };
-    let edge = (axis.0 * ch - axis.1 * s, axis.0 * s + axis.1 * ch);
-    (edge, edge.0 * n.0 + edge.1 * n.1)
-}

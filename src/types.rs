@@ -73,10 +73,6 @@ impl MultiRangerSample {
     /// [`MultiRangerSample::horizontal`]: front, back, left, right.
     pub const HORIZONTAL_BEAMS_BODY: [(f32, f32); 4] = [(1.0, 0.0), (-1.0, 0.0), (0.0, 1.0), (0.0, -1.0)];
 
-    /// Half of each ranger's field of view, rad: the VL53L1X's "typical full field-of-view (FoV): 27°"
-    /// (datasheet DocID031281 Rev 3, features). A return is the nearest target somewhere in that cone.
-    pub const HALF_FOV_RAD: f32 = 13.5 * core::f32::consts::PI / 180.0;
-
     /// The four horizontal readings: front, back, left, right.
     pub fn horizontal(&self) -> [RangeReading; 4] {
         [self.front_m, self.back_m, self.left_m, self.right_m]

@@ -99,7 +99,6 @@ use crate::landing::pad::PadDetector;
 use crate::landing::sweep::LawnmowerSweep;
 use crate::math::{body_to_arena, wrap_angle};
 use crate::nav::avoidance::{AvoidanceConfig, RangerReadings, ReactiveAvoidance};
-use crate::nav::cone;
 use crate::nav::dstar::DStarLite;
 use crate::nav::grid::{ChangedCells, OccupancyGrid};
 use crate::nav::map::{Cell, GridShape};
@@ -282,19 +281,6 @@ const PAD_LOOKOUT_RADIUS_M: f32 = 0.8;
 /// The hover test's hold and the exploration's first look begin once the climb is this close below the
 /// cruise height, m.
 const MODE_HANDOVER_BELOW_M: f32 = 0.03;
-/// A return within this of the arena wall's distance in the cone (`nav::cone::wall_in_cone`) is the
-/// wall's, m (the drift and the ranger's noise; the live-beam guard's 8 cm).
-const CONE_WALL_MATCH_M: f32 = 0.08;
-/// Returns up to this range mark the whole arc across the cone, m: near, where an obstacle seen at the
-/// cone's edge is a collision risk and the arc is short (±0.19 m at 0.8 m); beyond, the axis end only.
-const CONE_ARC_MAX_M: f32 = 0.8;
-/// Rays across a ranger's cone that clear the space in front of its return: the axis and one each side at
-/// [`CONE_CARVE_HALF_RAD`].
-const CONE_CARVE_RAYS: usize = 3;
-/// How far off the axis the outer clearing rays lie, rad (half the cone's half-angle: inside the cone
-/// with a heading error of several degrees, and off the edge where a thin target that fills too little of
-/// the cone to be reported may stand).
-const CONE_CARVE_HALF_RAD: f32 = 0.5 * cone::HALF_FOV_RAD;
 
 /// See the module documentation.
 pub struct Mission<const CELLS: usize, const QUEUE: usize> {
@@ -694,82 +680,8 @@ impl<const CELLS: usize, const QUEUE: usize> Mission<CELLS, QUEUE> {
                 (self.config.max_mapping_range_m, false)
             };
             let heading = yaw + offset;
-            self.map_cone((x, y), heading, length, hit);
-        }
-    }
-
-    /// One horizontal return of range `length` (`hit`: a return within the mapping range, else nothing
-    /// within it) along `heading` from `from`, as the ranger's cone means it (`nav::cone`): nothing lies
-    /// nearer than `length` anywhere in the cone, and the target lies somewhere on the arc of radius
-    /// `length` across it (a thin cylinder or a corner first enters a cone at its edge, 13.5° off the
-    /// axis; a face seen at an angle is nearest along the cone's edge, not the axis).
-    /// * The cone up to the arc is free: [`CONE_CARVE_RAYS`] rays across it get misses up to 1.5 cells
-    ///   short of it (the whole range when nothing returned).
-    /// * The arena's wall, where it explains the return: the hit goes where the cone meets the wall.
-    /// * A cell the map holds occupied on the arc explains the return: no new hit.
-    /// * Otherwise, near ([`CONE_ARC_MAX_M`]), every arc cell (half a cell beyond the return) not seen free
-    ///   gets a hit; far, or when all of them were seen free, the axis end does, as a ray's would (an arc
-    ///   ±0.5 m wide is no place; the next, nearer sweeps place it).
-    fn map_cone(&mut self, (x, y): (f32, f32), heading: f32, length: f32, hit: bool) {
-        let shape = self.grid.shape();
-        let carve_to = if hit {
-            length - 1.5 * crate::nav::map::CELL_SIZE_M
-        } else {
-            length
-        };
-        if carve_to > 0.0 {
-            for k in 0..CONE_CARVE_RAYS {
-                let a = heading + CONE_CARVE_HALF_RAD * (2.0 * k as f32 / (CONE_CARVE_RAYS - 1) as f32 - 1.0);
-                let to = (x + carve_to * libm::cosf(a), y + carve_to * libm::sinf(a));
-                self.grid.integrate_beam((x, y), to, false, &mut self.changed);
-            }
-        }
-        if !hit {
-            return;
-        }
-        let axis = (libm::cosf(heading), libm::sinf(heading));
-        let d = length;
-        let wall = cone::wall_in_cone((x, y), axis, self.params.arena_m)
-            .filter(|(dw, _)| libm::fabsf(d - dw) < CONE_WALL_MATCH_M);
-        if let Some((_, u)) = wall {
-            self.grid
-                .integrate_hit((x + d * u.0, y + d * u.1), false, &mut self.changed);
-            return;
-        }
-        // Points half a cell apart along the arc, half a cell beyond the return (in the surface's cell
-        // rather than in front of it).
-        let r = d + 0.5 * crate::nav::map::CELL_SIZE_M;
-        let per_side =
-            libm::ceilf(cone::HALF_FOV_RAD * r / (0.5 * crate::nav::map::CELL_SIZE_M)).clamp(1.0, 64.0) as i32;
-        let step = cone::HALF_FOV_RAD / per_side as f32;
-        let arc_point = |k: i32| {
-            let a = heading + step * k as f32;
-            (x + r * libm::cosf(a), y + r * libm::sinf(a))
-        };
-        let explained = (-per_side..=per_side).any(|k| {
-            let p = arc_point(k);
-            shape.cell_at(p.0, p.1).is_some_and(|c| self.grid.is_occupied(c))
-        });
-        if explained {
-            return;
-        }
-        let mut placed = false;
-        if d <= CONE_ARC_MAX_M {
-            let mut last = None;
-            for k in -per_side..=per_side {
-                let p = arc_point(k);
-                let cell = shape.cell_at(p.0, p.1);
-                if cell.is_none() || cell == last {
-                    continue;
-                }
-                last = cell;
-                placed |= self.grid.integrate_hit(p, true, &mut self.changed);
-            }
-        }
-        if !placed {
-            // Far, or every arc cell seen free: the axis end, as a ray would have it.
-            self.grid
-                .integrate_hit((x + d * axis.0, y + d * axis.1), false, &mut self.changed);
+            let end = (x + length * libm::cosf(heading), y + length * libm::sinf(heading));
+            self.grid.integrate_beam((x, y), end, hit, &mut self.changed);
         }
     }
 

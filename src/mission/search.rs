@@ -235,10 +235,19 @@ impl<const CELLS: usize, const QUEUE: usize> Mission<CELLS, QUEUE> {
         (out, blocked)
     }
 
-    /// The arena's wall as the ranger's cone along the unit vector `u` from `p` sees it: the nearest
-    /// distance within the cone, m (infinite outside the arena).
+    /// Distance from `p` along the unit vector `u` to the arena's boundary, m (infinite when none is ahead).
     fn wall_distance_along(&self, p: (f32, f32), u: (f32, f32)) -> f32 {
-        crate::nav::cone::wall_in_cone(p, u, self.params.arena_m).map_or(f32::INFINITY, |(d, _)| d)
+        let (w, h) = self.params.arena_m;
+        let along = |pos: f32, dir: f32, size: f32| {
+            if dir > 1e-6 {
+                (size - pos) / dir
+            } else if dir < -1e-6 {
+                -pos / dir
+            } else {
+                f32::INFINITY
+            }
+        };
+        along(p.0, u.0, w).min(along(p.1, u.1, h))
     }
 
     pub(super) fn search(&mut self, search: Search, state: &StateEstimate, _dt_s: f32) -> Setpoint {

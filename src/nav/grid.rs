@@ -405,30 +405,6 @@ impl<const CELLS: usize> OccupancyGrid<CELLS> {
         }
     }
 
-    /// A return at the arena-frame point `at` (metres): the cell containing it gets a hit, unless
-    /// `unless_seen_free` and the map holds it free with negative log-odds (beams have crossed it more than
-    /// they ended in it). Outside the grid, or non-finite: nothing. Returns whether a hit was added.
-    pub fn integrate_hit<const N: usize>(
-        &mut self,
-        at: (f32, f32),
-        unless_seen_free: bool,
-        changed: &mut ChangedCells<N>,
-    ) -> bool {
-        let Some(cell) = self.shape.cell_at(at.0, at.1) else {
-            return false;
-        };
-        let (x, y) = (i32::from(cell.x), i32::from(cell.y));
-        if unless_seen_free
-            && self
-                .byte(x, y)
-                .is_some_and(|b| b & OCCUPIED == 0 && decode_log_odds(b) < 0)
-        {
-            return false;
-        }
-        self.add_log_odds(x, y, i16::from(self.config.hit_increment), changed);
-        true
-    }
-
     /// Declares the disc around `center` (arena-frame metres) free, e.g. the drone's own footprint: every
     /// cell whose centre lies within `radius_m` of `center`, plus the cell containing `center`, is set to
     /// the minimum log-odds (and so becomes free). A negative radius clears only the centre cell;

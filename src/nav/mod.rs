@@ -4,7 +4,7 @@
 //! its inflated "blocked" layer ([`grid`]), the indexed priority queue ([`queue`]) under D\* Lite
 //! ([`dstar`], Koenig & Likhachev's optimized version with `km`), path read-off, shortening and smoothing
 //! ([`path`]), and the reactive layer that turns the path's next waypoint and the live beams into a bounded
-//! velocity ([`avoidance`]); what a ranger's return means inside its cone ([`cone`]).
+//! velocity ([`avoidance`]).
 //!
 //! May depend on: [`crate::types`] and [`crate::math`] only. Nothing here knows the mission, the flight
 //! stack or the radio; the mission composes these pieces, and the planner replay and the benches use them
@@ -13,7 +13,6 @@
 //! module for its size at the firmware's capacity.
 
 pub mod avoidance;
-pub mod cone;
 pub mod dstar;
 pub mod grid;
 pub mod map;

@@ -68,7 +68,6 @@
 //! [`MAX_RANGE_M`] / cell × 2 + 2 cell visits per beam (≈ 102 at 5 cm: a grid walk visits at most one cell
 //! per x or y boundary crossed), four beams per sweep; then up to four scalar EKF updates.
 
-use crate::math::nearest_bearing_in_cone;
 use crate::types::MultiRangerSample;
 
 /// Beams longer than this give no fix, m (the ranger's noise grows with the range; the walk is bounded
@@ -421,23 +420,7 @@ pub fn cast_fixes(
         }
         let mut normal = [0.0; 2];
         normal[hit.axis] = hit.sign;
-        // The ranger reports the nearest surface in its cone (`MultiRangerSample::HALF_FOV_RAD`): for this plane, along the
-        // bearing within the cone nearest its normal. That bearing must meet the same surface (near a
-        // corner or a box's end the cone's nearest point lies on another one: no fix).
-        let (u_near, cos_near) =
-            nearest_bearing_in_cone((u[0], u[1]), (normal[0], normal[1]), MultiRangerSample::HALF_FOV_RAD);
-        if u_near != (u[0], u[1]) {
-            let same = ray_cast(grid, (position_m[0], position_m[1]), u_near, reach, &confirmed).is_some_and(|h| {
-                h.wall == hit.wall
-                    && h.axis == hit.axis
-                    && h.sign == hit.sign
-                    && (h.plane_m - hit.plane_m).abs() <= 0.5 * grid.cell_m
-            });
-            if !same {
-                continue;
-            }
-        }
-        let measured = r * cos_near;
+        let measured = r * cos_inc;
         let plane_m = if hit.wall {
             hit.plane_m
         } else {
@@ -458,13 +441,11 @@ pub fn cast_fixes(
         if difference.is_nan() || difference > PRE_GATE_M {
             continue;
         }
-        let ranger_std = (RANGER_STD_FLOOR_M + RANGER_STD_RELATIVE * r) * cos_near;
+        let ranger_std = (RANGER_STD_FLOOR_M + RANGER_STD_RELATIVE * r) * cos_inc;
         let plane_std = if hit.wall { 0.0 } else { LANDMARK_STD_M };
         let std_m = libm::sqrtf(ranger_std * ranger_std + plane_std * plane_std);
-        // n·u⊥ with u⊥ = (−u_y, u_x) of the bearing the range was measured along (0 when the normal lies
-        // inside the cone: a small turn keeps it there and the reading does not change); only the wall's
-        // own axis of n is non-zero.
-        let u_perp = [-u_near.1, u_near.0];
+        // n·u⊥ with u⊥ = (−u_y, u_x); only the wall's own axis of n is non-zero.
+        let u_perp = [-u[1], u[0]];
         let yaw_lever_m = if hit.wall { r * hit.sign * u_perp[hit.axis] } else { 0.0 };
         out.fixes[beam] = Some(MapFix {
             normal,

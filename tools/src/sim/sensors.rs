@@ -11,7 +11,7 @@
 //! | [`Imu`] (BMI088) | 1 kHz | truth + per-seed bias + bias random walk + white noise, 16-bit ±2000 °/s, ±24 g |
 //! | [`FlowSensor`] (PMW3901) | 100 Hz | stock `mm_flow.c` model on the true state × (1 + scale error) + noise, i16 counts, optional dropouts |
 //! | [`ZRanger`] (VL53L1x, Flow deck) | 40 Hz | ray along body −z, stock noise model, `None` beyond 4 m, optional outliers |
-//! | [`MultiRanger`] (5 × VL53L1x) | 10 Hz | cones (27° full FoV, nearest target filling ≥ 2 rays of a 9-ray fan) along body ±x, ±y; a ray along +z; 1 % noise, `None` beyond 4 m, dropouts, optional outliers |
+//! | [`MultiRanger`] (5 × VL53L1x) | 10 Hz | rays along body ±x, ±y, +z (optionally 27° cones for ±x, ±y), 1 % noise, `None` beyond 4 m, dropouts, optional outliers |
 //! | [`BatterySensor`] (nRF VBAT) | 100 Hz | loaded battery voltage + noise |
 //!
 //! All sensors sit at the body origin (the stock flow-deck position parameters default to 0 too); the
@@ -587,11 +587,17 @@ pub struct MultiRangerParams {
     /// Probability that a beam's reading is a wrong range, uniform in `0..max_range_m`, per beam and
     /// reading. Default 0. (`[sensors] ranger_outlier_rate`.)
     pub outlier_probability: f32,
-    /// Half of a horizontal beam's field of view, rad. Default 13.5° (VL53L1X datasheet, DocID031281
-    /// Rev 3, "typical full field-of-view (FoV): 27°"). 0 models a single ray along the axis (the model
-    /// before session 10).
+    /// Half of a horizontal beam's field of view, rad; 0 (the default) models a single ray along the
+    /// axis. The real sensor's is 13.5° ([`VL53L1X_HALF_FOV_RAD`]), but the firmware does not read its
+    /// returns as cones yet (BENCHMARKS.md §5, session 10: the cone model with today's firmware, and with a
+    /// first cone-aware map, grows the mission time and the no-path aborts), so the simulator's default
+    /// stays the ray until it does. No world or `[sensors]` key sets it (interfaces.md §3 is unchanged).
     pub cone_half_angle_rad: f32,
 }
+
+/// Half the VL53L1X's field of view, rad: the datasheet's "typical full field-of-view (FoV): 27°"
+/// (DocID031281 Rev 3, features).
+pub const VL53L1X_HALF_FOV_RAD: f32 = 13.5 * std::f32::consts::PI / 180.0;
 
 /// Rays across a horizontal beam's cone (odd, so one lies on the axis): 9 over 27° are 3.4° apart.
 pub const CONE_RAYS: usize = 9;
@@ -604,14 +610,15 @@ impl Default for MultiRangerParams {
             noise_floor_m: 0.003,
             invalid_probability: 0.005,
             outlier_probability: 0.0,
-            cone_half_angle_rad: 13.5f32.to_radians(),
+            cone_half_angle_rad: 0.0,
         }
     }
 }
 
 /// The Multi-ranger deck: five VL53L1x along body +x, −x, +y, −y, +z from the body origin.
 ///
-/// The four horizontal sensors are cones, not rays: a VL53L1X sees a 27° (full) field of view and reports
+/// With [`MultiRangerParams::cone_half_angle_rad`] > 0 the four horizontal sensors are cones, not rays (by
+/// default they are rays): a VL53L1X sees a 27° (full) field of view and reports
 /// one distance for what its cone holds. Each is modelled as a fan of [`CONE_RAYS`] rays across the cone in
 /// the body's x–y plane (obstacles are vertical prisms, so the plane is where the cone meets them first),
 /// and reports the nearest target that *fills enough of the cone*: the nearest ray's range counts only when

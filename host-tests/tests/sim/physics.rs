@@ -8,8 +8,8 @@ use cfnav::math::arena_to_body;
 use cfnav::types::{GRAVITY_M_S2, MotorDuty};
 use cfnav_tools::sim::physics::{Geometry, QuadParams, Quadrotor};
 use cfnav_tools::sim::sensors::{
-    BatterySensor, Beam, FlowParams, FlowSensor, Imu, ImuParams, MultiRanger, MultiRangerParams, SensorFault, ZRanger,
-    ZRangerParams, zranger_noise_std_m,
+    BatterySensor, Beam, FlowParams, FlowSensor, Imu, ImuParams, MultiRanger, MultiRangerParams, SensorFault,
+    VL53L1X_HALF_FOV_RAD, ZRanger, ZRangerParams, zranger_noise_std_m,
 };
 use rand::rngs::SmallRng;
 use rand::{Rng, SeedableRng};
@@ -943,4 +943,64 @@ fn cost_of_90_s_of_physics_and_sensors() {
         90.0 / (physics + sensors),
     );
     assert!((q.position()[2] - 1.0).abs() < 0.05);
+}
+
+/// The cone model of the horizontal beams (`MultiRangerParams::cone_half_angle_rad`, off by default)
+/// against plane geometry worked out by hand: a thin post beside the axis that the ray misses is seen
+/// once two of the cone's rays reach it, a post only the cone's edge ray grazes is not (the partial-fill
+/// rule), and a wall at 45° reads `D / cos(45° − 13.5°)` instead of the ray's `D / cos 45°`.
+#[test]
+fn multiranger_cone_sees_what_the_ray_misses_and_no_more() {
+    let ray = MultiRangerParams {
+        invalid_probability: 0.0,
+        noise_relative: 0.0,
+        noise_floor_m: 0.0,
+        ..MultiRangerParams::default()
+    };
+    let cone = MultiRangerParams {
+        cone_half_angle_rad: VL53L1X_HALF_FOV_RAD,
+        ..ray
+    };
+    let mut rng = SmallRng::seed_from_u64(10);
+    let at = [2.0, 1.5, 0.5];
+    // A 0.16 m square post (a thin cylinder's size) whose centre lies 0.42 m ahead and `side` m to the
+    // left; nothing else within 4 m ahead (the front wall is 8 m away).
+    let post = |side: f32| {
+        let (cx, cy) = (at[0] + 0.42, at[1] + side);
+        let mut room = Room::new([10.0, 3.0, 2.5]);
+        room.boxes
+            .push(([cx - 0.08, cy - 0.08, 0.0], [cx + 0.08, cy + 0.08, 2.5]));
+        room
+    };
+    let q = Quadrotor::new(QuadParams::default(), at, 0.0);
+    // 0.15 m to the side: the post spans 8.0°–34.1° of bearing; the axis passes 7 cm beside it. The
+    // cone's rays at 10.1° and 13.5° reach it: the near face (x = 0.34 m ahead) along 13.5°, 0.350 m.
+    let room = post(0.15);
+    assert_eq!(
+        MultiRanger::new(ray).sample(&q, &room, &mut rng).front_m,
+        None,
+        "the ray passes beside the post"
+    );
+    let seen = MultiRanger::new(cone).sample(&q, &room, &mut rng).front_m;
+    println!("post 0.15 m beside the axis: cone reads {seen:?}");
+    assert!(
+        seen.is_some_and(|d| (d - 0.34 / 13.5f32.to_radians().cos()).abs() < 0.005),
+        "{seen:?}"
+    );
+    // 0.18 m to the side: it spans 11.3°–37.3°, only the edge ray (13.5°) touches it: too little of the
+    // cone to be reported.
+    let grazed = MultiRanger::new(cone).sample(&q, &post(0.18), &mut rng).front_m;
+    assert_eq!(grazed, None, "a post only the cone's edge grazes");
+    // 0.20 m to the side: 14.0°–41.2°, outside the cone altogether.
+    assert_eq!(MultiRanger::new(cone).sample(&q, &post(0.20), &mut rng).front_m, None);
+
+    // A wall at 45°: 1 m from the wall x = 10, turned 45° towards +y (the wall y = 3 lies 2.1 m along it).
+    let room = Room::new([10.0, 3.0, 2.5]);
+    let q = Quadrotor::new(QuadParams::default(), [9.0, 1.5, 0.5], std::f32::consts::FRAC_PI_4);
+    let r = MultiRanger::new(ray).sample(&q, &room, &mut rng).front_m;
+    let c = MultiRanger::new(cone).sample(&q, &room, &mut rng).front_m;
+    println!("wall at 45°, 1 m: ray {r:?}, cone {c:?}");
+    assert!(r.is_some_and(|d| (d - std::f32::consts::SQRT_2).abs() < 1e-3), "{r:?}");
+    let nearest = 1.0 / (45f32 - 13.5).to_radians().cos();
+    assert!(c.is_some_and(|d| (d - nearest).abs() < 1e-3), "{c:?} against {nearest}");
 }

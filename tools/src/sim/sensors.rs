@@ -11,7 +11,7 @@
 //! | [`Imu`] (BMI088) | 1 kHz | truth + per-seed bias + bias random walk + white noise, 16-bit ±2000 °/s, ±24 g |
 //! | [`FlowSensor`] (PMW3901) | 100 Hz | stock `mm_flow.c` model on the true state × (1 + scale error) + noise, i16 counts, optional dropouts |
 //! | [`ZRanger`] (VL53L1x, Flow deck) | 40 Hz | ray along body −z, stock noise model, `None` beyond 4 m, optional outliers |
-//! | [`MultiRanger`] (5 × VL53L1x) | 10 Hz | rays along body ±x, ±y, +z, 1 % noise, `None` beyond 4 m, dropouts, optional outliers |
+//! | [`MultiRanger`] (5 × VL53L1x) | 10 Hz | rays along body ±x, ±y, +z (optionally 27° cones for ±x, ±y), 1 % noise, `None` beyond 4 m, dropouts, optional outliers |
 //! | [`BatterySensor`] (nRF VBAT) | 100 Hz | loaded battery voltage + noise |
 //!
 //! All sensors sit at the body origin (the stock flow-deck position parameters default to 0 too); the
@@ -522,6 +522,41 @@ fn range<G: Geometry + ?Sized>(geometry: &G, origin: [f32; 3], dir: [f32; 3], ma
         .filter(|d| d.is_finite() && *d >= 0.0 && *d <= max_m)
 }
 
+/// The range a horizontal cone reports (see [`MultiRanger`]): the nearest ray range that a neighbouring
+/// ray confirms (within 2 cm + 10 %), `None` when no two neighbouring rays return.
+fn cone_range<G: Geometry + ?Sized>(
+    geometry: &G,
+    origin: [f32; 3],
+    axis: [f32; 3],
+    up: [f32; 3],
+    half_angle_rad: f32,
+    max_m: f32,
+) -> Option<f32> {
+    // The axis turned about the body's z axis: u(φ) = axis·cos φ + (up × axis)·sin φ.
+    let side = [
+        up[1] * axis[2] - up[2] * axis[1],
+        up[2] * axis[0] - up[0] * axis[2],
+        up[0] * axis[1] - up[1] * axis[0],
+    ];
+    let mut ranges = [None; CONE_RAYS];
+    for (k, r) in ranges.iter_mut().enumerate() {
+        let phi = half_angle_rad * (2.0 * k as f32 / (CONE_RAYS - 1) as f32 - 1.0);
+        let (s, c) = phi.sin_cos();
+        let dir = [
+            axis[0] * c + side[0] * s,
+            axis[1] * c + side[1] * s,
+            axis[2] * c + side[2] * s,
+        ];
+        *r = range(geometry, origin, dir, max_m);
+    }
+    let confirmed = |k: usize| {
+        let d = ranges[k]?;
+        let agrees = |j: usize| ranges[j].is_some_and(|e| (e - d).abs() <= 0.02 + 0.1 * d);
+        ((k > 0 && agrees(k - 1)) || (k + 1 < CONE_RAYS && agrees(k + 1))).then_some(d)
+    };
+    (0..CONE_RAYS).filter_map(confirmed).min_by(f32::total_cmp)
+}
+
 /// One of the Multi-ranger's beams, in [`MultiRangerSample`] order.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum Beam {
@@ -552,7 +587,20 @@ pub struct MultiRangerParams {
     /// Probability that a beam's reading is a wrong range, uniform in `0..max_range_m`, per beam and
     /// reading. Default 0. (`[sensors] ranger_outlier_rate`.)
     pub outlier_probability: f32,
+    /// Half of a horizontal beam's field of view, rad; 0 (the default) models a single ray along the
+    /// axis. The real sensor's is 13.5° ([`VL53L1X_HALF_FOV_RAD`]), but the firmware does not read its
+    /// returns as cones yet (BENCHMARKS.md §5, session 10: the cone model with today's firmware, and with a
+    /// first cone-aware map, grows the mission time and the no-path aborts), so the simulator's default
+    /// stays the ray until it does. No world or `[sensors]` key sets it (interfaces.md §3 is unchanged).
+    pub cone_half_angle_rad: f32,
 }
+
+/// Half the VL53L1X's field of view, rad: the datasheet's "typical full field-of-view (FoV): 27°"
+/// (DocID031281 Rev 3, features).
+pub const VL53L1X_HALF_FOV_RAD: f32 = 13.5 * std::f32::consts::PI / 180.0;
+
+/// Rays across a horizontal beam's cone (odd, so one lies on the axis): 9 over 27° are 3.4° apart.
+pub const CONE_RAYS: usize = 9;
 
 impl Default for MultiRangerParams {
     fn default() -> Self {
@@ -562,11 +610,25 @@ impl Default for MultiRangerParams {
             noise_floor_m: 0.003,
             invalid_probability: 0.005,
             outlier_probability: 0.0,
+            cone_half_angle_rad: 0.0,
         }
     }
 }
 
 /// The Multi-ranger deck: five VL53L1x along body +x, −x, +y, −y, +z from the body origin.
+///
+/// With [`MultiRangerParams::cone_half_angle_rad`] > 0 the four horizontal sensors are cones, not rays (by
+/// default they are rays): a VL53L1X sees a 27° (full) field of view and reports
+/// one distance for what its cone holds. Each is modelled as a fan of [`CONE_RAYS`] rays across the cone in
+/// the body's x–y plane (obstacles are vertical prisms, so the plane is where the cone meets them first),
+/// and reports the nearest target that *fills enough of the cone*: the nearest ray's range counts only when
+/// a neighbouring ray also returns within 2 cm + 10 % of it (a target ≥ one ray spacing, 3.4°, wide: a
+/// thin cylinder grazed by the cone's edge ray alone is not seen, nor a corner a single ray touches);
+/// otherwise the next such pair decides. The datasheet allows a partially filled cone to be reported (the
+/// nearest target dominates the return when close); demanding two rays is at least as hard as that. A
+/// flat wall at incidence θ reads `D / cos(max(θ − 13.5°, 0))` (the cone's edge ray and its neighbour
+/// agree within the tolerance up to ≈ 70°), shorter than the axis ray's `D / cos θ`. The upward sensor
+/// stays a single ray (the ceiling is a plane square to it).
 #[derive(Clone, Debug)]
 pub struct MultiRanger {
     params: MultiRangerParams,
@@ -615,7 +677,12 @@ impl MultiRanger {
                 Some(_) => continue,
                 None => {}
             }
-            let reading = range(geometry, pos, *dir, p.max_range_m).and_then(|d| {
+            let hit = if i < 4 && p.cone_half_angle_rad > 0.0 {
+                cone_range(geometry, pos, *dir, z, p.cone_half_angle_rad, p.max_range_m)
+            } else {
+                range(geometry, pos, *dir, p.max_range_m)
+            };
+            let reading = hit.and_then(|d| {
                 let rel = p.noise_relative * d;
                 let std = (p.noise_floor_m * p.noise_floor_m + rel * rel).sqrt();
                 let d = d + std * gauss(rng);

@@ -9,7 +9,12 @@
 //! `an_interrupt_inside_an_it_block_keeps_its_condition` fails without the patch (docs/pil.md). The second:
 //! a core asleep in `WFI` is woken by SysTick on the very cycle the counter reaches zero, also when the
 //! emulator charges its idle cycles a budget at a time (`patches/rsemu-0.0.7-v7m-sleep-skip.patch`), which
-//! `a_sleeping_core_wakes_on_the_systick_cycle` checks from the cycle counter read in the handler.
+//! `a_sleeping_core_wakes_on_the_systick_cycle` checks from the cycle counter read in the handler. The third:
+//! exception entry must leave FPSCR alone (DDI 0403E B1.5.6 `ExceptionTaken`; `ExecuteFPCheck` gives a
+//! handler FPDSCR's AHP/DN/FZ/RMode at its first floating-point instruction, never the flags), so an interrupt
+//! between a `vcmp` and its `vmrs APSR_nzcv, fpscr` changes nothing; rsemu 0.0.7 loaded all of FPDSCR at
+//! entry (`patches/rsemu-0.0.7-v7m-fpscr-flags.patch`), which
+//! `an_interrupt_between_a_vcmp_and_its_vmrs_keeps_the_fpscr_flags` catches (402 wrong `addpl`s in 2 ms).
 //! Non-goals: an instruction-set test suite (rsemu has its own corpus). Units: addresses as the core sees them.
 
 #[cfg(test)]
@@ -112,6 +117,63 @@ mod tests {
             wrong, 0,
             "`addne` ran {wrong} times with Z set ({interrupts} interrupts, {passes} passes): ITSTATE was lost on \
              an exception"
+        );
+    }
+
+    /// The FPSCR check's program: the FPU on (CPACR), s0 = −1.0, then a loop that compares s0 with zero
+    /// (FPSCR.N = 1), copies the flags to APSR and must skip an `addpl` (N set); SysTick interrupts it every
+    /// 101–108 cycles with a handler that uses no floating point (the frame's FP half stays reserved).
+    fn fpscr_image() -> Vec<u8> {
+        // Assembled with arm-none-eabi-as -mcpu=cortex-m4 (.fpu fpv4-sp-d16), at CODE:
+        let code: [u16; 40] = [
+            0x4811, 0xF44F, 0x0170, // 0x100 ldr r0, =CPACR; mov.w r1, #0x00F00000 (CP10, CP11 full)
+            0x6001, // 0x106 str r1, [r0]
+            0xF3BF, 0x8F4F, 0xF3BF, 0x8F6F, // 0x108 dsb; isb
+            0xEEBF, 0x0A00, // 0x110 vmov.f32 s0, #-1.0   ; the thread now owns an FP context
+            0x480D, // 0x114 ldr r0, =SYST_CSR
+            0x2164, 0x6041, // 0x116 movs r1, #100; str r1, [r0, #4] ; SYST_RVR
+            0x2100, 0x6081, // 0x11a movs r1, #0; str r1, [r0, #8]   ; SYST_CVR
+            0x2400, 0x2500, 0x2600, // 0x11e r4 wrongly executed adds, r5 passes, r6 interrupts
+            0x2107, 0x6001, // 0x124 movs r1, #7; str r1, [r0]      ; SYST_CSR: on
+            0xEEB5, 0x0A40, // 0x128 loop: vcmp.f32 s0, #0.0      ; FPSCR.N = 1
+            0xEEF1, 0xFA10, // 0x12c vmrs APSR_nzcv, fpscr        ; an interrupt just before must not
+            0xBF58, //         0x130 it pl                        ; change what this reads
+            0x3401, //         0x132 addpl r4, #1                 ; must never execute
+            0x3501, 0xE7F7, // 0x134 adds r5, #1; b loop
+            0x3601, 0x2207, 0x4032, 0x3264, 0x6042, 0x4770, // 0x138 systick: r6++, reload 101..108, bx lr
+            0xE7FE, 0x0000, // 0x144 parked: b .
+            0xED88, 0xE000, // 0x148 .word 0xE000ED88 (CPACR)
+            0xE010, 0xE000, // 0x14c .word 0xE000E010 (SYST_CSR)
+        ];
+        flash_image(&code, 0x138, 0x144, &[])
+    }
+
+    #[test]
+    fn an_interrupt_between_a_vcmp_and_its_vmrs_keeps_the_fpscr_flags() {
+        let fitted = Fitted {
+            multiranger: false,
+            flow: false,
+        };
+        let mut board = Board::new(fpscr_image(), Faults::default(), fitted).expect("the machine builds");
+        board.run_ns(2_000_000).expect("the program runs");
+        let (wrong, passes, interrupts, pc) = (
+            register(&mut board, 4),
+            register(&mut board, 5),
+            register(&mut board, 6),
+            register(&mut board, 15),
+        );
+        assert!(
+            (0x0800_0128..0x0800_0144).contains(&pc),
+            "the core left the program: pc {pc:#x}"
+        );
+        assert!(
+            interrupts > 300 && passes > 1000,
+            "SysTick {interrupts} times, {passes} loop passes"
+        );
+        assert_eq!(
+            wrong, 0,
+            "`addpl` ran {wrong} times with FPSCR.N set ({interrupts} interrupts, {passes} passes): the \
+             exception entry overwrote the interrupted code's FPSCR flags"
         );
     }
 

@@ -27,10 +27,6 @@ for s in "${seeds[@]}"; do
   start=$SECONDS
   "$target/debug/cfnav-pil" --elf "$elf" --mission --seed "$s" --json "$out/pil-$s.json" > "$out/pil-$s.log" 2>&1 || true
   echo "seed $s: $((SECONDS - start)) s wall"
-  if python3 tools/pil/compare_sitl.py "$out/pil-$s.json" "$out/sitl-$s.json" | tee "$out/compare-$s.md"; then
-    :
-  else
-    status=1
-  fi
+  python3 tools/pil/compare_sitl.py "$out/pil-$s.json" "$out/sitl-$s.json" | tee "$out/compare-$s.md" || status=1
 done
 exit $status

@@ -97,6 +97,37 @@ pub struct StateEstimate {
     pub valid: bool,
 }
 
+impl StateEstimate {
+    /// The longest age [`StateEstimate::backdated`] extrapolates over, s: beyond it a constant-velocity
+    /// guess is worse than none (a VL53L1x reading is at most a timing budget plus a poll old, ≤ 0.1 s).
+    pub const MAX_BACKDATE_S: f32 = 0.2;
+
+    /// The estimate `age_s` seconds ago, extrapolated back at the current velocity and yaw rate: where a
+    /// sensor reading that old was measured from. A VL53L1x integrates its range over its timing budget and
+    /// flags it at the end, so a moving drone's reading belongs to a pose half a budget (plus the time it
+    /// waited to be read) behind the current one (module `drivers::vl53l1x`). Position, height and yaw
+    /// move; the rest is kept. A non-finite or non-positive age changes nothing; ages beyond
+    /// [`StateEstimate::MAX_BACKDATE_S`] are clamped to it.
+    pub fn backdated(&self, age_s: f32) -> Self {
+        if !(age_s.is_finite() && age_s > 0.0) {
+            return *self;
+        }
+        let age_s = age_s.min(Self::MAX_BACKDATE_S);
+        let mut past = *self;
+        for (p, v) in past.position_m.iter_mut().zip(self.velocity_m_s) {
+            if v.is_finite() {
+                *p -= v * age_s;
+            }
+        }
+        // The body z rate is the yaw rate to first order in the tilt (a few degrees in flight).
+        let yaw_rate = self.rates_rad_s[2];
+        if yaw_rate.is_finite() {
+            past.attitude_rad[2] = crate::math::wrap_angle(self.attitude_rad[2] - yaw_rate * age_s);
+        }
+        past
+    }
+}
+
 /// What the mission (or the radio commander) asks of the controller.
 #[derive(Clone, Copy, Debug, Default, PartialEq)]
 pub enum Setpoint {

@@ -255,3 +255,55 @@ fn missed_imu_samples_on_the_ground_keep_the_motors_off() {
     assert_eq!(stab.on_imu_missed(400_000).0, [0; 4]);
     assert_ne!(stab.supervisor().state, SupervisorState::Crashed);
 }
+
+/// A reading `age` old belongs to the pose the drone had then: back along the velocity and the yaw rate.
+/// Bad or absurd ages change nothing or are bounded (a VL53L1x reading is never older than ~0.1 s).
+#[test]
+fn a_backdated_estimate_is_the_pose_a_reading_was_measured_from() {
+    use cfnav::types::StateEstimate;
+    let now = StateEstimate {
+        position_m: [2.0, 1.0, 0.5],
+        velocity_m_s: [0.5, -0.2, 0.1],
+        attitude_rad: [0.01, -0.02, 3.1],
+        rates_rad_s: [0.0, 0.0, 2.0],
+        surface_height_m: 0.1,
+        valid: true,
+    };
+    let past = now.backdated(0.025);
+    let close = |a: f32, b: f32| (a - b).abs() < 1e-5;
+    assert!(close(past.position_m[0], 2.0 - 0.0125), "{past:?}");
+    assert!(close(past.position_m[1], 1.0 + 0.005), "{past:?}");
+    assert!(close(past.position_m[2], 0.5 - 0.0025), "{past:?}");
+    assert!(close(past.attitude_rad[2], 3.05), "{past:?}");
+    // Everything else is the current estimate's.
+    assert_eq!(
+        (
+            past.velocity_m_s,
+            &past.attitude_rad[..2],
+            past.rates_rad_s,
+            past.surface_height_m,
+            past.valid
+        ),
+        (
+            now.velocity_m_s,
+            &now.attitude_rad[..2],
+            now.rates_rad_s,
+            now.surface_height_m,
+            now.valid
+        )
+    );
+    // Turning backwards through ±π stays wrapped.
+    let turning = StateEstimate {
+        attitude_rad: [0.0, 0.0, -3.1],
+        rates_rad_s: [0.0, 0.0, 4.0],
+        ..now
+    };
+    let back = turning.backdated(0.025).attitude_rad[2];
+    assert!(close(back, -3.2 + 2.0 * core::f32::consts::PI), "{back}");
+    // No age, a negative or non-finite one: unchanged; a huge one: bounded.
+    for age in [0.0, -0.1, f32::NAN, f32::INFINITY] {
+        assert_eq!(now.backdated(age), now, "age {age}");
+    }
+    let bounded = now.backdated(10.0);
+    assert!(close(bounded.position_m[0], 2.0 - 0.5 * StateEstimate::MAX_BACKDATE_S));
+}

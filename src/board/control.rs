@@ -15,7 +15,7 @@
 use core::sync::atomic::Ordering;
 
 use cfnav::drivers::bmi088::{AccelTrim, Bmi088};
-use cfnav::stack::{MissionCommand, Stabilizer};
+use cfnav::stack::{MissionCommand, Stabilizer, ZRANGE_MIDPOINT_US};
 use cfnav::system::cpu_load::{Level, LoopTiming, LoopWindow};
 use cfnav::system::step_pacing::HeavyInputGate;
 use defmt::warn;
@@ -89,8 +89,9 @@ fn apply_input(stab: &mut Stabilizer, input: FastInput) {
     {
         match input {
             FastInput::Flow(sample) => stab.on_flow(&sample),
-            FastInput::ZRange(range) => {
-                let estimate = stab.on_zrange(range);
+            FastInput::ZRange(range, ready_us) => {
+                let age_us = now_us().saturating_sub(ready_us) + ZRANGE_MIDPOINT_US;
+                let estimate = stab.on_zrange(range).backdated(age_us as f32 * 1e-6);
                 // The mission drains this every 20 ms; if it is full the pad detector loses one reading.
                 let _ = NAV_INPUTS.try_send(NavInput::ZRange(range, estimate));
             }

@@ -70,8 +70,9 @@ pub const IO_PRIORITY: Priority = Priority::P9;
 pub enum FastInput {
     /// An optical-flow reading.
     Flow(FlowSample),
-    /// A downward-range reading (forwarded to the navigator with the new estimate).
-    ZRange(RangeReading),
+    /// A downward-range reading and when it was found ready, µs (forwarded to the navigator with the new
+    /// estimate, backdated to when the range was measured).
+    ZRange(RangeReading, Micros),
     /// A Multi-ranger sweep (wall anchors while the commander holds a position).
     MultiRanger(MultiRangerSample),
     /// Battery voltage from the nRF, V.
@@ -87,9 +88,12 @@ pub enum FastInput {
 /// Inputs of the mission task from the sensors.
 #[derive(Clone, Copy, Debug)]
 pub enum NavInput {
-    /// A height reading with the estimate right after the stabilizer used it.
+    /// A height reading with the estimate of the pose it was measured from: the stabilizer's right after
+    /// it used the reading, backdated by the reading's age (`cfnav::stack::ZRANGE_MIDPOINT_US` plus the
+    /// wait to be read).
     ZRange(RangeReading, StateEstimate),
-    /// The Multi-ranger's beams with the latest estimate.
+    /// The Multi-ranger's beams with the estimate of the pose they were measured from (the latest,
+    /// backdated by `cfnav::stack::BEAM_MIDPOINT_US` plus the sweep's mean wait).
     MultiRanger(MultiRangerSample, StateEstimate),
 }
 

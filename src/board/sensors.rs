@@ -25,6 +25,7 @@ use cfnav::drivers::multiranger::{DeckReader, FIRST_ADDRESS, FLOW_DECK_Z_ADDRESS
 use cfnav::drivers::pca95x4;
 use cfnav::drivers::pmw3901::{Pmw3901, ReadHealth, ReadOutcome, RecoveryAction};
 use cfnav::drivers::vl53l1x::{RangingConfig, Vl53l1x};
+use cfnav::stack::BEAM_MIDPOINT_US;
 use cfnav::system::config_block::{EEPROM_I2C_ADDRESS, READ_LEN, RadioSettings};
 use cfnav::types::RangeReading;
 use defmt::{info, warn};
@@ -409,13 +410,16 @@ pub async fn deck_task(mut i2c: DeckI2c, rangers: DeckRangers) {
         super::eeprom::service(&mut i2c).await;
         let events = reader.service(&mut i2c, &mut now_us).await;
         if let Some(range) = events.z {
-            let _ = FAST_INPUTS.try_send(FastInput::ZRange(range));
+            let _ = FAST_INPUTS.try_send(FastInput::ZRange(range, events.z_at_us));
             update_log(|s| s.flight.ranges_mm[5] = range_mm(range));
         }
         if let Some(sample) = events.sweep {
             let _ = FAST_INPUTS.try_send(FastInput::MultiRanger(sample));
             // Dropped if the mission is behind (it drains every 20 ms): the next sweep is 100 ms later.
-            let _ = NAV_INPUTS.try_send(NavInput::MultiRanger(sample, fast_status().estimate));
+            // Mapped from the pose the beams measured from (module `cfnav::stack`, BEAM_MIDPOINT_US).
+            let age_us = now_us().saturating_sub(events.sweep_at_us) + BEAM_MIDPOINT_US;
+            let estimate = fast_status().estimate.backdated(age_us as f32 * 1e-6);
+            let _ = NAV_INPUTS.try_send(NavInput::MultiRanger(sample, estimate));
             update_log(|s| {
                 s.flight.ranges_mm[..5].copy_from_slice(&[
                     range_mm(sample.front_m),

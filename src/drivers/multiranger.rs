@@ -452,9 +452,15 @@ impl ReadSchedule {
 pub struct DeckEvents<E> {
     /// A new z-ranger reading (`Some(None)`: the chip had no valid return).
     pub z: Option<RangeReading>,
+    /// When the z-ranger reading was found ready (its data-ready poll), µs: the reading was measured
+    /// about half a timing budget before (`RangingConfig::integration_midpoint_us`).
+    pub z_at_us: Micros,
     /// A sweep of the five beams, each a reading not used in an earlier sweep (`None` in a beam: no valid
     /// return, or no reading from that beam within [`SWEEP_DEADLINE_PERIODS_NUM`]/2 periods).
     pub sweep: Option<MultiRangerSample>,
+    /// The mean time the sweep's readings were found ready, µs (the beams' clocks drift apart, so a sweep's
+    /// readings are up to a period apart).
+    pub sweep_at_us: Micros,
     /// Beam readings this pass, by [`Direction::index`] (for logs and tests).
     pub beams: [Option<RangeReading>; 5],
     /// Bus errors this pass.
@@ -469,7 +475,9 @@ impl<E> Default for DeckEvents<E> {
     fn default() -> Self {
         Self {
             z: None,
+            z_at_us: 0,
             sweep: None,
+            sweep_at_us: 0,
             beams: [None; 5],
             errors: 0,
             first_error: None,
@@ -495,6 +503,8 @@ pub const SWEEP_DEADLINE_PERIODS_NUM: u32 = 3;
 #[derive(Debug, Clone, Copy, PartialEq, Default)]
 struct Sweep {
     readings: [RangeReading; 5],
+    /// When each reading was found ready, µs.
+    ready_us: [Micros; 5],
     fresh: u8,
     oldest_us: Micros,
 }
@@ -592,6 +602,7 @@ impl DeckReader {
                         self.schedule.on_read(slot, polled_at);
                         if slot == Z_SLOT {
                             events.z = Some(range);
+                            events.z_at_us = polled_at;
                         } else {
                             events.beams[slot - 1] = Some(range);
                             self.add_to_sweep(slot - 1, range, polled_at, &mut events);
@@ -623,9 +634,18 @@ impl DeckReader {
             && let Some(deadline) = self.sweep_deadline_us()
             && now_us() >= deadline
         {
+            events.sweep_at_us = self.sweep_ready_us();
             events.sweep = Some(self.take_sweep());
         }
         events
+    }
+
+    /// The mean ready time of the sweep's fresh readings, µs (0 when none is fresh).
+    fn sweep_ready_us(&self) -> Micros {
+        let (sum, n) = (0..5)
+            .filter(|beam| self.sweep.fresh & (1 << beam) != 0)
+            .fold((0u64, 0u64), |(sum, n), beam| (sum + self.sweep.ready_us[beam], n + 1));
+        sum.checked_div(n).unwrap_or(0)
     }
 
     /// Adds a beam's reading; a complete sweep goes out at once. A second reading of a beam before the
@@ -634,9 +654,15 @@ impl DeckReader {
         if self.sweep.fresh == 0 {
             self.sweep.oldest_us = at_us;
         }
-        self.sweep.readings[beam] = range;
+        let (Some(reading), Some(ready)) = (self.sweep.readings.get_mut(beam), self.sweep.ready_us.get_mut(beam))
+        else {
+            return;
+        };
+        *reading = range;
+        *ready = at_us;
         self.sweep.fresh |= 1 << beam;
         if self.sweep.fresh & self.beams_running == self.beams_running {
+            events.sweep_at_us = self.sweep_ready_us();
             events.sweep = Some(self.take_sweep());
         }
     }

@@ -283,6 +283,15 @@ impl RangingConfig {
         io_2v8: true,
     };
 
+    /// How long before its data-ready flag a range was measured, on average, µs. The timing budget is the
+    /// time the chip takes to perform one range (ST DS12385, ULD `VL53L1X_SetTimingBudgetInMs`): it
+    /// integrates the returns over it and flags the result at its end, so the reading describes the scene
+    /// half a budget before the flag. A moving drone's reading belongs to the pose that long ago, plus
+    /// however long the result waited to be read.
+    pub const fn integration_midpoint_us(&self) -> u64 {
+        self.timing_budget.ms() as u64 * 500
+    }
+
     /// Whether the chip can run this configuration: the budget exists in the mode and the period is at
     /// least the budget and at most [`MAX_INTER_MEASUREMENT_MS`].
     pub const fn is_valid(&self) -> bool {

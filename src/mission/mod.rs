@@ -276,6 +276,11 @@ const TAKEOFF_HANDOVER_MARGIN_M: f32 = 0.1;
 /// centre lands on that centre, m: the pads of the worlds are up to 0.3 × 0.3 m, plus the body's radius
 /// (0.06 m) and margin.
 const PAD_SNAP_M: f32 = 0.3;
+/// The drone's body radius (interfaces.md §3: the disc whose contact is a collision), m.
+const BODY_RADIUS_M: f32 = 0.06;
+/// Kept between the body and the square an unlocked pad estimate may cover, m: the estimate's error
+/// after one or two crossings (a few cm) and the landing's own drift.
+const UNLOCKED_PAD_MARGIN_M: f32 = 0.06;
 /// Within this distance of the leg's target the navigating drone already feeds the pad detector, m.
 const PAD_LOOKOUT_RADIUS_M: f32 = 0.8;
 /// The hover test's hold and the exploration's first look begin once the climb is this close below the
@@ -594,8 +599,8 @@ impl<const CELLS: usize, const QUEUE: usize> Mission<CELLS, QUEUE> {
     fn land_where_it_is(&mut self, state: &StateEstimate, then: MissionState) {
         let (x, y) = match self.phase {
             Phase::Approach { x, y, .. } | Phase::Land { x, y } => (x, y),
-            Phase::NoPath { x, y, .. } => self.pad_snap_landing_point((x, y)),
-            _ => self.pad_snap_landing_point((state.position_m[0], state.position_m[1])),
+            Phase::NoPath { x, y, .. } => self.off_pad_edges(self.pad_snap_landing_point((x, y))),
+            _ => self.off_pad_edges(self.pad_snap_landing_point((state.position_m[0], state.position_m[1]))),
         };
         self.phase = Phase::EmergencyLand { x, y, then };
     }
@@ -642,6 +647,61 @@ impl<const CELLS: usize, const QUEUE: usize> Mission<CELLS, QUEUE> {
             .filter(|(_, d)| *d < PAD_SNAP_M)
             .min_by(|a, b| a.1.total_cmp(&b.1))
             .map_or((x, y), |(p, _)| p)
+    }
+
+    /// A landing point moved off a pad being searched for (not yet locked, so [`Self::pad_snap_landing_point`]
+    /// cannot put it on the centre): a body coming down across a pad's rim touches its side (measured: an
+    /// abort 3 cm beside the goal pad's edge during its search, the edge just crossed and not yet reported).
+    /// First out of the square the pad estimate's centre may cover with the body (half the pad size, the
+    /// body radius and [`UNLOCKED_PAD_MARGIN_M`]), across its nearer side; then straight away from any edge
+    /// seen within [`search::PAD_EDGE_REACH_M`], up to three times. Kept only if it then clears the square
+    /// and every edge, keeps the search's floor-spot clearance from what is mapped and is reachable in a
+    /// straight line; else the point is returned unchanged. O(edges) per push.
+    fn off_pad_edges(&self, p: (f32, f32)) -> (f32, f32) {
+        let reach = search::PAD_EDGE_REACH_M;
+        let nearest = |q: (f32, f32)| {
+            self.pad
+                .edges()
+                .iter()
+                .map(|e| ((e.x, e.y), libm::hypotf(q.0 - e.x, q.1 - e.y)))
+                .filter(|(_, d)| *d < reach)
+                .min_by(|a, b| a.1.total_cmp(&b.1))
+        };
+        let half = 0.5 * self.config.pad.pad_size_m + BODY_RADIUS_M + UNLOCKED_PAD_MARGIN_M;
+        let centre = self.pad.estimate().map(|e| (e.x, e.y));
+        let inside =
+            |q: (f32, f32)| centre.is_some_and(|c| libm::fabsf(q.0 - c.0) < half && libm::fabsf(q.1 - c.1) < half);
+        let mut q = p;
+        if let Some(c) = centre
+            && inside(q)
+        {
+            // A millimetre past the bound, so the pushed point is not "inside" it by rounding.
+            let (dx, dy) = (q.0 - c.0, q.1 - c.1);
+            if libm::fabsf(dx) >= libm::fabsf(dy) {
+                q.0 = c.0 + libm::copysignf(half + 0.001, dx);
+            } else {
+                q.1 = c.1 + libm::copysignf(half + 0.001, dy);
+            }
+        }
+        for _ in 0..3 {
+            let Some((e, d)) = nearest(q) else {
+                break;
+            };
+            if d <= 1e-3 {
+                return p;
+            }
+            let to = reach + 0.001;
+            q = (e.0 + (q.0 - e.0) * to / d, e.1 + (q.1 - e.1) * to / d);
+        }
+        if q != p
+            && (inside(q)
+                || nearest(q).is_some()
+                || self.clearance(q) < search::FLOOR_SPOT_CLEARANCE_M
+                || self.clip_to_clearance(p, q) != q)
+        {
+            return p;
+        }
+        q
     }
 
     /// A Multi-ranger reading (10 Hz): map it while flying, keep it for avoidance.

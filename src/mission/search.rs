@@ -43,9 +43,9 @@ const PAD_REACH_M: f32 = 0.67;
 /// Failing that, this far from the pad estimate's centre (half the pad's diagonal, the body, drift), m.
 const PAD_ESTIMATE_REACH_M: f32 = 0.33;
 /// ... and this far from each pad edge seen (the body and drift), m.
-const PAD_EDGE_REACH_M: f32 = 0.14;
+pub(super) const PAD_EDGE_REACH_M: f32 = 0.14;
 /// A floor spot keeps this far from mapped obstacles and the arena walls, m.
-const FLOOR_SPOT_CLEARANCE_M: f32 = 0.22;
+pub(super) const FLOOR_SPOT_CLEARANCE_M: f32 = 0.22;
 /// Rings of candidate floor spots around the drone, and their spacing, m.
 const FLOOR_SPOT_RINGS: u8 = 9;
 const FLOOR_SPOT_STEP_M: f32 = 0.15;

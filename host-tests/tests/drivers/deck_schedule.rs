@@ -365,6 +365,7 @@ fn run_deck_reader(
     let warmup_end = clock.ns() + (warmup_s * 1e9) as u64;
     let end = warmup_end + (seconds * 1e9) as u64;
     let (mut z_delivered, mut sweeps, mut errors, mut restarts) = (0, 0, 0, 0);
+    let mut z_reads = 0u32;
     let mut now = {
         let c = clock.clone();
         move || c.us()
@@ -372,9 +373,36 @@ fn run_deck_reader(
     while clock.ns() < end {
         let due = reader.next_due_us().expect("sensors tracked");
         clock.advance_to_us(due);
+        let pass_start_us = clock.us();
+
         let events = block_on(reader.service(bus, &mut now));
         errors += events.errors;
         restarts += events.restarts;
+        if events.z.is_some() {
+            // The reading's ready time (what the flight stack backdates from) is the poll that found it:
+            // once the schedule has anchored on the chip's results (from the third reading; the first
+            // two were found up to 7.5 ms late), within a tenth of the 25 ms period of the chip's flag
+            // (measured: at most 1.5 ms).
+            let z = &bus.rangers[0];
+            let flagged_us = z.completed_at_ns(z.completed(events.z_at_us * 1000)) / 1000;
+            z_reads += 1;
+            let anchored = z_reads > 2;
+            assert!(
+                (pass_start_us..=clock.us()).contains(&events.z_at_us)
+                    && (!anchored || events.z_at_us - flagged_us <= 2_500),
+                "z found ready at {} µs, flagged at {flagged_us} µs, pass {pass_start_us}..{} µs",
+                events.z_at_us,
+                clock.us()
+            );
+        }
+        if let Some(sweep_at_us) = events.sweep.map(|_| events.sweep_at_us) {
+            // The mean ready time of the beams: within the sweep's deadline (1.5 periods) before now.
+            assert!(
+                sweep_at_us <= clock.us() && clock.us() - sweep_at_us <= 150_000,
+                "sweep ready at {sweep_at_us} µs, sent at {} µs",
+                clock.us()
+            );
+        }
         if clock.ns() >= warmup_end {
             z_delivered += u64::from(events.z.is_some());
             if let Some(sweep) = events.sweep {

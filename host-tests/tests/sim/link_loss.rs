@@ -8,10 +8,50 @@ use cfnav::types::{MotorDuty, Setpoint};
 use cfnav_tools::sim::runner::{Faults, RunOptions, RunResult, SimDrone, mission_params, run};
 use cfnav_tools::sim::world::World;
 
-/// Times the link goes silent on the default world's mission (trigger at 1 s; outbound navigation 2–20 s,
-/// goal-pad search 20–28 s, on the goal pad 31–33 s, return 33–59 s): take-off, the outbound leg, the search,
-/// the descent onto the goal pad, the pause on it, the return leg.
-const SILENT_AT_S: [f64; 7] = [1.5, 4.0, 10.0, 16.0, 24.0, 29.5, 40.0];
+/// When the default world's mission (trigger at 1 s, the link up throughout) first enters each state, s:
+/// the phases the silences below are placed in, read from a run rather than written down, so a change that
+/// moves the timeline keeps testing the same phases.
+fn first_entered(state: MissionState) -> f64 {
+    static TIMELINE: std::sync::OnceLock<Vec<(u8, f64)>> = std::sync::OnceLock::new();
+    let timeline = TIMELINE.get_or_init(|| {
+        let world = World::default_world();
+        let mut options = RunOptions::for_world(&world);
+        options.record = true;
+        let r = run(&world, &options).expect("runs");
+        assert_eq!(r.report.outcome, "completed", "the reference run: {:?}", r.report);
+        let mut seen: Vec<(u8, f64)> = Vec::new();
+        for p in &r.trace {
+            if !seen.iter().any(|(s, _)| *s == p.state) {
+                seen.push((p.state, p.t_s));
+            }
+        }
+        seen
+    });
+    timeline
+        .iter()
+        .find(|(s, _)| *s == state.code())
+        .map(|(_, t)| *t)
+        .unwrap_or_else(|| panic!("the reference run never entered {state:?}: {timeline:?}"))
+}
+
+/// Times the link goes silent: just after take-off, early, halfway and late in the outbound navigation,
+/// during the goal-pad search, so that the timeout fires while the drone stands on the goal pad, and
+/// during the return leg.
+fn silent_at_s() -> [f64; 7] {
+    let (nav, search) = (
+        first_entered(MissionState::NavigateToGoal),
+        first_entered(MissionState::SearchGoalPad),
+    );
+    [
+        first_entered(MissionState::TakeOffOutbound) + 0.5,
+        nav + 1.5,
+        0.5 * (nav + search),
+        search - 4.0,
+        search + 2.5,
+        first_entered(MissionState::OnGoalPad) + 0.5 - TIMEOUT_S,
+        first_entered(MissionState::NavigateHome) + 4.0,
+    ]
+}
 const TIMEOUT_S: f64 = 2.0;
 
 fn fly(policy: LinkLossPolicy, silent_at_s: f64) -> RunResult {
@@ -43,7 +83,7 @@ fn fired_at(r: &RunResult, silent_at_s: f64) -> f64 {
 /// Policy 0 (the default): the timeout fires, nothing changes, the round trip completes on both pads.
 #[test]
 fn policy_0_goes_on_and_completes() {
-    for at in SILENT_AT_S {
+    for at in silent_at_s() {
         let r = fly(LinkLossPolicy::Continue, at);
         fired_at(&r, at);
         assert_eq!(r.report.outcome, "completed", "silent at {at} s: {:?}", r.report);
@@ -57,7 +97,7 @@ fn policy_0_goes_on_and_completes() {
 /// `link_lost` (207). Silent on the goal pad (motors off, pausing), it stays there.
 #[test]
 fn policy_1_lands_where_the_link_was_lost() {
-    for at in SILENT_AT_S {
+    for at in silent_at_s() {
         let r = fly(LinkLossPolicy::Land, at);
         let t = fired_at(&r, at);
         let rep = &r.report;
@@ -110,7 +150,7 @@ fn policy_1_lands_where_the_link_was_lost() {
 /// return), it is going home anyway: the round trip completes.
 #[test]
 fn policy_2_returns_home_and_lands_on_the_home_pad() {
-    for at in SILENT_AT_S {
+    for at in silent_at_s() {
         let r = fly(LinkLossPolicy::ReturnHome, at);
         fired_at(&r, at);
         let rep = &r.report;
@@ -122,7 +162,8 @@ fn policy_2_returns_home_and_lands_on_the_home_pad() {
         );
         assert_eq!(home.pad, 0, "silent at {at} s: {:?}", rep.landings);
         assert!(home.on_pad && home.error_m <= 0.06, "silent at {at} s: {home:?}");
-        if at + TIMEOUT_S < 29.0 {
+        // Fired before the drone stood on the goal pad: it turns back and lands at home only.
+        if at + TIMEOUT_S < first_entered(MissionState::OnGoalPad) {
             assert_eq!(
                 (rep.outcome, rep.reason),
                 ("aborted", Some("link_lost_home")),

@@ -2,6 +2,7 @@
 
 mod collide;
 mod commander;
+mod latency;
 mod link_loss;
 mod mission;
 mod modes;

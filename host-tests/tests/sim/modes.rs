@@ -105,8 +105,13 @@ fn explore(name: &str) -> cfnav_tools::sim::runner::RunReport {
     // The truth: most of the free space was looked at, and what the drone mapped as occupied is there.
     assert!(e.true_free_known >= 0.75, "{name}: {e:?}");
     assert!(e.occupied_correct.is_none_or(|f| f >= 0.8), "{name}: {e:?}");
-    // Coverage only grows, and the last scan's figure is the final one.
-    assert!(e.coverage_curve.windows(2).all(|p| p[1].1 >= p[0].1), "{name}: {e:?}");
+    // Coverage grows: a scan may find a handful of cells fewer known than the previous one (a free cell
+    // that later beams hit falls back into the log-odds' unknown band; seen: one cell in 3 600 on the
+    // corridor once the rangers' latency was modelled), never more than 0.1 % of the grid.
+    assert!(
+        e.coverage_curve.windows(2).all(|p| p[1].1 >= p[0].1 - 0.001),
+        "{name}: {e:?}"
+    );
     r
 }
 

@@ -20,14 +20,15 @@
 //!   RESULT__OSC_CALIBRATE_VAL · 1.075, the ULD's formula, at least [`MIN_PERIOD_NS`]), written to
 //!   RESULT__RANGE_STATUS (0x89: 9 = valid, 4 = signal fail past [`MAX_RANGE_M`]) and
 //!   RESULT__FINAL_CROSSTALK_CORRECTED_RANGE_MM_SD0 (0x96) and flagged on GPIO__TIO_HV_STATUS (0x31) bit 0
-//!   at the polarity GPIO_HV_MUX__CTRL (0x30) bit 4 selects. A result holds the range the host set at the
-//!   middle of its period: the chip integrates over its timing budget and reports at the end, so a moving
-//!   drone's reading is about half a period old when it is flagged (the host sets ranges every 1 ms). A result that is not cleared
+//!   at the polarity GPIO_HV_MUX__CTRL (0x30) bit 4 selects. A result holds the range the host set half a
+//!   timing budget before it is flagged: the chip integrates over its budget (RANGE_CONFIG__TIMEOUT_MACROP_A
+//!   and _B at 0x5E and 0x61, the ULD's table; the whole period if they hold no budget of the table) and
+//!   reports at the end (the host sets ranges every 1 ms). A result that is not cleared
 //!   (SYSTEM__INTERRUPT_CLEAR 0x86 = 0x01) stays: the next ones are not written over it (stale data, as a
 //!   driver that forgets the clear would see). Two chips at one address answer together (wired-AND of
 //!   their bytes, as on the open-drain bus).
 //!
-//! Non-goals: the timing budget registers (the period alone sets the rate), ROI, offsets, noise (the host
+//! Non-goals: the budget's effect on range noise (the period alone sets the rate), ROI, offsets, noise (the host
 //! adds the simulator's range noise before [`DeckSensors::set_ranges`]).
 //!
 //! Units: ranges in metres from the host, millimetres on the bus; time in ns of virtual time.
@@ -156,6 +157,32 @@ impl Vl53 {
         ns.max(MIN_PERIOD_NS)
     }
 
+    /// The timing budget the image set in RANGE_CONFIG__TIMEOUT_MACROP_A (0x5E) and _B (0x61), both
+    /// big-endian, decoded with the ULD's table (`cfnav::drivers::vl53l1x::TimingBudget`, either distance
+    /// mode), ns; `None` for a pair outside the table (the model then integrates over the whole period).
+    fn budget_ns(&self) -> Option<u64> {
+        use cfnav::drivers::vl53l1x::{DistanceMode, TimingBudget};
+        let a = u16::from_be_bytes([self.regs[0x5E], self.regs[0x5F]]);
+        let b = u16::from_be_bytes([self.regs[0x61], self.regs[0x62]]);
+        let budgets = [
+            TimingBudget::Ms15,
+            TimingBudget::Ms20,
+            TimingBudget::Ms33,
+            TimingBudget::Ms50,
+            TimingBudget::Ms100,
+            TimingBudget::Ms200,
+            TimingBudget::Ms500,
+        ];
+        budgets
+            .into_iter()
+            .find(|t| {
+                [DistanceMode::Short, DistanceMode::Long]
+                    .into_iter()
+                    .any(|m| t.timeout_macrop_a_b(m) == Some((a, b)))
+            })
+            .map(|t| u64::from(t.ms()) * 1_000_000)
+    }
+
     fn active_high(&self) -> bool {
         self.regs[0x30] & 0x10 == 0
     }
@@ -227,8 +254,9 @@ impl Vl53 {
             self.next_result_ns += period;
         }
         // The chip integrates the returns over its timing budget (which the period bounds) and reports when
-        // it ends: a moving drone's result is the range about half a period before it is flagged.
-        if self.mid_period_range_m.is_none() && now_ns + period / 2 >= self.next_result_ns {
+        // it ends: a moving drone's result is the range half a budget before it is flagged.
+        let integration = self.budget_ns().unwrap_or(period).min(period);
+        if self.mid_period_range_m.is_none() && now_ns + integration / 2 >= self.next_result_ns {
             self.mid_period_range_m = Some(range_m);
         }
     }
@@ -588,6 +616,38 @@ mod tests {
         // Flagged at 27, 52 and 77 ms, each with the range of 12.5 ms before (taken at the first 1 ms step
         // at or past the middle: 15, 40 and 65 ms).
         assert_eq!(results, vec![(27, 515), (52, 540), (77, 565)]);
+    }
+
+    #[test]
+    fn a_result_holds_the_range_from_half_its_timing_budget_before_the_flag() {
+        let dev = DeckSensors::new(Fitted {
+            multiranger: false,
+            flow: true,
+        });
+        let range_at = |t_ms: u64| Some(0.5 + t_ms as f32 * 0.001);
+        let mut ranges = [None; 6];
+        ranges[DOWN] = range_at(2);
+        dev.set_ranges(ranges);
+        dev.advance(2_000_000);
+        // The firmware's Flow deck preset: a 20 ms budget in long mode (TIMEOUT_MACROP_A 0x001E, _B 0x0022)
+        // in a 25 ms period.
+        assert!(write(&dev, 0x29, &[0x00, 0x5E, 0x00, 0x1E]));
+        assert!(write(&dev, 0x29, &[0x00, 0x61, 0x00, 0x22]));
+        assert!(write(&dev, 0x29, &[0x00, 0x6C, 0, 0, 0x03, 0xE2])); // 25 ms
+        assert!(write(&dev, 0x29, &[0x00, 0x87, 0x40])); // first result at 27 ms
+        let mut results = Vec::new();
+        for t_ms in 3..=80u64 {
+            ranges[DOWN] = range_at(t_ms);
+            dev.set_ranges(ranges);
+            dev.advance(t_ms * 1_000_000);
+            if read16(&dev, 0x29, 0x0031, 1) == Some(vec![0x01]) {
+                let mm = read16(&dev, 0x29, 0x0096, 2).unwrap();
+                results.push((t_ms, u16::from_be_bytes([mm[0], mm[1]])));
+                assert!(write(&dev, 0x29, &[0x00, 0x86, 0x01]));
+            }
+        }
+        // Flagged at 27, 52 and 77 ms, each with the range of 10 ms before (17, 42 and 67 ms).
+        assert_eq!(results, vec![(27, 517), (52, 542), (77, 567)]);
     }
 
     #[test]

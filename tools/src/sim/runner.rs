@@ -1,6 +1,8 @@
 //! The lockstep loop: the simulated Crazyflie and the firmware's [`FlightCore`] advance together, 1 ms at a
 //! time, each firmware step function called at the rate it runs on the MCU (IMU 1 kHz, flow 100 Hz, battery
-//! 100 Hz, z-ranger 40 Hz, Multi-ranger 10 Hz, mission 50 Hz). Deterministic for a world and seed.
+//! 100 Hz, z-ranger 40 Hz, Multi-ranger 10 Hz, mission 50 Hz). Deterministic for a world and seed. The
+//! rangers' readings are measured half a timing budget before they are handed over (10 ms for the height,
+//! 25 ms for the beams), as a VL53L1x integrates and then flags a range.
 //!
 //! The loop also keeps the score the report needs (interfaces.md §4): collisions and clearance measured on
 //! the true state against the true world, the landings and their errors, distance flown, the estimator's
@@ -8,9 +10,10 @@
 
 use std::time::Instant;
 
+use cfnav::drivers::vl53l1x::RangingConfig;
 use cfnav::mission::link_loss::LinkLossConfig;
 use cfnav::mission::{ExploreEnd, MissionMode, MissionParams, MissionState};
-use cfnav::stack::{FlightConfig, FlightCore};
+use cfnav::stack::{BEAM_MIDPOINT_US, FlightConfig, FlightCore, ZRANGE_MIDPOINT_US};
 use cfnav::types::{MotorDuty, MultiRangerSample, RangeReading};
 use rand::rngs::SmallRng;
 use rand::{Rng, SeedableRng};
@@ -237,10 +240,13 @@ pub struct SimDrone {
     /// Steady wind, arena frame, m/s (`[disturbances] wind`).
     wind_m_s: [f32; 2],
     gusts: Gusts,
-    /// The latest readings (for logs).
+    /// The latest readings handed to the firmware (for logs).
     pub last_multiranger: MultiRangerSample,
-    /// The latest downward range.
+    /// The latest downward range handed to the firmware.
     pub last_zrange: RangeReading,
+    /// The readings being integrated: measured at the middle of the timing budget, handed over at its end.
+    measured_multiranger: MultiRangerSample,
+    measured_zrange: RangeReading,
     /// The latest battery voltage reading, V.
     pub last_vbat: f32,
     tick: u64,
@@ -296,6 +302,8 @@ impl SimDrone {
             gusts,
             last_multiranger: MultiRangerSample::default(),
             last_zrange: None,
+            measured_multiranger: MultiRangerSample::default(),
+            measured_zrange: None,
             last_vbat: 0.0,
             tick: 0,
         })
@@ -330,12 +338,21 @@ impl SimDrone {
             self.last_vbat = self.battery.sample(&self.quad, &mut self.rng_bat);
             self.core.on_battery(self.last_vbat);
         }
-        if tick.is_multiple_of(25) {
-            self.last_zrange = self.zranger.sample(&self.quad, world, &mut self.rng_z);
+        // A VL53L1x reports at its data-ready flag the range it integrated over its timing budget: the
+        // scene half a budget earlier (`RangingConfig::integration_midpoint_us`). The truth is sampled then
+        // and handed over at the flag, every 25 ms (height) and 100 ms (beams).
+        if (tick + Z_MIDPOINT_TICKS).is_multiple_of(Z_PERIOD_TICKS) {
+            self.measured_zrange = self.zranger.sample(&self.quad, world, &mut self.rng_z);
+        }
+        if tick.is_multiple_of(Z_PERIOD_TICKS) {
+            self.last_zrange = self.measured_zrange;
             self.core.on_zrange(self.last_zrange);
         }
-        if tick.is_multiple_of(100) {
-            self.last_multiranger = self.multiranger.sample(&self.quad, world, &mut self.rng_mr);
+        if (tick + BEAM_MIDPOINT_TICKS).is_multiple_of(BEAM_PERIOD_TICKS) {
+            self.measured_multiranger = self.multiranger.sample(&self.quad, world, &mut self.rng_mr);
+        }
+        if tick.is_multiple_of(BEAM_PERIOD_TICKS) {
+            self.last_multiranger = self.measured_multiranger;
             self.core.on_multiranger(&self.last_multiranger);
         }
         if tick.is_multiple_of(20) {
@@ -349,6 +366,14 @@ impl SimDrone {
         duty
     }
 }
+
+/// The height ranger's period and the Multi-ranger's, ms ticks (the firmware's `RangingConfig` presets).
+const Z_PERIOD_TICKS: u64 = RangingConfig::FLOW_DECK_Z.inter_measurement_ms as u64;
+const BEAM_PERIOD_TICKS: u64 = RangingConfig::MULTI_RANGER.inter_measurement_ms as u64;
+/// How long before its hand-over a reading is measured, ms ticks (half the timing budget).
+const Z_MIDPOINT_TICKS: u64 = ZRANGE_MIDPOINT_US / 1000;
+const BEAM_MIDPOINT_TICKS: u64 = BEAM_MIDPOINT_US / 1000;
+const _: () = assert!(Z_MIDPOINT_TICKS < Z_PERIOD_TICKS && BEAM_MIDPOINT_TICKS < BEAM_PERIOD_TICKS);
 
 /// The parameters the world gives the drone.
 pub fn mission_params(world: &World) -> MissionParams {

@@ -8,48 +8,24 @@ use cfnav::types::{MotorDuty, Setpoint};
 use cfnav_tools::sim::runner::{Faults, RunOptions, RunResult, SimDrone, mission_params, run};
 use cfnav_tools::sim::world::World;
 
-/// When the default world's mission (trigger at 1 s, the link up throughout) first enters each state, s:
-/// the phases the silences below are placed in, read from a run rather than written down, so a change that
-/// moves the timeline keeps testing the same phases.
-fn first_entered(state: MissionState) -> f64 {
-    static TIMELINE: std::sync::OnceLock<Vec<(u8, f64)>> = std::sync::OnceLock::new();
-    let timeline = TIMELINE.get_or_init(|| {
-        let world = World::default_world();
-        let mut options = RunOptions::for_world(&world);
-        options.record = true;
-        let r = run(&world, &options).expect("runs");
-        assert_eq!(r.report.outcome, "completed", "the reference run: {:?}", r.report);
-        let mut seen: Vec<(u8, f64)> = Vec::new();
-        for p in &r.trace {
-            if !seen.iter().any(|(s, _)| *s == p.state) {
-                seen.push((p.state, p.t_s));
-            }
-        }
-        seen
-    });
-    timeline
-        .iter()
-        .find(|(s, _)| *s == state.code())
-        .map(|(_, t)| *t)
-        .unwrap_or_else(|| panic!("the reference run never entered {state:?}: {timeline:?}"))
-}
+use crate::default_world_enters;
 
 /// Times the link goes silent: just after take-off, early, halfway and late in the outbound navigation,
 /// during the goal-pad search, so that the timeout fires while the drone stands on the goal pad, and
 /// during the return leg.
 fn silent_at_s() -> [f64; 7] {
     let (nav, search) = (
-        first_entered(MissionState::NavigateToGoal),
-        first_entered(MissionState::SearchGoalPad),
+        default_world_enters(MissionState::NavigateToGoal),
+        default_world_enters(MissionState::SearchGoalPad),
     );
     [
-        first_entered(MissionState::TakeOffOutbound) + 0.5,
+        default_world_enters(MissionState::TakeOffOutbound) + 0.5,
         nav + 1.5,
         0.5 * (nav + search),
         search - 4.0,
         search + 2.5,
-        first_entered(MissionState::OnGoalPad) + 0.5 - TIMEOUT_S,
-        first_entered(MissionState::NavigateHome) + 4.0,
+        default_world_enters(MissionState::OnGoalPad) + 0.5 - TIMEOUT_S,
+        default_world_enters(MissionState::NavigateHome) + 4.0,
     ]
 }
 const TIMEOUT_S: f64 = 2.0;
@@ -163,7 +139,7 @@ fn policy_2_returns_home_and_lands_on_the_home_pad() {
         assert_eq!(home.pad, 0, "silent at {at} s: {:?}", rep.landings);
         assert!(home.on_pad && home.error_m <= 0.06, "silent at {at} s: {home:?}");
         // Fired before the drone stood on the goal pad: it turns back and lands at home only.
-        if at + TIMEOUT_S < first_entered(MissionState::OnGoalPad) {
+        if at + TIMEOUT_S < default_world_enters(MissionState::OnGoalPad) {
             assert_eq!(
                 (rep.outcome, rep.reason),
                 ("aborted", Some("link_lost_home")),

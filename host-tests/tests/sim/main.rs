@@ -10,3 +10,33 @@ mod pads;
 mod physics;
 mod stress;
 mod world;
+
+use cfnav::mission::MissionState;
+use cfnav_tools::sim::runner::{RunOptions, run};
+use cfnav_tools::sim::world::World;
+
+/// When the default world's mission (its own noise seed, trigger at 1 s, nothing injected) first enters
+/// `state`, s. Tests place their faults by the mission's phases read from this run, not at fixed times, so a
+/// change that moves the timeline keeps testing the same phases.
+pub fn default_world_enters(state: MissionState) -> f64 {
+    static TIMELINE: std::sync::OnceLock<Vec<(u8, f64)>> = std::sync::OnceLock::new();
+    let timeline = TIMELINE.get_or_init(|| {
+        let world = World::default_world();
+        let mut options = RunOptions::for_world(&world);
+        options.record = true;
+        let r = run(&world, &options).expect("runs");
+        assert_eq!(r.report.outcome, "completed", "the reference run: {:?}", r.report);
+        let mut seen: Vec<(u8, f64)> = Vec::new();
+        for p in &r.trace {
+            if !seen.iter().any(|(s, _)| *s == p.state) {
+                seen.push((p.state, p.t_s));
+            }
+        }
+        seen
+    });
+    timeline
+        .iter()
+        .find(|(s, _)| *s == state.code())
+        .map(|(_, t)| *t)
+        .unwrap_or_else(|| panic!("the reference run never entered {state:?}: {timeline:?}"))
+}

@@ -7,6 +7,8 @@ use cfnav::types::Setpoint;
 use cfnav_tools::sim::runner::{Faults, LINK_PACKET_PERIOD_MS, RunOptions, SimDrone, mission_params, run};
 use cfnav_tools::sim::world::World;
 
+use crate::default_world_enters;
+
 /// Fly commander setpoints (a function of time) on the default world's start, through the simulator's
 /// lockstep drone, and return the truth trace (t, position) sampled every 10 ms.
 fn fly_commander(seconds: f64, seed: u64, setpoint: impl Fn(f64) -> Setpoint) -> Vec<(f64, [f32; 3])> {
@@ -478,22 +480,9 @@ fn runs_are_deterministic_for_a_seed() {
 fn an_abort_near_a_pad_lands_on_its_centre() {
     let world = World::default_world();
     let mut near_pad_cases = 0;
-    // The goal pad's approach and descent, found in a run without an abort (the timeline moves with the
-    // flight stack; the phases are what this test is about).
-    let reference = {
-        let mut options = RunOptions::for_world(&world);
-        options.record = true;
-        run(&world, &options).expect("runs").trace
-    };
-    let entered = |code: u8| {
-        reference
-            .iter()
-            .find(|p| p.state == code)
-            .map(|p| p.t_s)
-            .expect("the reference run enters the state")
-    };
-    let approach_s = entered(MissionState::ApproachGoalPad.code());
-    let descent_s = entered(MissionState::LandOnGoalPad.code());
+    // The goal pad's approach and descent, from a run without an abort.
+    let approach_s = default_world_enters(MissionState::ApproachGoalPad);
+    let descent_s = default_world_enters(MissionState::LandOnGoalPad);
     for abort_s in [3.0, 3.5, 8.0, approach_s + 0.8, descent_s + 0.4] {
         let mut options = RunOptions::for_world(&world);
         options.record = true;
@@ -551,17 +540,9 @@ fn an_abort_during_a_pad_search_lands_clear_of_the_pad_seen_so_far() {
     let world = World::default_world();
     let mut options = RunOptions::for_world(&world);
     options.record = true;
-    let reference = run(&world, &options).expect("runs").trace;
-    let entered = |code: u8| {
-        reference
-            .iter()
-            .find(|p| p.state == code)
-            .map(|p| p.t_s)
-            .expect("entered")
-    };
     let (search_s, approach_s) = (
-        entered(MissionState::SearchGoalPad.code()),
-        entered(MissionState::ApproachGoalPad.code()),
+        default_world_enters(MissionState::SearchGoalPad),
+        default_world_enters(MissionState::ApproachGoalPad),
     );
     // What the detector knew at each abort time: the same flight stepped by hand (the link up, as in `run`).
     let mut drone = SimDrone::new(&world, world.sim.seed, &Faults::default()).expect("a drone");

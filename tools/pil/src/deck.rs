@@ -588,18 +588,22 @@ mod tests {
         assert_eq!(read16(&dev, 0x29, 0x0089, 1), Some(vec![4]));
     }
 
-    #[test]
-    fn a_result_holds_the_range_from_the_middle_of_its_period() {
+    /// The Flow deck's ranger started at 2 ms with a 25 ms period after `setup` (register writes), while
+    /// the drone climbs 1 mm per ms and the host sets the range every 1 ms, as `physics.rs` does; every
+    /// result read and cleared as it is flagged: (flag time ms, range mm).
+    fn climbing_results(setup: &[&[u8]]) -> Vec<(u64, u16)> {
         let dev = DeckSensors::new(Fitted {
             multiranger: false,
             flow: true,
         });
-        // The drone climbs 1 mm per ms; the host sets the range every 1 ms, as `physics.rs` does.
         let range_at = |t_ms: u64| Some(0.5 + t_ms as f32 * 0.001);
         let mut ranges = [None; 6];
         ranges[DOWN] = range_at(2);
         dev.set_ranges(ranges);
         dev.advance(2_000_000);
+        for bytes in setup {
+            assert!(write(&dev, 0x29, bytes));
+        }
         assert!(write(&dev, 0x29, &[0x00, 0x6C, 0, 0, 0x03, 0xE2])); // 25 ms
         assert!(write(&dev, 0x29, &[0x00, 0x87, 0x40])); // first result at 27 ms
         let mut results = Vec::new();
@@ -613,41 +617,23 @@ mod tests {
                 assert!(write(&dev, 0x29, &[0x00, 0x86, 0x01]));
             }
         }
-        // Flagged at 27, 52 and 77 ms, each with the range of 12.5 ms before (taken at the first 1 ms step
-        // at or past the middle: 15, 40 and 65 ms).
-        assert_eq!(results, vec![(27, 515), (52, 540), (77, 565)]);
+        results
+    }
+
+    #[test]
+    fn a_result_holds_the_range_from_the_middle_of_its_period() {
+        // No budget of the ULD's table in the registers: the whole period is integrated. Flagged at 27, 52
+        // and 77 ms, each with the range of 12.5 ms before (taken at the first 1 ms step at or past the
+        // middle: 15, 40 and 65 ms).
+        assert_eq!(climbing_results(&[]), vec![(27, 515), (52, 540), (77, 565)]);
     }
 
     #[test]
     fn a_result_holds_the_range_from_half_its_timing_budget_before_the_flag() {
-        let dev = DeckSensors::new(Fitted {
-            multiranger: false,
-            flow: true,
-        });
-        let range_at = |t_ms: u64| Some(0.5 + t_ms as f32 * 0.001);
-        let mut ranges = [None; 6];
-        ranges[DOWN] = range_at(2);
-        dev.set_ranges(ranges);
-        dev.advance(2_000_000);
         // The firmware's Flow deck preset: a 20 ms budget in long mode (TIMEOUT_MACROP_A 0x001E, _B 0x0022)
-        // in a 25 ms period.
-        assert!(write(&dev, 0x29, &[0x00, 0x5E, 0x00, 0x1E]));
-        assert!(write(&dev, 0x29, &[0x00, 0x61, 0x00, 0x22]));
-        assert!(write(&dev, 0x29, &[0x00, 0x6C, 0, 0, 0x03, 0xE2])); // 25 ms
-        assert!(write(&dev, 0x29, &[0x00, 0x87, 0x40])); // first result at 27 ms
-        let mut results = Vec::new();
-        for t_ms in 3..=80u64 {
-            ranges[DOWN] = range_at(t_ms);
-            dev.set_ranges(ranges);
-            dev.advance(t_ms * 1_000_000);
-            if read16(&dev, 0x29, 0x0031, 1) == Some(vec![0x01]) {
-                let mm = read16(&dev, 0x29, 0x0096, 2).unwrap();
-                results.push((t_ms, u16::from_be_bytes([mm[0], mm[1]])));
-                assert!(write(&dev, 0x29, &[0x00, 0x86, 0x01]));
-            }
-        }
-        // Flagged at 27, 52 and 77 ms, each with the range of 10 ms before (17, 42 and 67 ms).
-        assert_eq!(results, vec![(27, 517), (52, 542), (77, 567)]);
+        // in a 25 ms period. Flagged at 27, 52 and 77 ms, each with the range of 10 ms before (17, 42, 67 ms).
+        let budget: [&[u8]; 2] = [&[0x00, 0x5E, 0x00, 0x1E], &[0x00, 0x61, 0x00, 0x22]];
+        assert_eq!(climbing_results(&budget), vec![(27, 517), (52, 542), (77, 567)]);
     }
 
     #[test]

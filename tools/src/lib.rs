@@ -7,5 +7,6 @@ pub mod firmware;
 pub mod map;
 pub mod mission;
 pub mod nav;
+pub mod pil;
 pub mod radio;
 pub mod sim;

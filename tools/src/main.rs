@@ -1,7 +1,7 @@
-//! `cfnav`: the host-side tools of the cfnav firmware (simulator, planner replay, firmware image).
+//! `cfnav`: the host-side tools of the cfnav firmware (simulator, planner replay, firmware image, emulator).
 use std::process::ExitCode;
 
-use cfnav_tools::{firmware, map, mission, nav, sim};
+use cfnav_tools::{firmware, map, mission, nav, pil, sim};
 use clap::{Parser, Subcommand};
 
 /// cfnav host tools: planner replay, firmware image, simulator.
@@ -24,6 +24,10 @@ enum Command {
     Mission(mission::MissionArgs),
     /// Download the map a drone or simulator built (grid, path, pads) and draw it (exit 0 done, 2 error).
     Map(map::MapArgs),
+    /// Run the firmware image on the emulated Crazyflie (`cfnav-pil`, docs/pil.md): boot, cflib, hover,
+    /// round trip, faults; the arguments go to the emulator (exit 0 passed, 1 not, 2 bad input).
+    #[command(disable_help_flag = true)]
+    Pil(pil::PilArgs),
 }
 
 fn main() -> ExitCode {
@@ -41,5 +45,6 @@ fn main() -> ExitCode {
         Command::Firmware(args) => firmware::run(&args),
         Command::Mission(args) => mission::run_cli(&args),
         Command::Map(args) => map::run_cli(&args),
+        Command::Pil(args) => pil::run_cli(&args),
     }
 }

@@ -158,6 +158,61 @@ struct Args {
     /// `trace` lines.
     #[arg(long)]
     trace: bool,
+    /// With --mission: also write the run in `cfnav sim --json`'s format (interfaces.md §4: world, seed,
+    /// outcome, reason, mission time, collisions, clearance, landings, distance, virtual and wall time;
+    /// `replans` is null, the planner's count stays inside the image), so a script reads both the same way.
+    #[arg(long, requires = "mission", value_name = "FILE")]
+    sim_json: Option<PathBuf>,
+    /// Run at most this many times faster than real time (virtual seconds per wall second), as `cfnav sim
+    /// --serve --speed`; without it the emulator runs as fast as it can (in flight about 0.1× real time).
+    #[arg(long, value_name = "X", value_parser = positive_speed)]
+    speed: Option<f64>,
+}
+
+/// `--speed`: a finite factor above zero.
+fn positive_speed(text: &str) -> std::result::Result<f64, String> {
+    match text.parse::<f64>() {
+        Ok(x) if x.is_finite() && x > 0.0 => Ok(x),
+        _ => Err(format!("{text:?} is not a speed factor above 0 (e.g. 1 = real time)")),
+    }
+}
+
+/// A run in `cfnav sim --json`'s format (interfaces.md §4).
+#[derive(Debug, Serialize)]
+struct SimReport<'a> {
+    world: &'a str,
+    seed: u64,
+    outcome: &'a str,
+    reason: Option<&'a str>,
+    mission_time_s: Option<f64>,
+    collisions: u32,
+    min_clearance_m: Option<f32>,
+    landings: &'a [mission::Landing],
+    replans: Option<u32>,
+    distance_m: f64,
+    sim_time_s: f64,
+    wall_time_s: f64,
+    mission_state: Option<u32>,
+}
+
+impl<'a> SimReport<'a> {
+    fn of(world: &'a str, seed: u64, m: &'a mission::MissionReport, sim_time_s: f64, wall_time_s: f64) -> Self {
+        Self {
+            world,
+            seed,
+            outcome: &m.outcome,
+            reason: m.reason.as_deref(),
+            mission_time_s: m.mission_time_s,
+            collisions: m.collisions,
+            min_clearance_m: m.min_clearance_m,
+            landings: &m.landings,
+            replans: None,
+            distance_m: m.distance_m,
+            sim_time_s,
+            wall_time_s,
+            mission_state: m.mission_state,
+        }
+    }
 }
 
 #[derive(Debug, Serialize)]
@@ -431,6 +486,13 @@ fn run(args: &Args) -> Result<(Report, bool)> {
     let mut landed_at_ns: Option<u64> = None;
     let mut flow_deck_lost_at_ms: Option<u64> = None;
     while board.now_ns() < end_ns && !served_budget_spent(args, first_request_ms, board.now_ns()) {
+        if let Some(x) = args.speed {
+            // Ahead of X × real time: wait for the wall clock (virtual time never waits for the host).
+            let due = std::time::Duration::from_secs_f64(board.now_ns() as f64 * 1e-9 / x);
+            if let Some(wait) = due.checked_sub(wall.elapsed()) {
+                std::thread::sleep(wait);
+            }
+        }
         board.deck.advance(board.now_ns());
         if let Some(p) = physics.as_mut() {
             p.sensors_out(&board);
@@ -900,11 +962,66 @@ fn main() -> ExitCode {
                     return ExitCode::from(2);
                 }
             }
+            if let (Some(path), Some(m)) = (&args.sim_json, report.mission.as_ref()) {
+                let world = report.world.as_deref().unwrap_or("default");
+                let sim = SimReport::of(world, args.seed, m, report.virtual_s, report.wall_s);
+                let written = serde_json::to_string_pretty(&sim)
+                    .map_err(|e| e.to_string())
+                    .and_then(|t| std::fs::write(path, t).map_err(|e| e.to_string()));
+                if let Err(e) = written {
+                    eprintln!("error: writing {}: {e}", path.display());
+                    return ExitCode::from(2);
+                }
+            }
             if passed { ExitCode::SUCCESS } else { ExitCode::from(1) }
         }
         Err(e) => {
             eprintln!("error: {e:#}");
             ExitCode::from(2)
         }
+    }
+}
+
+#[cfg(test)]
+mod sim_report_tests {
+    use super::*;
+
+    #[test]
+    fn the_sim_report_has_the_keys_of_interfaces_section_4() {
+        let m = mission::MissionReport {
+            outcome: "completed".into(),
+            mission_state: Some(100),
+            mission_time_s: Some(53.6),
+            landings: vec![mission::Landing {
+                pad: 1,
+                error_m: 0.02,
+                on_pad: true,
+            }],
+            distance_m: 18.3,
+            ..Default::default()
+        };
+        let v = serde_json::to_value(SimReport::of("default", 1, &m, 56.6, 1152.0)).unwrap();
+        let keys: Vec<&str> = v.as_object().unwrap().keys().map(String::as_str).collect();
+        // interfaces.md §4's one-run object, then the end state the image logged.
+        for k in [
+            "world",
+            "seed",
+            "outcome",
+            "reason",
+            "mission_time_s",
+            "collisions",
+            "min_clearance_m",
+            "landings",
+            "replans",
+            "distance_m",
+            "sim_time_s",
+            "wall_time_s",
+        ] {
+            assert!(keys.contains(&k), "{k} missing from {keys:?}");
+        }
+        assert_eq!(v["outcome"], "completed");
+        assert_eq!(v["landings"][0]["pad"], 1);
+        assert_eq!(v["sim_time_s"], 56.6);
+        assert!(v["reason"].is_null() && v["replans"].is_null());
     }
 }

@@ -15,7 +15,6 @@
 use cfnav::types::MotorDuty;
 use serde::Serialize;
 
-use crate::hover::COMPLETED;
 use crate::sim::world::{BODY_RADIUS_M, World};
 
 /// A landing counts once the drone rested with its motors stopped this long (the simulator's 200 ticks).
@@ -34,8 +33,12 @@ pub struct Landing {
 /// The round trip as the truth saw it (the fields of `cfnav sim --json` that can be compared).
 #[derive(Debug, Clone, Default, Serialize)]
 pub struct MissionReport {
-    /// "completed", "aborted" or "crashed" (a collision), as the simulator decides.
+    /// "completed", "aborted", "crashed" (a collision or a tumble) or "timeout" (no end state logged within
+    /// the run), as the simulator decides.
     pub outcome: String,
+    /// Why it did not complete, in the simulator's words (interfaces.md §4: `no_path`, `pad_not_found`,
+    /// `battery`, `collision`, ...); `None` when completed.
+    pub reason: Option<String>,
     /// The end state the image logged (100 = completed).
     pub mission_state: Option<u32>,
     /// "mission started" to the last motor stop, s.
@@ -153,17 +156,47 @@ impl MissionJudge {
             && r.landings[0].on_pad
             && r.landings[0].pad == world.goal_pad_index()
             && r.landings.last().is_some_and(|l| l.on_pad && l.pad == 0);
-        r.outcome = if r.collisions > 0 {
-            "crashed"
-        } else if r.mission_state == Some(COMPLETED) && on_pads {
-            "completed"
-        } else {
-            "aborted"
-        }
-        .to_string();
+        let (outcome, reason) = outcome_and_reason(r.collisions, r.mission_state, on_pads);
+        r.outcome = outcome.to_string();
+        r.reason = reason.map(str::to_string);
         r.passed = r.outcome == "completed";
         self.report
     }
+}
+
+/// The outcome and reason words `cfnav sim` gives the same ending (`tools/src/sim/runner.rs`): a collision
+/// first, then the image's logged end state (`None`: it never logged one within the run).
+fn outcome_and_reason(collisions: u32, end_state: Option<u32>, on_pads: bool) -> (&'static str, Option<&'static str>) {
+    use cfnav::mission::MissionState as S;
+    if collisions > 0 {
+        return ("crashed", Some("collision"));
+    }
+    let Some(code) = end_state else {
+        return ("timeout", Some("time_limit"));
+    };
+    let is = |s: S| u32::from(s.code()) == code;
+    if is(S::Completed) {
+        return if on_pads {
+            ("completed", None)
+        } else {
+            ("aborted", Some("missed_pad"))
+        };
+    }
+    let words = [
+        (S::Crashed, "crashed", "tumble"),
+        (S::Aborted, "aborted", "aborted"),
+        (S::NoPath, "aborted", "no_path"),
+        (S::PadNotFound, "aborted", "pad_not_found"),
+        (S::BatteryLow, "aborted", "battery"),
+        (S::EstimatorFault, "aborted", "estimator_fault"),
+        (S::PlannerFault, "aborted", "planner_fault"),
+        (S::LinkLost, "aborted", "link_lost"),
+        (S::LinkLostHome, "aborted", "link_lost_home"),
+    ];
+    words
+        .iter()
+        .find(|(s, _, _)| is(*s))
+        .map_or(("aborted", Some("unknown")), |&(_, o, r)| (o, Some(r)))
 }
 
 #[cfg(test)]
@@ -204,6 +237,24 @@ mod tests {
 
     /// A scripted round trip on the default world, around its walls, box and cylinder: the oracle is the
     /// path's own length and the landing points' offsets from the world file's pad centres.
+    #[test]
+    fn endings_get_the_simulators_words() {
+        assert_eq!(outcome_and_reason(0, Some(100), true), ("completed", None));
+        assert_eq!(outcome_and_reason(0, Some(100), false), ("aborted", Some("missed_pad")));
+        assert_eq!(outcome_and_reason(1, Some(100), true), ("crashed", Some("collision")));
+        assert_eq!(
+            outcome_and_reason(0, Some(202), false),
+            ("aborted", Some("pad_not_found"))
+        );
+        assert_eq!(outcome_and_reason(0, Some(205), false), ("crashed", Some("tumble")));
+        assert_eq!(
+            outcome_and_reason(0, Some(208), true),
+            ("aborted", Some("link_lost_home"))
+        );
+        assert_eq!(outcome_and_reason(0, None, false), ("timeout", Some("time_limit")));
+        assert_eq!(outcome_and_reason(0, Some(77), false), ("aborted", Some("unknown")));
+    }
+
     #[test]
     fn a_round_trip_scores_like_the_simulator() {
         let world = World::default_world();

@@ -30,8 +30,8 @@ use embassy_time::{Duration, with_timeout};
 
 use super::motors::Motors;
 use super::{
-    BOOTED, CONTROL_STEPS, FAST_INPUTS, FAULT, FastInput, LOAD, NAV_INPUTS, NavInput, cycles, fault, now_us,
-    publish_fast_status, update_log,
+    BOOTED, CONTROL_PASSES, CONTROL_STEPS, FAST_INPUTS, FAULT, FastInput, LOAD, NAV_INPUTS, NavInput, cycles, fault,
+    now_us, publish_fast_status, update_log,
 };
 
 /// NVIC priority of the control executor (P0 is the most urgent; HAL interrupt handlers keep P0).
@@ -126,12 +126,18 @@ pub async fn control_task(
     loop {
         let edge = with_timeout(DRDY_TIMEOUT, drdy.wait_for_rising_edge()).await;
         let wake = cycles();
+        CONTROL_PASSES.fetch_add(1, Ordering::Relaxed);
         let sample = match edge {
             // The config block's board trim, on the accelerometer (stock `sensorsAccAlignToGravity`).
             Ok(()) => imu.read().await.ok().map(|s| trim.apply_to(s)),
             Err(_) => None,
         };
         let Some(sample) = sample else {
+            // The inputs are still taken, so the tasks that queue them never wait on a full queue (the
+            // mission task awaits room for its setpoints: with the IMU lost it blocked there, and the
+            // watchdog reset the board, undoing the latched fault; found in the emulator,
+            // `cfnav-pil --fault imu-lost`).
+            drain_inputs(&mut stab, &mut gate);
             // Level for a few periods, then off and latched (`Stabilizer::on_imu_missed`).
             let duty = stab.on_imu_missed(now_us());
             if BOOTED.load(Ordering::Acquire) && !FAULT.load(Ordering::Acquire) {

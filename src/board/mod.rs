@@ -167,10 +167,14 @@ pub static DECKS_OK: AtomicBool = AtomicBool::new(false);
 pub static DECK_FLOW2: AtomicBool = AtomicBool::new(false);
 /// The Multi-ranger's beams answered at boot (`deck.bcMultiranger`).
 pub static DECK_MULTIRANGER: AtomicBool = AtomicBool::new(false);
-/// The control task was started (the watchdog then wants [`CONTROL_STEPS`] to advance).
+/// The control task was started (the watchdog then wants [`CONTROL_PASSES`] to advance).
 pub static CONTROL_RUNNING: AtomicBool = AtomicBool::new(false);
-/// Control steps run since boot (the watchdog is fed only while this advances).
+/// Control steps run since boot (one per IMU sample flown).
 pub static CONTROL_STEPS: AtomicU32 = AtomicU32::new(0);
+/// Passes of the control loop since boot, a sample flown or a missed one (the watchdog is fed only while
+/// this advances: it watches the loop run, not the IMU answer; a lost IMU is the loop's own fault, which
+/// stops the motors and latches, and a reset would undo the latch).
+pub static CONTROL_PASSES: AtomicU32 = AtomicU32::new(0);
 /// Mission ticks run since boot: thread mode's heartbeat (the watchdog is fed only while this advances).
 pub static THREAD_BEATS: AtomicU32 = AtomicU32::new(0);
 

@@ -20,7 +20,7 @@ use embassy_stm32::wdg::IndependentWatchdog;
 use embassy_time::{Duration, Ticker};
 
 use super::control::TIMING;
-use super::{BOOTED, CONTROL_RUNNING, CONTROL_STEPS, CPU_HZ, LOAD, THREAD_BEATS, cycles, motors, now_us, update_log};
+use super::{BOOTED, CONTROL_PASSES, CONTROL_RUNNING, CPU_HZ, LOAD, THREAD_BEATS, cycles, motors, now_us, update_log};
 
 /// IWDG timeout asked of embassy, µs (nominal: embassy assumes a 32 kHz LSI).
 pub const WATCHDOG_TIMEOUT_US: u32 = NOMINAL_TIMEOUT_US;
@@ -57,7 +57,7 @@ pub async fn watchdog_task(mut wdg: IndependentWatchdog<'static, IWDG>) {
             now_us: now_us(),
             booted: BOOTED.load(Ordering::Acquire),
             control_running: CONTROL_RUNNING.load(Ordering::Acquire),
-            control_steps: CONTROL_STEPS.load(Ordering::Relaxed),
+            control_passes: CONTROL_PASSES.load(Ordering::Relaxed),
             thread_beats: THREAD_BEATS.load(Ordering::Relaxed),
         });
         match decision {

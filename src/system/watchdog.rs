@@ -106,8 +106,9 @@ pub struct FeedInputs {
     pub booted: bool,
     /// The control loop was started.
     pub control_running: bool,
-    /// Control steps so far (wrapping).
-    pub control_steps: u32,
+    /// Control loop passes so far (wrapping): each pass counts, a sample flown or a missed one, so a lost IMU
+    /// (which the loop handles: motors off, fault latched) does not starve the feed; a loop that stopped does.
+    pub control_passes: u32,
     /// Thread-mode heartbeats so far (wrapping; the mission task counts one per tick).
     pub thread_beats: u32,
 }
@@ -124,7 +125,7 @@ pub enum Starved {
 /// Decides at each feed opportunity whether to feed the IWDG (see the module documentation).
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
 pub struct FeedGate {
-    control_steps: u32,
+    control_passes: u32,
     control_seen_us: Option<Micros>,
     thread_beats: u32,
     thread_seen_us: Option<Micros>,
@@ -134,7 +135,7 @@ impl FeedGate {
     /// A gate that has seen nothing yet.
     pub const fn new() -> Self {
         Self {
-            control_steps: 0,
+            control_passes: 0,
             control_seen_us: None,
             thread_beats: 0,
             thread_seen_us: None,
@@ -158,9 +159,9 @@ impl FeedGate {
         );
         let control_last = if inputs.control_running {
             Some(Self::progress(
-                &mut self.control_steps,
+                &mut self.control_passes,
                 &mut self.control_seen_us,
-                inputs.control_steps,
+                inputs.control_passes,
                 now,
             ))
         } else {

@@ -69,12 +69,12 @@ fn the_shortest_real_timeout_covers_the_feeder() {
     assert_eq!(old.worst_case_timeout_us(), 170_212);
 }
 
-fn inputs(now_us: u64, thread_beats: u32, control_steps: u32) -> FeedInputs {
+fn inputs(now_us: u64, thread_beats: u32, control_passes: u32) -> FeedInputs {
     FeedInputs {
         now_us,
         booted: true,
         control_running: true,
-        control_steps,
+        control_passes,
         thread_beats,
     }
 }

@@ -46,6 +46,7 @@ use crate::flight::supervisor::{
     Supervisor, SupervisorConfig, SupervisorInput, SupervisorOutput, SupervisorState, clamp_min_height,
 };
 use crate::mission::link_loss::{LinkLossConfig, LinkWatch};
+use crate::mission::ranger_watch::RangerWatch;
 use crate::mission::{
     Mission, MissionConfig, MissionInputs, MissionNote, MissionPadDetector, MissionParams, MissionState, StartRefusal,
 };
@@ -432,6 +433,8 @@ pub struct Navigator<const CELLS: usize, const QUEUE: usize> {
     next_config: Option<MissionConfig>,
     /// The link-loss watch (`mission.linkLoss`, `mission.linkTimeout`).
     link: LinkWatch,
+    /// The Multi-ranger watch (a running mission without sweeps lands).
+    rangers: RangerWatch,
     /// The supervisor's battery-low threshold, V (explore's battery reserve counts down to it).
     battery_low_v: f32,
 }
@@ -466,6 +469,7 @@ impl<const CELLS: usize, const QUEUE: usize> Navigator<CELLS, QUEUE> {
                 landmarks: _,
                 next_config: _,
                 link: _,
+                rangers: _,
                 battery_low_v: _,
             } = n;
         };
@@ -478,6 +482,7 @@ impl<const CELLS: usize, const QUEUE: usize> Navigator<CELLS, QUEUE> {
             core::ptr::addr_of_mut!((*slot).landmarks).write(Landmarks::new());
             core::ptr::addr_of_mut!((*slot).next_config).write(None);
             core::ptr::addr_of_mut!((*slot).link).write(LinkWatch::new());
+            core::ptr::addr_of_mut!((*slot).rangers).write(RangerWatch::new());
             core::ptr::addr_of_mut!((*slot).battery_low_v).write(config.supervisor.battery_low_v);
         }
     }
@@ -490,6 +495,7 @@ impl<const CELLS: usize, const QUEUE: usize> Navigator<CELLS, QUEUE> {
             landmarks: Landmarks::new(),
             next_config: None,
             link: LinkWatch::new(),
+            rangers: RangerWatch::new(),
             battery_low_v: config.supervisor.battery_low_v,
         }
     }
@@ -550,6 +556,7 @@ impl<const CELLS: usize, const QUEUE: usize> Navigator<CELLS, QUEUE> {
     /// is written (module `estimator::map_fix`). Fixes are cast only while the mission maps (a flying phase
     /// at mapping height, the estimate valid), so the map and the fixes see the same beams.
     pub fn on_multiranger(&mut self, sample: &MultiRangerSample, estimate: &StateEstimate) -> Option<MissionCommand> {
+        self.rangers.on_sweep();
         let fixes = self.map_fixes(sample, estimate);
         self.mission.on_ranges(sample, estimate);
         fixes.map(MissionCommand::MapFixes)
@@ -618,6 +625,9 @@ impl<const CELLS: usize, const QUEUE: usize> Navigator<CELLS, QUEUE> {
     pub fn tick(&mut self, now: Micros, status: &FastStatus) -> Option<MissionCommand> {
         if let Some(policy) = self.link.check(now, self.mission.is_running()) {
             self.mission.on_link_lost(policy, now, &status.estimate);
+        }
+        if self.rangers.check(now, self.mission.is_running()) {
+            self.mission.on_ranger_lost(&status.estimate);
         }
         if !self.mission.is_running()
             && status

@@ -86,6 +86,7 @@ mod hover;
 mod landing;
 pub mod link_loss;
 mod navigate;
+pub mod ranger_watch;
 pub mod reserve;
 mod search;
 
@@ -168,6 +169,8 @@ pub enum MissionState {
     /// The radio link was lost on the outbound leg with `mission.linkLoss = 2`: flew home, landed on the
     /// home pad (or its best estimate).
     LinkLostHome = 208,
+    /// The Multi-ranger stopped reporting in flight ([`ranger_watch`]): landed where it was.
+    RangerLost = 209,
 }
 
 impl MissionState {
@@ -630,6 +633,17 @@ impl<const CELLS: usize, const QUEUE: usize> Mission<CELLS, QUEUE> {
                 self.link_lost_home = true;
                 self.begin_leg(now, state, Leg::Return);
             }
+        }
+    }
+
+    /// The Multi-ranger stopped reporting (see [`ranger_watch`]): in the air, land where it is and end with
+    /// [`MissionState::RangerLost`]; on a pad with the motors off, end there. Does nothing when no mission
+    /// runs or while it already lands where it is (that landing keeps its code).
+    pub fn on_ranger_lost(&mut self, state: &StateEstimate) {
+        match self.phase {
+            Phase::Idle | Phase::Ended(_) | Phase::EmergencyLand { .. } => {}
+            Phase::Preflight | Phase::OnPad { .. } => self.phase = Phase::Ended(MissionState::RangerLost),
+            _ => self.land_where_it_is(state, MissionState::RangerLost),
         }
     }
 

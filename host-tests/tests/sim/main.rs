@@ -8,6 +8,7 @@ mod mission;
 mod modes;
 mod pads;
 mod physics;
+mod ranger_loss;
 mod stress;
 mod world;
 

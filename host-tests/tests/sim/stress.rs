@@ -46,6 +46,7 @@ fn sim_args() -> SimArgs {
         json: None,
         plot: None,
         flow_fails_at: None,
+        ranger_fails_at: None,
         abort_at: None,
         link_loss_at: None,
         link_loss: 0,

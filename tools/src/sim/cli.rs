@@ -48,6 +48,9 @@ pub struct SimArgs {
     /// Inject a flow-deck failure at this time, s (fault scenario).
     #[arg(long, value_name = "S")]
     pub flow_fails_at: Option<f64>,
+    /// The Multi-ranger stops delivering sweeps at this time, s (its deck lost in flight).
+    #[arg(long, value_name = "S")]
+    pub ranger_fails_at: Option<f64>,
     /// Write `mission.start = 0` at this time, s (abort scenario).
     #[arg(long, value_name = "S")]
     pub abort_at: Option<f64>,
@@ -331,6 +334,12 @@ pub fn run_cli(args: &SimArgs) -> ExitCode {
     options.record = args.plot.is_some();
     options.verbose = args.verbose;
     options.faults.flow_fails_at_s = args.flow_fails_at;
+    if let Some(t) = args.ranger_fails_at
+        && !(t.is_finite() && t >= 0.0)
+    {
+        return fail(format!("--ranger-fails-at: expected a time >= 0 s, got {t}"));
+    }
+    options.faults.ranger_fails_at_s = args.ranger_fails_at;
     options.faults.abort_at_s = args.abort_at;
     if let Err(e) = apply_mode(args, &mut options) {
         return fail(e);
@@ -388,8 +397,13 @@ fn run_serve(args: &SimArgs, stress: Option<&Stress>) -> ExitCode {
     if args.random.is_some() {
         return fail("--serve flies one world; drop --random");
     }
-    if args.json.is_some() || args.plot.is_some() || args.flow_fails_at.is_some() || args.abort_at.is_some() {
-        return fail("--json, --plot, --flow-fails-at and --abort-at do not apply to --serve");
+    if args.json.is_some()
+        || args.plot.is_some()
+        || args.flow_fails_at.is_some()
+        || args.ranger_fails_at.is_some()
+        || args.abort_at.is_some()
+    {
+        return fail("--json, --plot, --flow-fails-at, --ranger-fails-at and --abort-at do not apply to --serve");
     }
     if args.mode != ModeArg::RoundTrip || args.hover_time.is_some() || args.coverage.is_some() {
         return fail(

@@ -36,6 +36,8 @@ pub type SimCore = FlightCore<SIM_CELLS, SIM_QUEUE>;
 pub struct Faults {
     /// The flow deck stops delivering readings at this time, s.
     pub flow_fails_at_s: Option<f64>,
+    /// The Multi-ranger stops delivering sweeps at this time, s (its deck lost in flight).
+    pub ranger_fails_at_s: Option<f64>,
     /// The battery drains this many times faster than physics says.
     pub battery_drain_multiplier: Option<f32>,
     /// Initial battery state of charge (0..1).
@@ -249,6 +251,8 @@ pub struct SimDrone {
     measured_zrange: RangeReading,
     /// The latest battery voltage reading, V.
     pub last_vbat: f32,
+    /// From this tick on no Multi-ranger sweep is handed over (`Faults::ranger_fails_at_s`).
+    ranger_fails_at_tick: Option<u64>,
     tick: u64,
 }
 
@@ -305,6 +309,10 @@ impl SimDrone {
             measured_multiranger: MultiRangerSample::default(),
             measured_zrange: None,
             last_vbat: 0.0,
+            ranger_fails_at_tick: faults
+                .ranger_fails_at_s
+                .filter(|t| t.is_finite())
+                .map(|t| (t.max(0.0) * 1000.0).round() as u64),
             tick: 0,
         })
     }
@@ -351,7 +359,8 @@ impl SimDrone {
         if (tick + BEAM_MIDPOINT_TICKS).is_multiple_of(BEAM_PERIOD_TICKS) {
             self.measured_multiranger = self.multiranger.sample(&self.quad, world, &mut self.rng_mr);
         }
-        if tick.is_multiple_of(BEAM_PERIOD_TICKS) {
+        let rangers_answer = self.ranger_fails_at_tick.is_none_or(|t| tick < t);
+        if tick.is_multiple_of(BEAM_PERIOD_TICKS) && rangers_answer {
             self.last_multiranger = self.measured_multiranger;
             self.core.on_multiranger(&self.last_multiranger);
         }
@@ -631,6 +640,7 @@ pub fn run(world: &World, options: &RunOptions) -> Result<RunResult, String> {
             MissionState::PlannerFault => ("aborted", Some("planner_fault")),
             MissionState::LinkLost => ("aborted", Some("link_lost")),
             MissionState::LinkLostHome => ("aborted", Some("link_lost_home")),
+            MissionState::RangerLost => ("aborted", Some("ranger_lost")),
             _ => ("aborted", Some("unknown")),
         }
     };

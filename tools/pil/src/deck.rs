@@ -354,6 +354,20 @@ impl DeckSensors {
         });
     }
 
+    /// The Multi-ranger leaves the bus (`--fault multiranger-lost`): its expander and its five rangers no
+    /// longer acknowledge their addresses (the Flow deck's ranger stays).
+    pub fn unplug_multiranger(&self) {
+        self.with(|s| {
+            s.fitted.multiranger = false;
+            let now = s.now_ns;
+            for (i, r) in s.rangers.iter_mut().enumerate() {
+                if i != DOWN {
+                    r.set_power(false, now);
+                }
+            }
+        });
+    }
+
     pub fn stats(&self) -> DeckStats {
         self.with(|s| s.stats)
     }

@@ -41,6 +41,12 @@ pub struct Faults {
     /// The Flow deck stops answering from this virtual time (ms) on, as when its connector works loose in
     /// flight: the PMW3901 leaves MISO floating high and its VL53L1x is off the deck bus.
     pub flow_deck_lost_at_ms: Option<u64>,
+    /// The BMI088 stops answering from this virtual time (ms) on, as when its supply or the sensor bus
+    /// fails in flight: both halves NACK their addresses and INT3 stays low.
+    pub imu_lost_at_ms: Option<u64>,
+    /// The Multi-ranger deck stops answering from this virtual time (ms) on: its expander and rangers leave
+    /// the deck bus.
+    pub multiranger_lost_at_ms: Option<u64>,
 }
 
 /// Counters a report prints.
@@ -113,6 +119,8 @@ impl Half {
 #[derive(Debug)]
 pub struct Bmi088 {
     faults: Faults,
+    /// `Faults::imu_lost_at_ms` has come: the chip is gone.
+    lost: std::sync::atomic::AtomicBool,
     halves: Mutex<[Half; 2]>,
     stats: Mutex<BusStats>,
 }
@@ -121,6 +129,7 @@ impl Bmi088 {
     pub fn new(faults: Faults) -> Self {
         Self {
             faults,
+            lost: std::sync::atomic::AtomicBool::new(false),
             halves: Mutex::new([Half::new(ACCEL_ADDR), Half::new(GYRO_ADDR)]),
             stats: Mutex::new(BusStats::default()),
         }
@@ -130,6 +139,7 @@ impl Bmi088 {
     /// (datasheet §5.5.8, §5.5.10).
     pub fn int3_drdy_enabled(&self) -> bool {
         !self.faults.sensor_bus_dead
+            && !self.is_lost()
             && self.with_halves(|h| {
                 let gyro = &h[1];
                 gyro.regs[0x15] & 0x80 != 0 && gyro.regs[0x18] & 0x01 != 0
@@ -178,6 +188,15 @@ impl Bmi088 {
         });
     }
 
+    /// From now on the chip NACKs its addresses and drives no data-ready (`--fault imu-lost`).
+    pub fn lose(&self) {
+        self.lost.store(true, std::sync::atomic::Ordering::Release);
+    }
+
+    pub fn is_lost(&self) -> bool {
+        self.lost.load(std::sync::atomic::Ordering::Acquire)
+    }
+
     pub fn stats(&self) -> BusStats {
         *self.stats.lock().unwrap_or_else(|e| e.into_inner())
     }
@@ -200,7 +219,7 @@ impl I2cSlave for Bmi088 {
         if ours {
             self.count(|s| s.transactions += 1);
         }
-        if !ours || self.faults.sensor_bus_dead {
+        if !ours || self.faults.sensor_bus_dead || self.is_lost() {
             if ours {
                 self.count(|s| s.nacked_addresses += 1);
             }

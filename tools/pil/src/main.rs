@@ -35,6 +35,7 @@ mod pin;
 mod probe;
 mod rtt;
 mod stuck;
+mod track;
 mod udp_bridge;
 
 /// The simulator's own models (`cfnav sim`), compiled in unchanged from `tools/src/sim` (milestone 3): the
@@ -85,7 +86,9 @@ struct Args {
     /// SDA of I2C3 / I2C1 low from power-on and lets go after K falling SCL edges, 1..=9, default 9, or
     /// never), rts-high (the nRF51 holds its RTS, PA4, high from power-on: "stop sending"),
     /// flow-deck-lost:SECONDS (from that virtual time on the Flow deck answers nothing: the PMW3901's MISO
-    /// floats high, its height ranger leaves the deck bus). Repeatable.
+    /// floats high, its height ranger leaves the deck bus), imu-lost:SECONDS (from that virtual time on the
+    /// BMI088 NACKs both its addresses and its INT3 data-ready stops), multiranger-lost:SECONDS (from then on
+    /// the Multi-ranger's expander and four rangers leave the deck bus). Repeatable.
     #[arg(long = "fault")]
     faults: Vec<String>,
     /// The nRF51 end stays silent (no echo of the radio settings): a syslink whose radio chip does not answer.
@@ -163,6 +166,12 @@ struct Args {
     /// `replans` is null, the planner's count stays inside the image), so a script reads both the same way.
     #[arg(long, requires = "mission", value_name = "FILE")]
     sim_json: Option<PathBuf>,
+    /// With --hover or --mission: write the flight as points (the image's estimate and mission state from the
+    /// trace log block, as --trace asks for it, each with the truth at its time stamp) and its score, for
+    /// `cfnav pil --plot`, which draws it with `cfnav sim --plot`'s figure. Adds the trace block's radio
+    /// traffic, as --trace does.
+    #[arg(long, value_name = "FILE")]
+    track: Option<PathBuf>,
     /// Run at most this many times faster than real time (virtual seconds per wall second), as `cfnav sim
     /// --serve --speed`; without it the emulator runs as fast as it can (in flight about 0.1× real time).
     #[arg(long, value_name = "X", value_parser = positive_speed)]
@@ -232,6 +241,13 @@ struct Report {
     faults: Vec<String>,
     /// Virtual ms at which `--fault flow-deck-lost` unplugged the deck.
     flow_deck_lost_at_ms: Option<u64>,
+    /// Virtual ms at which `--fault imu-lost` silenced the BMI088.
+    imu_lost_at_ms: Option<u64>,
+    /// Virtual ms at which `--fault multiranger-lost` unplugged the Multi-ranger.
+    multiranger_lost_at_ms: Option<u64>,
+    /// With the physics: the virtual ms at which the four motor duties last became zero (0 if they never
+    /// ran; null if they still run at the end).
+    motors_stopped_at_ms: Option<u64>,
     outcome: &'static str,
     ready: bool,
     /// Virtual ms at which the first whole second of "ready" began.
@@ -302,6 +318,9 @@ struct Report {
     usart6_rx_stolen_from_dma: u64,
     /// `--probe` samples.
     probes: Vec<probe::Sample>,
+    /// `--track`'s file (written apart from the report).
+    #[serde(skip)]
+    track: Option<track::TrackFile>,
     /// UDP datagrams received and sent (`--serve`).
     udp_received: u64,
     udp_sent: u64,
@@ -342,18 +361,22 @@ fn parse_faults(names: &[String]) -> Result<Faults> {
                 match name {
                     "sensor-bus-stuck" => f.sensor_bus_stuck = Some(release()?),
                     "deck-bus-stuck" => f.deck_bus_stuck = Some(release()?),
-                    "flow-deck-lost" => {
+                    "flow-deck-lost" | "imu-lost" | "multiranger-lost" => {
                         let at_s = arg
                             .and_then(|a| a.parse::<f64>().ok())
                             .filter(|s| s.is_finite() && (0.0..=3600.0).contains(s))
-                            .with_context(|| {
-                                format!("--fault {other}: give the time in seconds, e.g. flow-deck-lost:5")
-                            })?;
-                        f.flow_deck_lost_at_ms = Some((at_s * 1000.0).round() as u64);
+                            .with_context(|| format!("--fault {other}: give the time in seconds, e.g. {name}:5"))?;
+                        let at_ms = Some((at_s * 1000.0).round() as u64);
+                        match name {
+                            "imu-lost" => f.imu_lost_at_ms = at_ms,
+                            "multiranger-lost" => f.multiranger_lost_at_ms = at_ms,
+                            _ => f.flow_deck_lost_at_ms = at_ms,
+                        }
                     }
                     _ => bail!(
                         "unknown fault `{other}` (known: bmi088-reset-nack, sensor-bus-dead, rts-high, \
-                         sensor-bus-stuck[:K|never], deck-bus-stuck[:K|never], flow-deck-lost:SECONDS)"
+                         sensor-bus-stuck[:K|never], deck-bus-stuck[:K|never], flow-deck-lost:SECONDS, imu-lost:SECONDS, \
+                         multiranger-lost:SECONDS)"
                     ),
                 }
             }
@@ -398,9 +421,13 @@ fn run(args: &Args) -> Result<(Report, bool)> {
     if let (true, Some(p)) = (args.mission, physics.as_ref()) {
         script = Some(hover::Script::round_trip(&p.world));
     }
-    if args.trace {
+    if args.trace || args.track.is_some() {
         script = script.map(hover::Script::with_trace);
     }
+    if args.track.is_some() && script.is_none() {
+        bail!("--track needs --hover or --mission (a flight to draw)");
+    }
+    let mut track = args.track.is_some().then(track::TrackRecorder::default);
     let mut mission_judge = args.mission.then(mission::MissionJudge::new);
     let mut mission_done_at_ns: Option<u64> = None;
     let mut judge = args.hover.map(|h| {
@@ -485,6 +512,10 @@ fn run(args: &Args) -> Result<(Report, bool)> {
     let mut last_ms = u64::MAX;
     let mut landed_at_ns: Option<u64> = None;
     let mut flow_deck_lost_at_ms: Option<u64> = None;
+    let mut imu_lost_at_ms: Option<u64> = None;
+    let mut multiranger_lost_at_ms: Option<u64> = None;
+    // When the four duties last became zero (None while they run).
+    let mut motors_stopped_at_ms: Option<u64> = Some(0);
     while board.now_ns() < end_ns && !served_budget_spent(args, first_request_ms, board.now_ns()) {
         if let Some(x) = args.speed {
             // Ahead of X × real time: wait for the wall clock (virtual time never waits for the host).
@@ -515,6 +546,15 @@ fn run(args: &Args) -> Result<(Report, bool)> {
         if let Some(p) = physics.as_mut() {
             p.step_to(&board, board.now_ns());
             let t_ns = board.now_ns();
+            if let Some(tr) = track.as_mut() {
+                tr.truth(t_ns, p.quad.position(), !p.quad.on_ground());
+            }
+            let stopped = p.duty.0 == [0; 4];
+            if !stopped {
+                motors_stopped_at_ms = None;
+            } else if motors_stopped_at_ms.is_none() {
+                motors_stopped_at_ms = Some(t_ns / 1_000_000);
+            }
             if args.log && t_ns % 250_000_000 < slice_ns {
                 let pos = p.quad.position();
                 let att = p.quad.attitude_rad();
@@ -556,6 +596,23 @@ fn run(args: &Args) -> Result<(Report, bool)> {
             flow_deck_lost_at_ms = Some(t_ms);
             if args.log {
                 println!("{:>9.3} | fault: the Flow deck stops answering", t_ms as f64 / 1e3);
+            }
+        }
+        if faults.imu_lost_at_ms.is_some_and(|at| t_ms >= at) && imu_lost_at_ms.is_none() {
+            board.imu.lose();
+            imu_lost_at_ms = Some(t_ms);
+            if args.log {
+                println!("{:>9.3} | fault: the BMI088 stops answering", t_ms as f64 / 1e3);
+            }
+        }
+        if faults.multiranger_lost_at_ms.is_some_and(|at| t_ms >= at) && multiranger_lost_at_ms.is_none() {
+            board.deck.unplug_multiranger();
+            multiranger_lost_at_ms = Some(t_ms);
+            if args.log {
+                println!(
+                    "{:>9.3} | fault: the Multi-ranger deck stops answering",
+                    t_ms as f64 / 1e3
+                );
             }
         }
         board.sensors_sda.tick(t_ms);
@@ -623,6 +680,9 @@ fn run(args: &Args) -> Result<(Report, bool)> {
                 from_image.push(format!("{:#04x}", packet.kind));
                 let was_ready = nrf.stats.radio_ready_at_ms.is_some();
                 let (back, to_host) = nrf.on_image_packet(&packet, now_ns);
+                if let (Some(tr), Some(t)) = (track.as_mut(), to_host.as_deref().and_then(hover::TraceSample::parse)) {
+                    tr.sample(&t);
+                }
                 if let (false, Some(t), Some(_)) = (was_ready, nrf.stats.radio_ready_at_ms, bridge.as_ref()) {
                     println!("radio ready at {t} ms virtual: the nRF's receiver is on");
                 }
@@ -752,6 +812,18 @@ fn run(args: &Args) -> Result<(Report, bool)> {
         (Some(h), _) => h.passed && !iwdg_reset_flag,
         (None, None) => expected_at_ms.is_some() && !iwdg_reset_flag && client.as_ref().is_none_or(|c| c.stats.done),
     };
+    let track = match (track, physics.as_ref()) {
+        (Some(tr), Some(p)) => Some(track_file(
+            args,
+            tr,
+            p,
+            hover_report.as_ref(),
+            mission_report.as_ref(),
+            board.now_ns(),
+            wall,
+        )),
+        _ => None,
+    };
     let report = Report {
         elf: elf_path.display().to_string(),
         elf_fnv: {
@@ -761,6 +833,9 @@ fn run(args: &Args) -> Result<(Report, bool)> {
         },
         faults: args.faults.clone(),
         flow_deck_lost_at_ms,
+        imu_lost_at_ms,
+        multiranger_lost_at_ms,
+        motors_stopped_at_ms: physics.as_ref().and(motors_stopped_at_ms),
         outcome: if ready { "ready" } else { "not_ready" },
         ready,
         ready_at_ms,
@@ -818,12 +893,75 @@ fn run(args: &Args) -> Result<(Report, bool)> {
         usart6_rx_kept_for_dma: apb8::USART_RX_KEPT.load(std::sync::atomic::Ordering::Relaxed),
         usart6_rx_stolen_from_dma: apb8::USART_RX_STOLEN.load(std::sync::atomic::Ordering::Relaxed),
         probes,
+        track,
         udp_received: bridge.as_ref().map_or(0, |b| b.received),
         udp_sent: bridge.as_ref().map_or(0, |b| b.sent),
         fingerprint: format!("{:016x}", fp.0),
         log,
     };
     Ok((report, passed))
+}
+
+/// `--track`'s file: the points, and the score of the hover (its landing judged against the pad under the
+/// last truth point) or of the round trip (the mission judge's).
+fn track_file(
+    args: &Args,
+    tr: track::TrackRecorder,
+    p: &physics::Physics,
+    hover: Option<&hover::HoverReport>,
+    mission: Option<&mission::MissionReport>,
+    now_ns: u64,
+    wall: Instant,
+) -> track::TrackFile {
+    let landing = |pad: usize, error_m: f32, on_pad: bool| track::TrackLanding { pad, error_m, on_pad };
+    let mut file = track::TrackFile {
+        world_path: args.world.as_ref().map(|w| w.display().to_string()),
+        world: p.world.name.clone(),
+        seed: args.seed,
+        mode: if mission.is_some() { "round_trip" } else { "hover" },
+        outcome: "timeout".into(),
+        reason: None,
+        mission_time_s: None,
+        mission_state: None,
+        collisions: 0,
+        min_clearance_m: None,
+        landings: Vec::new(),
+        distance_m: 0.0,
+        virtual_s: now_ns as f64 * 1e-9,
+        wall_s: wall.elapsed().as_secs_f64(),
+        points: Vec::new(),
+    };
+    if let Some(m) = mission {
+        file.outcome = m.outcome.clone();
+        file.reason = m.reason.clone();
+        file.mission_time_s = m.mission_time_s;
+        file.mission_state = m.mission_state;
+        file.collisions = m.collisions;
+        file.min_clearance_m = m.min_clearance_m;
+        file.landings = m.landings.iter().map(|l| landing(l.pad, l.error_m, l.on_pad)).collect();
+        file.distance_m = m.distance_m;
+    } else if let Some(h) = hover {
+        file.outcome = (if h.passed { "completed" } else { "failed" }).into();
+        file.mission_state = h.mission_end_state;
+        if h.landed {
+            let at = p.quad.position();
+            let (pad, on_pad) = p.world.landing_pad_at(at[0], at[1]);
+            let c = p.world.pads.get(pad).map_or([at[0], at[1]], |pd| pd.center);
+            file.landings
+                .push(landing(pad, (at[0] - c[0]).hypot(at[1] - c[1]), on_pad));
+        }
+    }
+    file.distance_m = if mission.is_some() {
+        file.distance_m
+    } else {
+        tr.points
+            .windows(2)
+            .filter(|w| w[1].airborne)
+            .map(|w| f64::from((w[1].truth[0] - w[0].truth[0]).hypot(w[1].truth[1] - w[0].truth[1])))
+            .sum()
+    };
+    file.points = tr.points;
+    file
 }
 
 /// One `--probe` sample, printed as it is taken.
@@ -958,6 +1096,15 @@ fn main() -> ExitCode {
                     }
                 };
                 if let Err(e) = std::fs::write(path, text) {
+                    eprintln!("error: writing {}: {e}", path.display());
+                    return ExitCode::from(2);
+                }
+            }
+            if let (Some(path), Some(t)) = (&args.track, report.track.as_ref()) {
+                let written = serde_json::to_string(t)
+                    .map_err(|e| e.to_string())
+                    .and_then(|text| std::fs::write(path, text).map_err(|e| e.to_string()));
+                if let Err(e) = written {
                     eprintln!("error: writing {}: {e}", path.display());
                     return ExitCode::from(2);
                 }

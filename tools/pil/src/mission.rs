@@ -192,6 +192,7 @@ fn outcome_and_reason(collisions: u32, end_state: Option<u32>, on_pads: bool) ->
         (S::PlannerFault, "aborted", "planner_fault"),
         (S::LinkLost, "aborted", "link_lost"),
         (S::LinkLostHome, "aborted", "link_lost_home"),
+        (S::RangerLost, "aborted", "ranger_lost"),
     ];
     words
         .iter()
@@ -251,6 +252,7 @@ mod tests {
             outcome_and_reason(0, Some(208), true),
             ("aborted", Some("link_lost_home"))
         );
+        assert_eq!(outcome_and_reason(0, Some(209), false), ("aborted", Some("ranger_lost")));
         assert_eq!(outcome_and_reason(0, None, false), ("timeout", Some("time_limit")));
         assert_eq!(outcome_and_reason(0, Some(77), false), ("aborted", Some("unknown")));
     }

@@ -941,7 +941,6 @@ fn track_file(
         file.landings = m.landings.iter().map(|l| landing(l.pad, l.error_m, l.on_pad)).collect();
         file.distance_m = m.distance_m;
     } else if let Some(h) = hover {
-        file.outcome = (if h.passed { "completed" } else { "failed" }).into();
         file.mission_state = h.mission_end_state;
         if h.landed {
             let at = p.quad.position();
@@ -950,6 +949,11 @@ fn track_file(
             file.landings
                 .push(landing(pad, (at[0] - c[0]).hypot(at[1] - c[1]), on_pad));
         }
+        // The simulator's words for the end state (a hover completes on the take-off pad, home).
+        let on_home_pad = file.landings.last().is_some_and(|l| l.on_pad && l.pad == 0);
+        let (outcome, reason) = mission::outcome_and_reason(0, h.mission_end_state, on_home_pad);
+        file.outcome = outcome.into();
+        file.reason = reason.map(Into::into);
     }
     file.distance_m = if mission.is_some() {
         file.distance_m

@@ -166,7 +166,11 @@ impl MissionJudge {
 
 /// The outcome and reason words `cfnav sim` gives the same ending (`tools/src/sim/runner.rs`): a collision
 /// first, then the image's logged end state (`None`: it never logged one within the run).
-fn outcome_and_reason(collisions: u32, end_state: Option<u32>, on_pads: bool) -> (&'static str, Option<&'static str>) {
+pub fn outcome_and_reason(
+    collisions: u32,
+    end_state: Option<u32>,
+    on_pads: bool,
+) -> (&'static str, Option<&'static str>) {
     use cfnav::mission::MissionState as S;
     if collisions > 0 {
         return ("crashed", Some("collision"));
@@ -252,7 +256,10 @@ mod tests {
             outcome_and_reason(0, Some(208), true),
             ("aborted", Some("link_lost_home"))
         );
-        assert_eq!(outcome_and_reason(0, Some(209), false), ("aborted", Some("ranger_lost")));
+        assert_eq!(
+            outcome_and_reason(0, Some(209), false),
+            ("aborted", Some("ranger_lost"))
+        );
         assert_eq!(outcome_and_reason(0, None, false), ("timeout", Some("time_limit")));
         assert_eq!(outcome_and_reason(0, Some(77), false), ("aborted", Some("unknown")));
     }

@@ -190,30 +190,22 @@ pub fn draw_track(track: &Track, path: &Path) -> Result<(), String> {
     };
     let result = RunResult {
         report: RunReport {
-            world: track.world.clone(),
             seed: track.seed,
-            outcome: "emulated",
-            reason: None,
             mission_time_s: track.mission_time_s,
             collisions: track.collisions,
             min_clearance_m: track.min_clearance_m,
             landings,
-            replans: 0,
             distance_m: track.distance_m,
             sim_time_s: track.virtual_s,
             wall_time_s: track.wall_s,
             mission_state: track.mission_state.and_then(|s| u8::try_from(s).ok()).unwrap_or(0),
             max_estimate_error_m: max_err,
             rms_estimate_error_m: rms_err,
-            max_height_error_m: 0.0,
-            collision_states: Vec::new(),
-            collision_points: Vec::new(),
-            needs_large_arena: false,
-            link_lost_at_s: None,
-            link_lost_point: None,
-            mode: if track.mode == "hover" { "hover" } else { "round_trip" },
-            hover: None,
-            explore: None,
+            ..RunReport::without_flight(
+                track.world.clone(),
+                "emulated",
+                if track.mode == "hover" { "hover" } else { "round_trip" },
+            )
         },
         trace: track
             .points

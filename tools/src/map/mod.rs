@@ -281,31 +281,9 @@ pub fn plot(s: &MapSnapshot, world: Option<&World>, uri: &str, path: &Path) -> R
     };
     let result = RunResult {
         report: RunReport {
-            world: base.name.clone(),
-            seed: 0,
-            outcome: "downloaded",
-            reason: None,
-            mission_time_s: None,
-            collisions: 0,
-            min_clearance_m: None,
-            landings: Vec::new(),
-            replans: 0,
-            distance_m: 0.0,
-            sim_time_s: 0.0,
-            wall_time_s: 0.0,
             mission_state: s.mission_state,
-            max_estimate_error_m: 0.0,
-            rms_estimate_error_m: 0.0,
-            max_height_error_m: 0.0,
-            collision_states: Vec::new(),
-            collision_points: Vec::new(),
-            needs_large_arena: false,
-            link_lost_at_s: None,
-            link_lost_point: None,
             // The downloaded map does not say which mission drew it.
-            mode: "unknown",
-            hover: None,
-            explore: None,
+            ..RunReport::without_flight(base.name.clone(), "downloaded", "unknown")
         },
         trace: Vec::new(),
         paths: if s.path.is_empty() {

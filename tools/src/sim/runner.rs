@@ -155,6 +155,40 @@ pub struct RunReport {
     pub explore: Option<ExploreReport>,
 }
 
+impl RunReport {
+    /// A report of no simulator flight: no landings, no collisions, every figure zero, for a figure drawn
+    /// from something else (`cfnav map`'s downloaded map, `cfnav pil --plot`'s emulated flight), which
+    /// then sets what it knows.
+    pub fn without_flight(world: String, outcome: &'static str, mode: &'static str) -> Self {
+        Self {
+            world,
+            seed: 0,
+            outcome,
+            reason: None,
+            mission_time_s: None,
+            collisions: 0,
+            min_clearance_m: None,
+            landings: Vec::new(),
+            replans: 0,
+            distance_m: 0.0,
+            sim_time_s: 0.0,
+            wall_time_s: 0.0,
+            mission_state: 0,
+            max_estimate_error_m: 0.0,
+            rms_estimate_error_m: 0.0,
+            max_height_error_m: 0.0,
+            link_lost_at_s: None,
+            link_lost_point: None,
+            collision_states: Vec::new(),
+            collision_points: Vec::new(),
+            needs_large_arena: false,
+            mode,
+            hover: None,
+            explore: None,
+        }
+    }
+}
+
 /// The hover test in the report: the firmware's figures (`mission.hoverDevXY`, `.hoverDevZ`: the estimate's
 /// view) beside the truth's.
 #[derive(Clone, Debug, Serialize, PartialEq)]

@@ -20,6 +20,9 @@ const MAX_FLOOR_REFUSALS: u8 = 4;
 const PAD_EDGE_MARGIN_M: f32 = 0.04;
 /// Pad height assumed before the detector has measured one, m (the pads are ~10 cm high).
 const PAD_HEIGHT_FALLBACK_M: f32 = 0.1;
+/// Pad centres remembered across the detector's restarts on one leg (see [`Touchdown::glimpses`]): a leg
+/// restarts it at most a few times (two refusals, two widenings, a refinement round each).
+const GLIMPSES: usize = 6;
 /// An approach that has not descended after this long is refused, s (readings missing or undecided).
 const APPROACH_TIMEOUT_S: f32 = 6.0;
 
@@ -38,6 +41,11 @@ pub(super) struct Touchdown {
     pub floor_refusals: u8,
     /// When the current approach began.
     pub since: Option<Micros>,
+    /// Pad centres the detector had estimated on this leg before it started afresh (a refused descent, a
+    /// refinement round, a widened search), newest first: a landing clear of the pad keeps clear of each,
+    /// since the detector's current estimate (if any) knows nothing of them (measured: a pad next to a
+    /// wall, three rounds without a lock, then a floor spot 5 cm beside the pad's side, touched).
+    pub glimpses: [Option<(f32, f32)>; GLIMPSES],
 }
 
 impl Touchdown {
@@ -49,6 +57,15 @@ impl Touchdown {
             widenings: 0,
             floor_refusals: 0,
             since: None,
+            glimpses: [None; GLIMPSES],
+        }
+    }
+
+    /// Keep `centre` as the newest glimpse (the oldest one is forgotten when all slots are full).
+    pub(super) fn remember_glimpse(&mut self, centre: (f32, f32)) {
+        if centre.0.is_finite() && centre.1.is_finite() {
+            self.glimpses.rotate_right(1);
+            self.glimpses[0] = Some(centre);
         }
     }
 }
@@ -98,6 +115,14 @@ impl<const CELLS: usize, const QUEUE: usize> Mission<CELLS, QUEUE> {
         };
         let slowest_m_s = self.config.descent_speed_m_s.clamp(0.05, FAULT_DESCENT_SPEED_M_S);
         (((height_m + 0.2) / slowest_m_s + 1.0) * 1e6) as u64
+    }
+
+    /// Start the pad detector afresh within a leg, remembering its estimate (if any) as a glimpse.
+    pub(super) fn restart_pad_detector(&mut self) {
+        if let Some(e) = self.pad.estimate() {
+            self.touchdown.remember_glimpse((e.x, e.y));
+        }
+        self.pad.reset();
     }
 
     /// The pad's height as the detector measured it (median of its crossings' steps), m.
@@ -166,7 +191,7 @@ impl<const CELLS: usize, const QUEUE: usize> Mission<CELLS, QUEUE> {
                     return self.give_up_search(state);
                 }
                 let centre = self.pad.estimate().map_or((px, py), |e| (e.x, e.y));
-                self.pad.reset();
+                self.restart_pad_detector();
                 let refine = Search::Refine {
                     stage: 0,
                     line: 0,

@@ -379,7 +379,7 @@ impl<const CELLS: usize, const QUEUE: usize> Mission<CELLS, QUEUE> {
                     self.pad.flush();
                     let c = self.pad.estimate().map(|e| (e.x, e.y)).unwrap_or(centre);
                     if (stage + 1) % 2 == 0 {
-                        self.pad.reset();
+                        self.restart_pad_detector();
                     }
                     Search::Refine {
                         stage: stage + 1,
@@ -508,7 +508,7 @@ impl<const CELLS: usize, const QUEUE: usize> Mission<CELLS, QUEUE> {
             sweep.axis = SweepAxis::Auto;
             if let Ok(s) = LawnmowerSweep::new(centre, here, &sweep, &arena) {
                 self.sweep = Some(s);
-                self.pad.reset();
+                self.restart_pad_detector();
                 let search = Search::Coarse {
                     step: 0,
                     reverse: false,
@@ -537,12 +537,14 @@ impl<const CELLS: usize, const QUEUE: usize> Mission<CELLS, QUEUE> {
     /// spot nearest the drone (rings [`FLOOR_SPOT_STEP_M`] apart, eight points each) that keeps
     /// [`FLOOR_SPOT_CLEARANCE_M`] from what is mapped, is reachable in a straight line, lies at least
     /// [`PAD_REACH_M`] from the pad's nominal point (the pad lies within 0.35 m of it) or, when even that
-    /// finds nothing, from the best estimate and away from every pad edge seen; the descent gate then
+    /// finds nothing, from the best estimate, from every earlier estimate of this leg ([`Touchdown::glimpses`])
+    /// and away from every pad edge seen; the descent gate then
     /// wants the floor under the drone. Without any such spot: where the drone is.
     pub(super) fn land_clear_of_pad(&mut self, state: &StateEstimate) -> Setpoint {
         let here = (state.position_m[0], state.position_m[1]);
         let nominal = self.leg_target();
         let estimate = self.pad.estimate().map(|e| (e.x, e.y));
+        let glimpses = self.touchdown.glimpses;
         let skip = usize::from(self.touchdown.floor_refusals);
         let mut found = 0usize;
         let far = |p: (f32, f32), q: (f32, f32), r: f32| libm::hypotf(p.0 - q.0, p.1 - q.1) >= r;
@@ -558,6 +560,7 @@ impl<const CELLS: usize, const QUEUE: usize> Mission<CELLS, QUEUE> {
                         far(p, nominal, PAD_REACH_M)
                     } else {
                         estimate.is_none_or(|e| far(p, e, PAD_ESTIMATE_REACH_M))
+                            && glimpses.iter().flatten().all(|g| far(p, *g, PAD_ESTIMATE_REACH_M))
                             && self.pad.edges().iter().all(|e| far(p, (e.x, e.y), PAD_EDGE_REACH_M))
                     };
                     if clear_of_pad

@@ -96,7 +96,7 @@ pub use config::{
 };
 pub use explore::{ExploreEnd, MissionNote};
 
-use crate::landing::pad::PadDetector;
+use crate::landing::pad::{EdgeKind, PadDetector};
 use crate::landing::sweep::LawnmowerSweep;
 use crate::math::{body_to_arena, wrap_angle};
 use crate::nav::avoidance::{AvoidanceConfig, RangerReadings, ReactiveAvoidance};
@@ -284,6 +284,9 @@ const BODY_RADIUS_M: f32 = 0.06;
 /// Kept between the body and the square an unlocked pad estimate may cover, m: the estimate's error
 /// after one or two crossings (a few cm) and the landing's own drift.
 const UNLOCKED_PAD_MARGIN_M: f32 = 0.06;
+/// A landing point farther than this from an unmatched pad entry edge is not taken back behind it, m: past
+/// the pad's diagonal (0.42 m) with room for a missed exit, the drone has left that pad.
+const ENTRY_RETREAT_MAX_M: f32 = 0.5;
 /// Within this distance of the leg's target the navigating drone already feeds the pad detector, m.
 const PAD_LOOKOUT_RADIUS_M: f32 = 0.8;
 /// The hover test's hold and the exploration's first look begin once the climb is this close below the
@@ -666,7 +669,9 @@ impl<const CELLS: usize, const QUEUE: usize> Mission<CELLS, QUEUE> {
     /// A landing point moved off a pad being searched for (not yet locked, so [`Self::pad_snap_landing_point`]
     /// cannot put it on the centre): a body coming down across a pad's rim touches its side (measured: an
     /// abort 3 cm beside the goal pad's edge during its search, the edge just crossed and not yet reported).
-    /// First out of the square the pad estimate's centre may cover with the body (half the pad size, the
+    /// Without a pad estimate but with an entry edge as the last one seen (within [`ENTRY_RETREAT_MAX_M`]),
+    /// first back behind that edge along the line from the drone (the floor flown over before it). Then out
+    /// of the square the pad estimate's centre may cover with the body (half the pad size, the
     /// body radius and [`UNLOCKED_PAD_MARGIN_M`]), across its nearer side; then straight away from any edge
     /// seen within [`search::PAD_EDGE_REACH_M`], up to three times. Kept only if it then clears the square
     /// and every edge, keeps the search's floor-spot clearance from what is mapped and is reachable in a
@@ -686,6 +691,19 @@ impl<const CELLS: usize, const QUEUE: usize> Mission<CELLS, QUEUE> {
         let inside =
             |q: (f32, f32)| centre.is_some_and(|c| libm::fabsf(q.0 - c.0) < half && libm::fabsf(q.1 - c.1) < half);
         let mut q = p;
+        // Over a pad top not yet estimated (the last edge an entry with no exit after it), or just past
+        // its exit not yet reported: nothing tells how far the pad reaches to either side, but the floor
+        // before the entry edge was flown over. Go back along the track, past that edge by its reach.
+        if centre.is_none()
+            && let Some(enter) = self.pad.edges().last().filter(|e| e.kind == EdgeKind::Enter)
+        {
+            let (dx, dy) = (enter.x - q.0, enter.y - q.1);
+            let d = libm::hypotf(dx, dy);
+            if d > 1e-3 && d < ENTRY_RETREAT_MAX_M {
+                let to = reach + 0.001;
+                q = (enter.x + dx * to / d, enter.y + dy * to / d);
+            }
+        }
         if let Some(c) = centre
             && inside(q)
         {

@@ -287,6 +287,9 @@ const UNLOCKED_PAD_MARGIN_M: f32 = 0.06;
 /// A landing point farther than this from an unmatched pad entry edge is not taken back behind it, m: past
 /// the pad's diagonal (0.42 m) with room for a missed exit, the drone has left that pad.
 const ENTRY_RETREAT_MAX_M: f32 = 0.5;
+/// A landing where the drone is descends once within this of its landing point, m; farther, it first flies
+/// there at its height.
+const EMERGENCY_MOVE_TOLERANCE_M: f32 = 0.05;
 /// Within this distance of the leg's target the navigating drone already feeds the pad detector, m.
 const PAD_LOOKOUT_RADIUS_M: f32 = 0.8;
 /// The hover test's hold and the exploration's first look begin once the climb is this close below the
@@ -949,6 +952,23 @@ impl<const CELLS: usize, const QUEUE: usize> Mission<CELLS, QUEUE> {
                 {
                     self.phase = Phase::Ended(then);
                     return Setpoint::Stop;
+                }
+                // A landing point moved away from where the drone was (off a pad's rim, onto a known pad's
+                // centre) is flown to at the height the drone has, then descended onto: a descent on the
+                // way would cross a pad's rim low, where its side can be touched.
+                let err = libm::hypotf(lx - x, ly - y);
+                if state.valid && err > EMERGENCY_MOVE_TOLERANCE_M && z - state.surface_height_m > 0.15 {
+                    let speed = self
+                        .config
+                        .search_speed_m_s
+                        .min(2.0 * (err - 0.5 * EMERGENCY_MOVE_TOLERANCE_M));
+                    let ((vx, vy), _) = self.live_beam_guard(state, (speed * (lx - x) / err, speed * (ly - y) / err));
+                    return Setpoint::Velocity {
+                        vx_m_s: vx,
+                        vy_m_s: vy,
+                        z_m: z,
+                        yaw_rad: self.heading,
+                    };
                 }
                 // Without a usable estimate the horizontal velocity is no longer observed and drifts (a few
                 // cm/s after the brake): the sooner the drone is down, the less it slides.

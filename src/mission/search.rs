@@ -39,7 +39,7 @@ const MAX_WIDENINGS: u8 = 1;
 const WIDEN_M: f32 = 0.4;
 /// A landing clear of the pad keeps this far from the pad's nominal point, m: the pad's centre lies within
 /// 0.35 m of it, its corner 0.21 m further, the body 0.06 m, 0.05 m for the drift.
-const PAD_REACH_M: f32 = 0.67;
+pub(super) const PAD_REACH_M: f32 = 0.67;
 /// Failing that, this far from the pad estimate's centre (half the pad's diagonal, the body, drift), m.
 const PAD_ESTIMATE_REACH_M: f32 = 0.33;
 /// ... and this far from each pad edge seen (the body and drift), m.
@@ -542,14 +542,20 @@ impl<const CELLS: usize, const QUEUE: usize> Mission<CELLS, QUEUE> {
     /// wants the floor under the drone. Without any such spot: where the drone is.
     pub(super) fn land_clear_of_pad(&mut self, state: &StateEstimate) -> Setpoint {
         let here = (state.position_m[0], state.position_m[1]);
+        let spot = self.floor_spot_clear_of_pad(here, usize::from(self.touchdown.floor_refusals));
+        self.begin_approach(spot.unwrap_or(here), Target::Floor)
+    }
+
+    /// The floor spot of [`Self::land_clear_of_pad`]'s rule nearest `here`, skipping the first `skip` that
+    /// qualify (spots refused already); `None` when none qualifies. At most 2 × 65 candidates, each
+    /// O(edges + glimpses) plus a clearance look-up and a straight-line check on the grid.
+    pub(super) fn floor_spot_clear_of_pad(&self, here: (f32, f32), skip: usize) -> Option<(f32, f32)> {
         let nominal = self.leg_target();
         let estimate = self.pad.estimate().map(|e| (e.x, e.y));
         let glimpses = self.touchdown.glimpses;
-        let skip = usize::from(self.touchdown.floor_refusals);
         let mut found = 0usize;
         let far = |p: (f32, f32), q: (f32, f32), r: f32| libm::hypotf(p.0 - q.0, p.1 - q.1) >= r;
-        let mut spot = None;
-        'strict: for strict in [true, false] {
+        for strict in [true, false] {
             for ring in 0..FLOOR_SPOT_RINGS {
                 let radius = FLOOR_SPOT_STEP_M * f32::from(ring);
                 let points: u8 = if ring == 0 { 1 } else { 8 };
@@ -568,14 +574,13 @@ impl<const CELLS: usize, const QUEUE: usize> Mission<CELLS, QUEUE> {
                         && self.clip_to_clearance(here, p) == p
                     {
                         if found == skip {
-                            spot = Some(p);
-                            break 'strict;
+                            return Some(p);
                         }
                         found += 1;
                     }
                 }
             }
         }
-        self.begin_approach(spot.unwrap_or(here), Target::Floor)
+        None
     }
 }

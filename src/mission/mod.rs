@@ -284,9 +284,6 @@ const BODY_RADIUS_M: f32 = 0.06;
 /// Kept between the body and the square an unlocked pad estimate may cover, m: the estimate's error
 /// after one or two crossings (a few cm) and the landing's own drift.
 const UNLOCKED_PAD_MARGIN_M: f32 = 0.06;
-/// A landing point farther than this from an unmatched pad entry edge is not taken back behind it, m: past
-/// the pad's diagonal (0.42 m) with room for a missed exit, the drone has left that pad.
-const ENTRY_RETREAT_MAX_M: f32 = 0.5;
 /// A landing where the drone is descends once within this of its landing point, m; farther, it first flies
 /// there at its height.
 const EMERGENCY_MOVE_TOLERANCE_M: f32 = 0.05;
@@ -610,23 +607,32 @@ impl<const CELLS: usize, const QUEUE: usize> Mission<CELLS, QUEUE> {
     /// it is, moved off any pad edge seen ([`Self::off_pad_edges`]). A moved point is flown to at the
     /// drone's height before the descent.
     fn land_where_it_is(&mut self, state: &StateEstimate, then: MissionState) {
+        // Above half the pad's height, the estimator's surface under the drone is a pad's top, not the floor.
+        let over_raised_surface = state.surface_height_m > 0.5 * self.pad_height();
         let (x, y) = match self.phase {
             Phase::Approach { x, y, .. } | Phase::Land { x, y } => (x, y),
-            Phase::NoPath { x, y, .. } => self.off_pad_edges(self.pad_snap_landing_point((x, y))),
-            _ => {
-                let here = (state.position_m[0], state.position_m[1]);
-                let snapped = self.pad_snap_landing_point(here);
-                if snapped == here && self.goal_pad_may_lie_under(here) {
-                    // Where the goal pad may lie and it is not located: come down on the floor clear of
-                    // anywhere it can be, as a search that gives up does, rather than where its rim may be.
-                    self.floor_spot_clear_of_pad(here, 0)
-                        .unwrap_or_else(|| self.off_pad_edges(here))
-                } else {
-                    self.off_pad_edges(snapped)
-                }
-            }
+            Phase::NoPath { x, y, .. } => self.landing_point_near((x, y), over_raised_surface),
+            _ => self.landing_point_near((state.position_m[0], state.position_m[1]), over_raised_surface),
         };
         self.phase = Phase::EmergencyLand { x, y, then };
+    }
+
+    /// [`Self::land_where_it_is`]'s landing point for a drone at `here` that is not over a pad it was
+    /// landing on: a known pad's centre within [`PAD_SNAP_M`], kept as it is (a pad's centre is where the
+    /// body is farthest from its rim; moving it off the detector's estimate of that pad, measured, put it
+    /// 21 cm from the home pad's centre, across the rim); else where the goal pad may lie and is not
+    /// located, a floor spot clear of anywhere it can be, as a search that gives up lands; else `here`
+    /// moved off the pad edges seen.
+    fn landing_point_near(&self, here: (f32, f32), over_raised_surface: bool) -> (f32, f32) {
+        let snapped = self.pad_snap_landing_point(here);
+        if snapped != here {
+            snapped
+        } else if self.goal_pad_may_lie_under(here) {
+            self.floor_spot_clear_of_pad(here, 0)
+                .unwrap_or_else(|| self.off_pad_edges(here, over_raised_surface))
+        } else {
+            self.off_pad_edges(here, over_raised_surface)
+        }
     }
 
     /// The radio link was lost (see [`link_loss`]): apply `policy`. Does nothing when no mission runs or
@@ -696,14 +702,15 @@ impl<const CELLS: usize, const QUEUE: usize> Mission<CELLS, QUEUE> {
     /// A landing point moved off a pad being searched for (not yet locked, so [`Self::pad_snap_landing_point`]
     /// cannot put it on the centre): a body coming down across a pad's rim touches its side (measured: an
     /// abort 3 cm beside the goal pad's edge during its search, the edge just crossed and not yet reported).
-    /// Without a pad estimate but with an entry edge as the last one seen (within [`ENTRY_RETREAT_MAX_M`]),
-    /// first back behind that edge along the line from the drone (the floor flown over before it). Then out
-    /// of the square the pad estimate's centre may cover with the body (half the pad size, the
+    /// Without a pad estimate but with an entry edge as the last one seen, closer than the pad's diagonal
+    /// with the body and a margin: first back behind that edge along the line from the drone when over a
+    /// raised surface (the floor flown over before it), else on along that line until that far from the
+    /// edge (past the pad it crossed). Then out of the square the pad estimate's centre may cover with the body (half the pad size, the
     /// body radius and [`UNLOCKED_PAD_MARGIN_M`]), across its nearer side; then straight away from any edge
     /// seen within [`search::PAD_EDGE_REACH_M`], up to three times. Kept only if it then clears the square
     /// and every edge, keeps the search's floor-spot clearance from what is mapped and is reachable in a
     /// straight line; else the point is returned unchanged. O(edges) per push.
-    fn off_pad_edges(&self, p: (f32, f32)) -> (f32, f32) {
+    fn off_pad_edges(&self, p: (f32, f32), over_raised_surface: bool) -> (f32, f32) {
         let reach = search::PAD_EDGE_REACH_M;
         let nearest = |q: (f32, f32)| {
             self.pad
@@ -718,16 +725,23 @@ impl<const CELLS: usize, const QUEUE: usize> Mission<CELLS, QUEUE> {
         let inside =
             |q: (f32, f32)| centre.is_some_and(|c| libm::fabsf(q.0 - c.0) < half && libm::fabsf(q.1 - c.1) < half);
         let mut q = p;
-        // Over a pad top not yet estimated (the last edge an entry with no exit after it), or just past
-        // its exit not yet reported: nothing tells how far the pad reaches to either side, but the floor
-        // before the entry edge was flown over. Go back along the track, past that edge by its reach.
+        // The last edge an entry with no exit after it and no pad estimate: nothing tells how far the pad
+        // reaches to either side. Over its top still, go back along the line from the drone, behind that
+        // edge by its reach (the floor flown over before it). Over the floor, the drone has crossed it
+        // (its exit not reported yet) or the edge was false: go on along that line until the whole pad the
+        // edge may belong to lies behind (its diagonal, the body and a margin from the edge).
+        let past_entry = core::f32::consts::SQRT_2 * self.config.pad.pad_size_m + BODY_RADIUS_M + UNLOCKED_PAD_MARGIN_M;
         if centre.is_none()
             && let Some(enter) = self.pad.edges().last().filter(|e| e.kind == EdgeKind::Enter)
         {
-            let (dx, dy) = (enter.x - q.0, enter.y - q.1);
+            let (dx, dy) = (q.0 - enter.x, q.1 - enter.y);
             let d = libm::hypotf(dx, dy);
-            if d > 1e-3 && d < ENTRY_RETREAT_MAX_M {
-                let to = reach + 0.001;
+            if d > 1e-3 && d < past_entry {
+                let to = if over_raised_surface {
+                    -(reach + 0.001)
+                } else {
+                    past_entry + 0.001
+                };
                 q = (enter.x + dx * to / d, enter.y + dy * to / d);
             }
         }

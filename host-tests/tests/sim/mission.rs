@@ -528,50 +528,59 @@ fn an_abort_near_a_pad_lands_on_its_centre() {
     assert!(near_pad_cases >= 2, "the sweep must include aborts near a pad");
 }
 
-/// An abort at any moment of the goal pad's search, before the pad is located: landing exactly where the
-/// drone is can put the body across the pad's rim. Measured before the rule below: aborts every 0.1 s
-/// through the default world's search touched the pad's side in 13 of 82 runs (81 of 808 over noise seeds
-/// 1–8), an edge just crossed and not yet reported, or no edge seen at all. Now a landing where the goal
-/// pad may lie goes to the nearest floor spot clear of anywhere the pad can be (`Mission::land_where_it_is`),
-/// flown to at cruise height before the descent: every abort lands with no collision, beside the pad, and
-/// soon (within 6 s).
+/// An abort at any moment of a pad search, before the pad is located: landing exactly where the drone is
+/// can put the body across the pad's rim. Measured before the rules below, aborts every 0.1 s through the
+/// default world's searches touched a pad's side in 13 of 82 runs during the goal search (81 of 808 over
+/// noise seeds 1–8: an edge just crossed and not yet reported, or no edge seen at all) and 4 of 66 during
+/// the home search (moved off the detector's estimate of the home pad after being put on its centre). Now
+/// (`Mission::land_where_it_is`): where the goal pad may lie and is not located, the nearest floor spot clear
+/// of anywhere it can be; near the home pad, its centre as the mission knows it; a moved point is flown to
+/// at cruise height before the descent. Every abort lands with no collision, on the pad's centre or clear of
+/// it, and soon (within 6 s).
 #[test]
-fn an_abort_anywhere_in_the_goal_search_lands_clear_of_the_pad() {
+fn an_abort_anywhere_in_a_pad_search_lands_on_the_pad_or_clear_of_it() {
     let world = World::default_world();
-    let (search_s, approach_s) = (
-        default_world_enters(MissionState::SearchGoalPad),
-        default_world_enters(MissionState::ApproachGoalPad),
-    );
-    let pad = world.pads.last().expect("a goal pad");
-    let clear = pad.size[0].hypot(pad.size[1]) / 2.0 + BODY_RADIUS_M;
-    let mut abort_s = search_s + 0.05;
-    let mut aborts = 0;
-    while abort_s < approach_s {
-        let mut options = RunOptions::for_world(&world);
-        options.faults = Faults {
-            abort_at_s: Some(abort_s),
-            ..Faults::default()
-        };
-        let rep = run(&world, &options).expect("runs").report;
-        println!(
-            "abort at {abort_s:.2} s: {} {:?}, landings {:?}",
-            rep.outcome, rep.reason, rep.landings
-        );
-        assert_eq!(rep.collisions, 0, "abort at {abort_s:.2} s: {rep:?}");
-        assert_eq!(
-            (rep.outcome, rep.reason),
-            ("aborted", Some("aborted")),
-            "abort at {abort_s:.2} s"
-        );
-        let last = rep.landings.last().expect("it landed");
-        assert!(
-            !last.on_pad && last.error_m > clear,
-            "abort at {abort_s:.2} s: landed {last:?}, not clear of the goal pad"
-        );
-        let end_s = 1.0 + rep.mission_time_s.expect("the motors stopped");
-        assert!(end_s - abort_s < 6.0, "abort at {abort_s:.2} s: down at {end_s:.2} s");
-        aborts += 1;
-        abort_s += 0.1;
+    for (search, approach, pad_index) in [
+        (
+            MissionState::SearchGoalPad,
+            MissionState::ApproachGoalPad,
+            world.pads.len() - 1,
+        ),
+        (MissionState::SearchHomePad, MissionState::ApproachHomePad, 0),
+    ] {
+        let (search_s, approach_s) = (default_world_enters(search), default_world_enters(approach));
+        let pad = &world.pads[pad_index];
+        let clear = pad.size[0].hypot(pad.size[1]) / 2.0 + BODY_RADIUS_M;
+        let mut abort_s = search_s + 0.05;
+        let mut aborts = 0;
+        while abort_s < approach_s {
+            let mut options = RunOptions::for_world(&world);
+            options.faults = Faults {
+                abort_at_s: Some(abort_s),
+                ..Faults::default()
+            };
+            let rep = run(&world, &options).expect("runs").report;
+            println!(
+                "{search:?}, abort at {abort_s:.2} s: {} {:?}, landings {:?}",
+                rep.outcome, rep.reason, rep.landings
+            );
+            assert_eq!(rep.collisions, 0, "abort at {abort_s:.2} s: {rep:?}");
+            assert_eq!(
+                (rep.outcome, rep.reason),
+                ("aborted", Some("aborted")),
+                "abort at {abort_s:.2} s"
+            );
+            let last = rep.landings.last().expect("it landed");
+            assert_eq!(last.pad, pad_index, "abort at {abort_s:.2} s: {last:?}");
+            assert!(
+                (last.on_pad && last.error_m < 0.06) || (!last.on_pad && last.error_m > clear),
+                "abort at {abort_s:.2} s: landed {last:?}, neither on the pad's centre nor clear of it"
+            );
+            let end_s = 1.0 + rep.mission_time_s.expect("the motors stopped");
+            assert!(end_s - abort_s < 6.0, "abort at {abort_s:.2} s: down at {end_s:.2} s");
+            aborts += 1;
+            abort_s += 0.1;
+        }
+        assert!(aborts >= 40, "{search:?}: {aborts} aborts through the search");
     }
-    assert!(aborts >= 60, "{aborts} aborts through the search");
 }

@@ -17,6 +17,11 @@ use crate::types::{MultiRangerSample, Setpoint, StateEstimate};
 /// Search lines stop this far from mapped obstacles and arena walls, m: the drone's radius (0.06 m), the
 /// estimate's drift over a search (≈ 5 cm) and tracking overshoot at a line's end.
 const SEARCH_CLEARANCE_M: f32 = 0.18;
+/// Along a search line the drone steers for the point this far ahead of its projection onto the line, m
+/// (pure pursuit: an offset from the line decays over about this much travel).
+const LINE_LOOKAHEAD_M: f32 = 0.2;
+/// Closer than this to the line, the drone flies straight at the line's end, m.
+const LINE_STRAIGHT_M: f32 = 0.02;
 /// A drone this close to a coarse line, between its ends, flies on along it rather than back to its start, m.
 const ON_LINE_TOLERANCE_M: f32 = 0.1;
 /// Mapped cells lying wholly within this of the arena's boundary are the wall's own returns, m (two cells:
@@ -149,11 +154,22 @@ impl<const CELLS: usize, const QUEUE: usize> Mission<CELLS, QUEUE> {
     /// Fly towards `target` at the search speed (stopping short of mapped obstacles, see
     /// [`Self::clip_to_clearance`], and of what the live beams see, see [`Self::live_beam_guard`]); `true`
     /// once within 3 cm of where it can get, or when a beam closes the way ahead.
-    pub(super) fn fly_to(&mut self, state: &StateEstimate, target: (f32, f32)) -> (Setpoint, bool) {
+    pub(super) fn fly_to(
+        &mut self,
+        state: &StateEstimate,
+        target: (f32, f32),
+        line_from: Option<(f32, f32)>,
+    ) -> (Setpoint, bool) {
         let (x, y) = (state.position_m[0], state.position_m[1]);
         let target = self.clip_to_clearance((x, y), target);
-        let (dx, dy) = (target.0 - x, target.1 - y);
-        let d = libm::hypotf(dx, dy);
+        let d = libm::hypotf(target.0 - x, target.1 - y);
+        // Along a line (`line_from → target`), steer for a point [`LINE_LOOKAHEAD_M`] ahead on the line
+        // rather than straight for its end: a drone that joined the line a few centimetres off (the
+        // on-line rule, the end of a turn) converges onto it within a few tenths of a metre instead of
+        // flying a slanted track, so the pattern's lines lie where they were laid out.
+        let aim = line_from.map_or(target, |a| Self::line_carrot((x, y), a, target));
+        let (dx, dy) = (aim.0 - x, aim.1 - y);
+        let d_aim = libm::hypotf(dx, dy);
         // Line ends lie off the pad, so they need no precision; a firm approach (about 2.5 m/s² of
         // deceleration demand, 4 cm tolerance) keeps each line short in time, and with it the drift
         // between the crossings the detector compares.
@@ -168,8 +184,8 @@ impl<const CELLS: usize, const QUEUE: usize> Mission<CELLS, QUEUE> {
                 self.heading = Self::look_with_nearest_beam(self.heading, (x, y), cell);
             }
         }
-        let (vx, vy) = if d > 1e-3 {
-            (speed * dx / d, speed * dy / d)
+        let (vx, vy) = if d > 1e-3 && d_aim > 1e-3 {
+            (speed * dx / d_aim, speed * dy / d_aim)
         } else {
             (0.0, 0.0)
         };
@@ -187,6 +203,28 @@ impl<const CELLS: usize, const QUEUE: usize> Mission<CELLS, QUEUE> {
             },
             reached,
         )
+    }
+
+    /// The point [`LINE_LOOKAHEAD_M`] beyond `p`'s projection onto the line `a → b`, or `b` itself when
+    /// that lies within the look-ahead (or the line is degenerate or not finite).
+    pub(super) fn line_carrot(p: (f32, f32), a: (f32, f32), b: (f32, f32)) -> (f32, f32) {
+        let (ux, uy) = (b.0 - a.0, b.1 - a.1);
+        let length = libm::hypotf(ux, uy);
+        if !(length.is_finite() && length > 1e-3) {
+            return b;
+        }
+        let (ux, uy) = (ux / length, uy / length);
+        // Within a couple of centimetres of the line, fly straight at its end: a steady heading, which
+        // the detector's crossings want, rather than steering after every jump of the estimate.
+        let across = (p.0 - a.0) * uy - (p.1 - a.1) * ux;
+        if !(libm::fabsf(across) > LINE_STRAIGHT_M) {
+            return b;
+        }
+        let along = ((p.0 - a.0) * ux + (p.1 - a.1) * uy).max(0.0) + LINE_LOOKAHEAD_M;
+        if !along.is_finite() || along >= length {
+            return b;
+        }
+        (a.0 + along * ux, a.1 + along * uy)
     }
 
     /// Bounds the arena-frame velocity `v` by what the four horizontal beams read now: the component
@@ -292,8 +330,14 @@ impl<const CELLS: usize, const QUEUE: usize> Mission<CELLS, QUEUE> {
                 } else {
                     step
                 };
-                let wp = if step % 2 == 0 { first } else { second };
-                let (sp, reached) = self.fly_to(state, wp);
+                // The first line (through the nominal point, usually joined on the way in by the rule
+                // above, a few centimetres off it) is steered onto; the others are flown straight.
+                let (wp, line_from) = if step % 2 == 0 {
+                    (first, None)
+                } else {
+                    (second, (step / 2 == 0).then_some(first))
+                };
+                let (sp, reached) = self.fly_to(state, wp, line_from);
                 if reached {
                     self.line_end_reached(state, wp);
                 }
@@ -344,7 +388,7 @@ impl<const CELLS: usize, const QUEUE: usize> Mission<CELLS, QUEUE> {
                 // Alternate directions so consecutive lines join up like a lawnmower.
                 let (first, second) = if line % 2 == 0 { (a, b) } else { (b, a) };
                 let wp = if end == 0 { first } else { second };
-                let (sp, reached) = self.fly_to(state, wp);
+                let (sp, reached) = self.fly_to(state, wp, None);
                 if reached {
                     self.line_end_reached(state, wp);
                 }

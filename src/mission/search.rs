@@ -8,8 +8,9 @@
 
 use super::landing::{MAX_REFUSALS, Touchdown};
 use super::navigate::{SEARCH_UNOBSERVED_APPROACH_GAIN, SEARCH_UNOBSERVED_MIN_SPEED_M_S};
-use super::{Mission, Phase, Search};
+use super::{Leg, Mission, Phase, Search};
 use crate::landing::gate::Target;
+use crate::landing::pad::EdgeKind;
 use crate::landing::sweep::{ArenaBounds, LawnmowerSweep, SweepAxis};
 use crate::nav::map::{CELL_SIZE_M, Cell};
 use crate::types::{MultiRangerSample, Setpoint, StateEstimate};
@@ -167,7 +168,14 @@ impl<const CELLS: usize, const QUEUE: usize> Mission<CELLS, QUEUE> {
         // rather than straight for its end: a drone that joined the line a few centimetres off (the
         // on-line rule, the end of a turn) converges onto it within a few tenths of a metre instead of
         // flying a slanted track, so the pattern's lines lie where they were laid out.
-        let aim = line_from.map_or(target, |a| Self::line_carrot((x, y), a, target));
+        // Only off the pad (no entry edge waiting for its exit: a crossing is flown straight, as the
+        // detector wants), and only where the way to the steering point keeps the search clearance.
+        let on_top = self.pad.edges().last().is_some_and(|e| e.kind == EdgeKind::Enter);
+        let aim = line_from
+            .filter(|_| !on_top)
+            .map(|a| Self::line_carrot((x, y), a, target))
+            .filter(|aim| self.clip_to_clearance((x, y), *aim) == *aim)
+            .unwrap_or(target);
         let (dx, dy) = (aim.0 - x, aim.1 - y);
         let d_aim = libm::hypotf(dx, dy);
         // Line ends lie off the pad, so they need no precision; a firm approach (about 2.5 m/s² of
@@ -217,7 +225,7 @@ impl<const CELLS: usize, const QUEUE: usize> Mission<CELLS, QUEUE> {
         // Within a couple of centimetres of the line, fly straight at its end: a steady heading, which
         // the detector's crossings want, rather than steering after every jump of the estimate.
         let across = (p.0 - a.0) * uy - (p.1 - a.1) * ux;
-        if !(libm::fabsf(across) > LINE_STRAIGHT_M) {
+        if libm::fabsf(across).is_nan() || libm::fabsf(across) <= LINE_STRAIGHT_M {
             return b;
         }
         let along = ((p.0 - a.0) * ux + (p.1 - a.1) * uy).max(0.0) + LINE_LOOKAHEAD_M;
@@ -330,12 +338,16 @@ impl<const CELLS: usize, const QUEUE: usize> Mission<CELLS, QUEUE> {
                 } else {
                     step
                 };
-                // The first line (through the nominal point, usually joined on the way in by the rule
-                // above, a few centimetres off it) is steered onto; the others are flown straight.
+                // The goal leg's first line (through the nominal point, usually joined on the way in by
+                // the rule above, a few centimetres off it) is steered onto, so that it lies where the
+                // pattern's coverage assumes (the goal pad may lie up to 0.35 m off that point, and a line
+                // a few centimetres off grazes it); the others are flown straight. The home pad lies under
+                // the take-off point, so a line joined up to 0.1 m off still crosses it deeply.
+                let steer = step / 2 == 0 && self.leg == Leg::Outbound;
                 let (wp, line_from) = if step % 2 == 0 {
                     (first, None)
                 } else {
-                    (second, (step / 2 == 0).then_some(first))
+                    (second, steer.then_some(first))
                 };
                 let (sp, reached) = self.fly_to(state, wp, line_from);
                 if reached {

@@ -283,6 +283,34 @@ fn default_world_completes_and_the_estimator_stays_close_to_the_truth() {
     assert!(median_time <= 60.0, "median mission time {median_time} s");
 }
 
+/// Issue 14: the default world's round trip takes at most 55 s on its own noise seed (7) and as the median
+/// of noise seeds 1–12, with both landings on their pads. Before the goal leg's first search line was steered
+/// onto (`src/mission/search.rs`, `line_carrot`) it took 58.0 s and 55.75 s: joined 5 cm off that line and
+/// flown straight at its far end, the first line passed the goal pad's edge, found nothing, and the next
+/// line cost ~3 s (BENCHMARKS.md §5, "Mission time (session 12, mtime)").
+#[test]
+fn default_world_mission_time_is_at_most_55_s() {
+    let world = World::default_world();
+    let mut times = Vec::new();
+    for seed in 1..=12 {
+        let mut options = RunOptions::for_world(&world);
+        options.seed = seed;
+        let r = run(&world, &options).expect("runs").report;
+        assert_eq!(r.outcome, "completed", "seed {seed}: {r:?}");
+        assert_eq!(r.collisions, 0, "seed {seed}");
+        assert!(r.landings.iter().all(|l| l.on_pad), "seed {seed}: {:?}", r.landings);
+        let t = r.mission_time_s.expect("a completed mission has a time");
+        println!("seed {seed}: {t:.1} s");
+        if seed == 7 {
+            assert!(t <= 55.0, "seed 7 (the world's own): {t} s");
+        }
+        times.push(t);
+    }
+    times.sort_by(f64::total_cmp);
+    let median = 0.5 * (times[5] + times[6]);
+    assert!(median <= 55.0, "median of noise seeds 1–12: {median} s ({times:?})");
+}
+
 /// Flights whose pad searches once left the estimator's surface a pad's height too high (each crossing's
 /// blurred edges added up, or a pad left within the settling time counted as the rest of the step onto it):
 /// the height estimate went as wrong, so the drone cruised 10–15 cm lower than commanded and, in the gap

@@ -22,7 +22,7 @@ fn fly(fails_at_s: f64) -> RunResult {
 
 /// Lost just after take-off, while navigating out, during the goal-pad search and on the way home: the
 /// mission lands where it was 1 s later (within 0.2 m: the brake from cruise speed and the descent; on a
-/// known pad's centre when within 0.3 m of it), motors off within 6 s of the loss, state 209
+/// known pad's centre when within 0.3 m of it; clear of a goal pad not located yet), motors off within 6 s of the loss, state 209
 /// (`ranger_lost`), no collision. Without the watch the mission flies on blind.
 #[test]
 fn a_mission_that_loses_its_rangers_lands_where_it_is() {
@@ -51,10 +51,14 @@ fn a_mission_that_loses_its_rangers_lands_where_it_is() {
             .truth;
         let rest = r.trace.last().expect("a trace").truth;
         let off = (rest[0] - fired[0]).hypot(rest[1] - fired[1]);
+        // Within 0.35 m of a pad's centre, or (the goal pad, not located yet, may lie anywhere within
+        // 0.35 m of the goal) within 0.67 m of the nominal goal.
+        let goal = world.mission.goal;
         let near_pad = world
             .pads
             .iter()
-            .position(|p| (p.center[0] - fired[0]).hypot(p.center[1] - fired[1]) < 0.35);
+            .position(|p| (p.center[0] - fired[0]).hypot(p.center[1] - fired[1]) < 0.35)
+            .or_else(|| ((goal[0] - fired[0]).hypot(goal[1] - fired[1]) < 0.67).then_some(world.pads.len() - 1));
         let last = rep.landings.last().expect("it landed");
         println!("lost at {at:.1} s: at rest {off:.3} m from where the watch fired, {last:?}");
         // Near a pad it lands on its centre if the mission knows it, else (the goal pad not located yet)

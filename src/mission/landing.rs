@@ -257,23 +257,42 @@ impl<const CELLS: usize, const QUEUE: usize> Mission<CELLS, QUEUE> {
         if err > APPROACH_HOLD_RADIUS_M {
             // Far from the centre (the lock comes mid-line, the drone still moving away): a firm
             // velocity profile brings it back faster than the position loop's gentle step response.
-            let speed = self
-                .config
-                .search_speed_m_s
-                .min(2.0 * (err - 0.5 * APPROACH_HOLD_RADIUS_M));
-            // The live beams bound it as on a search line (a pad beside an obstacle the map missed).
-            let ((vx, vy), _) = self.live_beam_guard(state, (speed * (px - x) / err, speed * (py - y) / err));
-            return Setpoint::Velocity {
-                vx_m_s: vx,
-                vy_m_s: vy,
-                z_m: self.params.height_m,
-                yaw_rad: self.heading,
-            };
+            return self.velocity_towards(state, (px, py), APPROACH_HOLD_RADIUS_M, self.params.height_m);
         }
         Setpoint::Position {
             x_m: px,
             y_m: py,
             z_m: self.params.height_m,
+            yaw_rad: self.heading,
+        }
+    }
+
+    /// A firm velocity profile at height `z_m` towards `target`, from farther than `hold_radius_m` (where a
+    /// position hold takes over): at most the search speed, 2 m/s per metre of distance beyond half that
+    /// radius, bounded by the live beams as on a search line (a pad beside an obstacle the map missed).
+    pub(super) fn velocity_towards(
+        &self,
+        state: &StateEstimate,
+        (px, py): (f32, f32),
+        hold_radius_m: f32,
+        z_m: f32,
+    ) -> Setpoint {
+        let (x, y) = (state.position_m[0], state.position_m[1]);
+        let err = libm::hypotf(x - px, y - py);
+        if err.is_nan() || err <= 1e-3 {
+            return Setpoint::Position {
+                x_m: px,
+                y_m: py,
+                z_m,
+                yaw_rad: self.heading,
+            };
+        }
+        let speed = self.config.search_speed_m_s.min(2.0 * (err - 0.5 * hold_radius_m));
+        let ((vx, vy), _) = self.live_beam_guard(state, (speed * (px - x) / err, speed * (py - y) / err));
+        Setpoint::Velocity {
+            vx_m_s: vx,
+            vy_m_s: vy,
+            z_m,
             yaw_rad: self.heading,
         }
     }

@@ -996,17 +996,7 @@ impl<const CELLS: usize, const QUEUE: usize> Mission<CELLS, QUEUE> {
                 // way would cross a pad's rim low, where its side can be touched.
                 let err = libm::hypotf(lx - x, ly - y);
                 if state.valid && err > EMERGENCY_MOVE_TOLERANCE_M && z - state.surface_height_m > 0.15 {
-                    let speed = self
-                        .config
-                        .search_speed_m_s
-                        .min(2.0 * (err - 0.5 * EMERGENCY_MOVE_TOLERANCE_M));
-                    let ((vx, vy), _) = self.live_beam_guard(state, (speed * (lx - x) / err, speed * (ly - y) / err));
-                    return Setpoint::Velocity {
-                        vx_m_s: vx,
-                        vy_m_s: vy,
-                        z_m: z,
-                        yaw_rad: self.heading,
-                    };
+                    return self.velocity_towards(state, (lx, ly), EMERGENCY_MOVE_TOLERANCE_M, z);
                 }
                 // Without a usable estimate the horizontal velocity is no longer observed and drifts (a few
                 // cm/s after the brake): the sooner the drone is down, the less it slides.

@@ -6,9 +6,9 @@ use cfnav::mission::link_loss::{LinkLossConfig, LinkLossPolicy, LinkWatch};
 use cfnav::mission::{MissionParams, MissionState};
 use cfnav::types::{MotorDuty, Setpoint};
 use cfnav_tools::sim::runner::{Faults, RunOptions, RunResult, SimDrone, mission_params, run};
-use cfnav_tools::sim::world::{BODY_RADIUS_M, World};
+use cfnav_tools::sim::world::World;
 
-use crate::default_world_enters;
+use crate::{default_world_enters, on_pad_centre_or_clear_of_it};
 
 /// Times the link goes silent: just after take-off, early, halfway and late in the outbound navigation,
 /// during the goal-pad search, so that the timeout fires while the drone stands on the goal pad, and
@@ -99,14 +99,10 @@ fn policy_1_lands_where_the_link_was_lost() {
         // Where the goal pad may lie but was not located yet (its search), it comes down on the floor clear
         // of the pad: the body wholly beside it, never across its rim.
         match near_pad {
-            Some(i) if off >= 0.15 => {
-                let pad = &world.pads[i];
-                let clear = pad.size[0].hypot(pad.size[1]) / 2.0 + BODY_RADIUS_M;
-                assert!(
-                    (last.pad == i && last.on_pad && last.error_m < 0.06) || (!last.on_pad && last.error_m > clear),
-                    "silent at {at} s: near pad {i}, landed {last:?}"
-                )
-            }
+            Some(i) if off >= 0.15 => assert!(
+                on_pad_centre_or_clear_of_it(&world, i, last),
+                "silent at {at} s: near pad {i}, landed {last:?}"
+            ),
             _ => assert!(
                 off < 0.15,
                 "silent at {at} s: came to rest {off} m from where the link was lost"

@@ -13,8 +13,19 @@ mod stress;
 mod world;
 
 use cfnav::mission::MissionState;
-use cfnav_tools::sim::runner::{RunOptions, run};
-use cfnav_tools::sim::world::World;
+use cfnav_tools::sim::runner::{Landing, RunOptions, run};
+use cfnav_tools::sim::world::{BODY_RADIUS_M, World};
+
+/// Whether `landing` (on or beside `world.pads[pad]`) came down on that pad within 6 cm of its centre, or
+/// on the floor with the body wholly clear of the pad (farther from its centre than half its diagonal and
+/// the body's radius): never across its rim.
+pub fn on_pad_centre_or_clear_of_it(world: &World, pad: usize, landing: &Landing) -> bool {
+    let Some(p) = world.pads.get(pad) else {
+        return false;
+    };
+    let clear = p.size[0].hypot(p.size[1]) / 2.0 + BODY_RADIUS_M;
+    landing.pad == pad && ((landing.on_pad && landing.error_m < 0.06) || (!landing.on_pad && landing.error_m > clear))
+}
 
 /// When the default world's mission (its own noise seed, trigger at 1 s, nothing injected) first enters
 /// `state`, s. Tests place their faults by the mission's phases read from this run, not at fixed times, so a

@@ -5,9 +5,9 @@
 use cfnav::mission::MissionState;
 use cfnav::mission::ranger_watch::{RANGER_TIMEOUT_US, RangerWatch};
 use cfnav_tools::sim::runner::{Faults, RunOptions, RunResult, run};
-use cfnav_tools::sim::world::{BODY_RADIUS_M, World};
+use cfnav_tools::sim::world::World;
 
-use crate::default_world_enters;
+use crate::{default_world_enters, on_pad_centre_or_clear_of_it};
 
 fn fly(fails_at_s: f64) -> RunResult {
     let world = World::default_world();
@@ -64,14 +64,10 @@ fn a_mission_that_loses_its_rangers_lands_where_it_is() {
         // Near a pad it lands on its centre if the mission knows it, else (the goal pad not located yet)
         // on the floor clear of it: the body wholly beside the pad, never across its rim.
         match near_pad {
-            Some(i) if off >= 0.2 => {
-                let pad = &world.pads[i];
-                let clear = pad.size[0].hypot(pad.size[1]) / 2.0 + BODY_RADIUS_M;
-                assert!(
-                    (last.pad == i && last.on_pad && last.error_m < 0.06) || (!last.on_pad && last.error_m > clear),
-                    "lost at {at:.1} s: near pad {i}, landed {last:?}"
-                )
-            }
+            Some(i) if off >= 0.2 => assert!(
+                on_pad_centre_or_clear_of_it(&world, i, last),
+                "lost at {at:.1} s: near pad {i}, landed {last:?}"
+            ),
             _ => assert!(
                 off < 0.2,
                 "lost at {at:.1} s: came to rest {off} m from where the watch fired"

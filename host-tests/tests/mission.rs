@@ -129,11 +129,18 @@ fn abort_lands_where_it_is_or_on_the_pad_within_reach_and_ends_aborted() {
         matches!(sp, Setpoint::Descend { x_m, y_m, vz_m_s, .. } if x_m == 1.4 && y_m == 1.3 && vz_m_s < 0.0),
         "{sp:?}"
     );
-    // 0.14 m from the home pad's centre: it lands on that centre, not across the pad's rim.
+    // 0.14 m from the home pad's centre: it lands on that centre, not across the pad's rim. It flies there
+    // at its height first (straight at the centre), and descends once within 5 cm of it.
     let mut m = started_on_the_pad();
     m.tick(40_000, &at(0.6, 1.3, 0.3), &inputs);
     m.abort(&at(0.7, 1.2, 0.3));
     let sp = m.tick(60_000, &at(0.7, 1.2, 0.3), &inputs);
+    assert!(
+        matches!(sp, Setpoint::Velocity { vx_m_s, vy_m_s, z_m, .. }
+            if vx_m_s < -0.05 && (vx_m_s + vy_m_s).abs() < 1e-3 && z_m == 0.3),
+        "{sp:?}"
+    );
+    let sp = m.tick(70_000, &at(0.62, 1.29, 0.3), &inputs);
     assert!(
         matches!(sp, Setpoint::Descend { x_m, y_m, vz_m_s, .. } if x_m == 0.6 && y_m == 1.3 && vz_m_s < 0.0),
         "{sp:?}"

@@ -72,9 +72,10 @@ struct Args {
     /// The firmware ELF (default: $CARGO_TARGET_DIR or target, then thumbv7em-none-eabihf/release/firmware).
     #[arg(long)]
     elf: Option<PathBuf>,
-    /// Virtual seconds to run at most.
-    #[arg(long, default_value_t = 4.0)]
-    seconds: f64,
+    /// Virtual seconds to run at most (default 4; with --hover H, H + 25; with --mission, 120). Given with
+    /// --hover or --mission it caps the run there too, e.g. to watch a refused start for a few seconds only.
+    #[arg(long)]
+    seconds: Option<f64>,
     /// Keep running after the expected status was seen (until --seconds).
     #[arg(long)]
     no_stop: bool,
@@ -141,7 +142,7 @@ struct Args {
     world: Option<PathBuf>,
     /// Hover test without cflib: the nRF51 injects `mission.mode` = 1, `mission.hoverTime` = SECONDS,
     /// `mission.height` (the world's) and `mission.start` = 1 after RADIO_READY; the run ends once the drone
-    /// has landed (and the image's 10 s load line came) or at --seconds (at least SECONDS + 25). Exit 0 when it took off, held the
+    /// has landed (and the image's 10 s load line came) or at --seconds (default SECONDS + 25). Exit 0 when it took off, held the
     /// height for SECONDS and landed, with no watchdog reset. Implies the physics (the default world without
     /// --world).
     #[arg(long, num_args = 0..=1, default_missing_value = "10", value_name = "SECONDS")]
@@ -152,7 +153,7 @@ struct Args {
     /// The round trip without cflib (milestone 4): the nRF51 injects `mission.mode` = 0, `mission.height`
     /// (the world's) and `mission.start` = 1; the flight is scored on the truth as `cfnav sim` scores it
     /// (collisions, landings, distance, mission time; `tools/pil/compare_sitl.py` compares the two). The run
-    /// ends 1 s after the mission ended with the drone at rest, or at --seconds (at least 120). Exit 0 when
+    /// ends 1 s after the mission ended with the drone at rest, or at --seconds (default 120). Exit 0 when
     /// it completed. Implies the physics (the default world without --world).
     #[arg(long, conflicts_with = "hover")]
     mission: bool,
@@ -435,7 +436,7 @@ fn run(args: &Args) -> Result<(Report, bool)> {
         hover::HoverJudge::new(height, h)
     });
     let mut load = None;
-    if !(args.seconds > 0.0 && args.seconds <= 600.0) {
+    if !args.seconds.is_none_or(|s| s > 0.0 && s <= 600.0) {
         bail!("--seconds must be in (0, 600]");
     }
     let faults = parse_faults(&args.faults)?;
@@ -493,9 +494,9 @@ fn run(args: &Args) -> Result<(Report, bool)> {
     // take-off pad's edges (SITL: ≈ 8 s on the default world, more with bad luck), the approach and the landing
     // (≈ 3 s): at least SECONDS + 25 s. (+ 15 s cut the default world's search short: docs/pil.md.)
     let seconds = match args.hover {
-        Some(h) => args.seconds.max(f64::from(h) + 25.0),
-        None if args.mission => args.seconds.max(120.0),
-        None => args.seconds,
+        Some(h) => args.seconds.unwrap_or(f64::from(h) + 25.0),
+        None if args.mission => args.seconds.unwrap_or(120.0),
+        None => args.seconds.unwrap_or(4.0),
     };
     let end_ns = (seconds * 1e9) as u64;
     let mut samples: std::collections::VecDeque<(u64, LedFrame)> = Default::default();

@@ -601,9 +601,10 @@ impl<const CELLS: usize, const QUEUE: usize> Mission<CELLS, QUEUE> {
     /// Ends the flight with a landing where the drone is, then `then`, by the one rule every such landing
     /// (abort, battery low, no path, link loss) shares: over a pad it is approaching or descending onto, on
     /// that pad's centre; else on a known pad's centre within [`PAD_SNAP_M`]
-    /// ([`Self::pad_snap_landing_point`]); where the goal pad may lie and is not yet located, on the nearest
-    /// floor spot clear of wherever it can be ([`Self::floor_spot_clear_of_pad`]; measured before: aborts
-    /// every 0.1 s through the default world's goal search, 81 of 808 touched the pad's side); else where
+    /// ([`Self::pad_snap_landing_point`]); where the leg's pad (goal or home) may lie and is not yet located,
+    /// on the nearest floor spot clear of wherever it can be ([`Self::floor_spot_clear_of_pad`]; measured
+    /// before: aborts every 0.1 s through the default world's goal search, 81 of 808 touched the pad's side;
+    /// a battery running low during a long home search, over the home pad's edge, touched it); else where
     /// it is, moved off any pad edge seen ([`Self::off_pad_edges`]). A moved point is flown to at the
     /// drone's height before the descent.
     fn land_where_it_is(&mut self, state: &StateEstimate, then: MissionState) {
@@ -620,14 +621,14 @@ impl<const CELLS: usize, const QUEUE: usize> Mission<CELLS, QUEUE> {
     /// [`Self::land_where_it_is`]'s landing point for a drone at `here` that is not over a pad it was
     /// landing on: a known pad's centre within [`PAD_SNAP_M`], kept as it is (a pad's centre is where the
     /// body is farthest from its rim; moving it off the detector's estimate of that pad, measured, put it
-    /// 21 cm from the home pad's centre, across the rim); else where the goal pad may lie and is not
+    /// 21 cm from the home pad's centre, across the rim); else where the leg's pad may lie and is not
     /// located, a floor spot clear of anywhere it can be, as a search that gives up lands; else `here`
     /// moved off the pad edges seen.
     fn landing_point_near(&self, here: (f32, f32), over_raised_surface: bool) -> (f32, f32) {
         let snapped = self.pad_snap_landing_point(here);
         if snapped != here {
             snapped
-        } else if self.goal_pad_may_lie_under(here) {
+        } else if self.leg_pad_may_lie_under(here) {
             self.floor_spot_clear_of_pad(here, 0)
                 .unwrap_or_else(|| self.off_pad_edges(here, over_raised_surface))
         } else {
@@ -674,13 +675,16 @@ impl<const CELLS: usize, const QUEUE: usize> Mission<CELLS, QUEUE> {
         }
     }
 
-    /// Whether the goal pad, not yet located, may lie under a drone at `p` (on the outbound leg, within
-    /// [`search::PAD_REACH_M`] of the nominal goal: the pad lies within 0.35 m of it).
-    fn goal_pad_may_lie_under(&self, p: (f32, f32)) -> bool {
-        let goal = self.params.goal_m;
-        self.leg == Leg::Outbound
-            && self.stats.pad_centres[0].is_none()
-            && libm::hypotf(p.0 - goal.0, p.1 - goal.1) < search::PAD_REACH_M
+    /// Whether the pad this leg flies to, not yet located, may lie under a drone at `p`: within
+    /// [`search::PAD_REACH_M`] of the leg's nominal point (the goal pad lies within 0.35 m of the nominal
+    /// goal, the home pad within 0.35 m of the take-off point, which need not be on it).
+    fn leg_pad_may_lie_under(&self, p: (f32, f32)) -> bool {
+        let nominal = match self.leg {
+            Leg::Outbound | Leg::Return => self.leg_target(),
+            Leg::Hover | Leg::Explore => return false,
+        };
+        self.stats.pad_centres[self.leg_index()].is_none()
+            && libm::hypotf(p.0 - nominal.0, p.1 - nominal.1) < search::PAD_REACH_M
     }
 
     /// Where a landing where the drone is goes down: where it is, unless that lies within

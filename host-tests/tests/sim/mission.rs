@@ -609,3 +609,29 @@ fn an_abort_anywhere_in_a_pad_search_lands_on_the_pad_or_clear_of_it() {
         assert!(aborts >= 40, "{search:?}: {aborts} aborts through the search");
     }
 }
+
+/// A battery that runs low during a long home search lands clear of the home pad it has not located yet.
+/// Generated world 100000475 (the take-off point on the floor, the home pad 0.3 m beside it) with the battery
+/// started at 3.9 V (`worlds/stress-keys/battery_start_v.toml`): the home search had gone on for 16 s when
+/// the battery ran low with the drone over the home pad's far edge, its body disc across the rim. The landing
+/// where it was (before: moved only off the pad edges the detector had reported) touched the pad's side;
+/// now, within reach of the take-off point and with the home pad not located, it lands on the nearest floor
+/// spot clear of wherever that pad can be, as on the outbound leg near the goal.
+#[test]
+fn a_battery_low_in_the_home_search_lands_clear_of_the_home_pad() {
+    let mut world = World::random(100_000_475);
+    let path = std::path::PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../worlds/stress-keys/battery_start_v.toml");
+    let stress = cfnav_tools::sim::stress::Stress::load(path).unwrap_or_else(|e| panic!("{e}"));
+    world.stress = world.stress.overlaid(&stress);
+    let mut options = RunOptions::for_world(&world);
+    options.seed = 100_000_475;
+    let rep = run(&world, &options).expect("runs").report;
+    // The scenario itself: the battery ran low before the home pad was landed on (else re-pick the world).
+    assert_eq!((rep.outcome, rep.reason), ("aborted", Some("battery")), "{rep:?}");
+    assert_eq!(rep.collisions, 0, "{rep:?}");
+    let last = rep.landings.last().expect("it landed");
+    assert!(
+        on_pad_centre_or_clear_of_it(&world, 0, last),
+        "landed {last:?}, neither on the home pad's centre nor clear of it"
+    );
+}

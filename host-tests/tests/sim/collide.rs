@@ -6,19 +6,14 @@
 //! world.
 
 use cfnav_tools::sim::runner::{RunOptions, RunReport, run};
-use cfnav_tools::sim::stress::Stress;
 use cfnav_tools::sim::world::{BODY_RADIUS_M, World};
-use std::path::PathBuf;
 
 fn fly(world: &World) -> RunReport {
     run(world, &RunOptions::for_world(world)).expect("runs").report
 }
 
-fn stressed(mut world: World) -> World {
-    let path = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../worlds/stress.toml");
-    let s = Stress::load(path).unwrap_or_else(|e| panic!("{e}"));
-    world.stress = world.stress.overlaid(&s);
-    world
+fn stressed(world: World) -> World {
+    crate::with_stress(world, "worlds/stress.toml")
 }
 
 #[test]

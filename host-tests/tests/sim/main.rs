@@ -18,6 +18,17 @@ use cfnav_tools::sim::world::{BODY_RADIUS_M, World};
 
 /// Whether `landing` (on or beside `world.pads[pad]`) came down on that pad within 6 cm of its centre, or
 /// on the floor with the body wholly clear of the pad (farther from its centre than half its diagonal and
+/// `world` under the `[sensors]` and `[disturbances]` of the stress file at `path` (relative to the
+/// repository root, e.g. `worlds/stress.toml`), overlaid on its own.
+pub fn with_stress(mut world: World, path: &str) -> World {
+    let file = std::path::PathBuf::from(env!("CARGO_MANIFEST_DIR"))
+        .join("..")
+        .join(path);
+    let stress = cfnav_tools::sim::stress::Stress::load(file).unwrap_or_else(|e| panic!("{e}"));
+    world.stress = world.stress.overlaid(&stress);
+    world
+}
+
 /// the body's radius): never across its rim.
 pub fn on_pad_centre_or_clear_of_it(world: &World, pad: usize, landing: &Landing) -> bool {
     let Some(p) = world.pads.get(pad) else {

@@ -619,10 +619,7 @@ fn an_abort_anywhere_in_a_pad_search_lands_on_the_pad_or_clear_of_it() {
 /// spot clear of wherever that pad can be, as on the outbound leg near the goal.
 #[test]
 fn a_battery_low_in_the_home_search_lands_clear_of_the_home_pad() {
-    let mut world = World::random(100_000_475);
-    let path = std::path::PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../worlds/stress-keys/battery_start_v.toml");
-    let stress = cfnav_tools::sim::stress::Stress::load(path).unwrap_or_else(|e| panic!("{e}"));
-    world.stress = world.stress.overlaid(&stress);
+    let world = crate::with_stress(World::random(100_000_475), "worlds/stress-keys/battery_start_v.toml");
     let mut options = RunOptions::for_world(&world);
     options.seed = 100_000_475;
     let rep = run(&world, &options).expect("runs").report;

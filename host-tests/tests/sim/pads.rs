@@ -181,9 +181,6 @@ fn pads_boxed_in_by_a_wall_and_an_obstacle_are_found() {
 }
 
 /// `world` under the `[sensors]` and `[disturbances]` of worlds/stress.toml.
-fn stressed(mut world: World) -> World {
-    let path = std::path::PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../worlds/stress.toml");
-    let s = cfnav_tools::sim::stress::Stress::load(path).unwrap_or_else(|e| panic!("{e}"));
-    world.stress = world.stress.overlaid(&s);
-    world
+fn stressed(world: World) -> World {
+    crate::with_stress(world, "worlds/stress.toml")
 }

@@ -632,3 +632,48 @@ fn a_battery_low_in_the_home_search_lands_clear_of_the_home_pad() {
         "landed {last:?}, neither on the home pad's centre nor clear of it"
     );
 }
+
+/// Flying off the home pad, the downward range drops by the pad's height below the surface the estimate
+/// counts heights from; the estimator re-anchors the height on the floor. That jump says nothing about the
+/// vertical velocity: measured against the simulator's truth over the 3 s after the drone's centre leaves
+/// the pad (while the controller takes it down onto the floor-referred cruise height), the estimated
+/// vertical velocity stays within 3 cm/s of the truth. (Inflating its variance there let the re-anchoring
+/// range bend it: 0.034–0.069 m/s off on noise seeds 3, 4 and 6 of the default world, and 0.15 m/s in
+/// a stressed world, where the next ranges then read the unseen descent as a surface rising and the drone
+/// sank onto the floor believing it held 0.5 m.)
+#[test]
+fn flying_off_the_home_pad_keeps_the_vertical_velocity() {
+    let world = World::default_world();
+    let params = cfnav_tools::sim::runner::mission_params(&world);
+    let mut report = Vec::new();
+    for seed in 1..=8u64 {
+        let mut drone = SimDrone::new(&world, seed, &Faults::default()).unwrap();
+        let mut off_pad_at: Option<u64> = None;
+        let mut worst = 0.0f32;
+        for tick in 0..8000u64 {
+            if tick == 1000 {
+                drone.core.start_mission(params).expect("starts");
+            }
+            if tick.is_multiple_of(10) {
+                drone.core.on_radio_packet(tick * 1000);
+            }
+            drone.step(&world);
+            let p = drone.quad.position();
+            if off_pad_at.is_none() && tick > 1500 && world.surface_height(p[0], p[1]) == 0.0 {
+                off_pad_at = Some(tick);
+            }
+            if off_pad_at.is_some_and(|t0| tick < t0 + 3000) {
+                worst = worst.max((drone.core.estimate().velocity_m_s[2] - drone.quad.velocity()[2]).abs());
+            }
+        }
+        assert!(off_pad_at.is_some(), "seed {seed}: never left the home pad");
+        report.push((seed, worst));
+    }
+    println!("vertical velocity error after leaving the home pad, m/s: {report:?}");
+    for (seed, worst) in report {
+        assert!(
+            worst < 0.03,
+            "seed {seed}: vertical velocity {worst} m/s off after leaving the pad"
+        );
+    }
+}

@@ -52,7 +52,8 @@
 //!
 //! "Re-anchor" inflates `P_zz` by the jump² and the vertical-velocity variance by (jump / 1 s)², so that
 //! the plateau's values pull `z` onto the new level at once, and a velocity error behind the jump is
-//! corrected too. A plateau also needs no significant slope over its last 4 ranges. A transition without a
+//! corrected too — except for a plateau below the floor: that is the drone flying off the raised surface
+//! it took off from, a jump in the reference, not a velocity. A plateau also needs no significant slope over its last 4 ranges. A transition without a
 //! plateau after `max_transition` ranges is decided: values still moving one way at a rate the filter's
 //! vertical-velocity uncertainty explains are an unseen vertical motion — the slope of the implied surface
 //! *is* the vertical-velocity error, so it is measured (least squares over 150 ms) and subtracted, and `z`
@@ -522,7 +523,14 @@ impl SurfaceTracker {
             self.last_event = SurfaceEvent::BelowFloor;
             self.s = 0.0;
             plan.inflate_var = level * level;
-            plan.inflate_vz = level * level / (REANCHOR_TIME_S * REANCHOR_TIME_S);
+            // A plateau below the floor is a jump, not a drift: the drone flew off the raised surface it took
+            // off from (the home pad's top counted as the floor), which says nothing about the vertical
+            // velocity. Inflating it there let the re-anchoring range pull it 0.15 m/s off (world 24 000 264
+            // stressed), and the next steps then read the unseen descent as a surface rising until the drone
+            // sat on the floor believing it held 0.5 m.
+            if how != Conclusion::Plateau {
+                plan.inflate_vz = level * level / (REANCHOR_TIME_S * REANCHOR_TIME_S);
+            }
         } else if (z_known && jump.abs() >= p.step_min) || settling {
             // A step; or, right after one, the rest of it (the height coasted meanwhile, so its grown
             // uncertainty says nothing about this jump). A clear step the other way is a new step, not the

@@ -50,18 +50,18 @@
 //! corrected). Without this, each crossing's blurred edges left a few millimetres in the surface, and a
 //! pad search's dozens of crossings added them up until the drone flew a pad's height lower than asked.
 //!
-//! "Re-anchor" inflates `P_zz` by the jump² and the vertical-velocity variance by (jump / 1 s)², so that
-//! the plateau's values pull `z` onto the new level at once, and a velocity error behind the jump is
-//! corrected too — except for a plateau below the floor: that is the drone flying off the raised surface
-//! it took off from, a jump in the reference, not a velocity. A plateau also needs no significant slope over its last 4 ranges. A transition without a
-//! plateau after `max_transition` ranges is decided: values still moving one way at a rate the filter's
-//! vertical-velocity uncertainty explains are an unseen vertical motion — the slope of the implied surface
-//! *is* the vertical-velocity error, so it is measured (least squares over 150 ms) and subtracted, and `z`
-//! re-anchored on the newest value (what saves the filter after a divergence reset with a wrong velocity;
-//! replaying values taken at different times as if simultaneous carries no rate); moving faster
-//! than that (a healthy filter under a slowly crossed blurred edge) the tracker waits for the plateau up to
-//! 4 × `max_transition`; flickering values (hovering over an edge) are classified on their median, nothing
-//! fused.
+//! "Re-anchor" inflates `P_zz` by the jump² and the vertical-velocity variance by (jump / 1 s)², so that the
+//! plateau's values pull `z` onto the new level at once, and a velocity error behind the jump is corrected
+//! too — except for a plateau below the floor: that is the drone flying off the raised surface it took off
+//! from, a jump in the reference, not a velocity. A plateau also needs no significant slope over its last 4
+//! ranges. A transition without a plateau after `max_transition` ranges is decided: values still moving one
+//! way at a rate the filter's vertical-velocity uncertainty explains are an unseen vertical motion — the
+//! slope of the implied surface *is* the vertical-velocity error, so it is measured (least squares over 150
+//! ms) and subtracted, and `z` re-anchored on the newest value (what saves the filter after a divergence
+//! reset with a wrong velocity; replaying values taken at different times as if simultaneous carries no
+//! rate); moving faster than that (a healthy filter under a slowly crossed blurred edge) the tracker waits
+//! for the plateau up to 4 × `max_transition`; flickering values (hovering over an edge) are classified on
+//! their median, nothing fused.
 //!
 //! The flow model needs the same surface (the camera sees the surface, not the floor); during a transition
 //! [`SurfaceTracker::flow_surface`] gives the median of the ring, the best guess of what is below now.

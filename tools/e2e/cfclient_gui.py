@@ -127,6 +127,34 @@ def main():
         window.grab().save(path)
         print(f"screenshot {path}", flush=True)
 
+    # The harness's own pauses: a thread that wakes every 50 ms records the longest gap between wake-ups. A
+    # process starved that long (a loaded machine) also stops cflib's pings, and a drone (stock, and cfnav
+    # after 3 s) deletes the log blocks of a link that fell silent: the Flight tab then freezes on its last
+    # values. The figure is printed, and a failed wait says whether it happened.
+    stalls = {"longest_s": 0.0, "at": None}
+
+    def stall_watch():
+        last = time.monotonic()
+        while True:
+            time.sleep(0.05)
+            now = time.monotonic()
+            if now - last > stalls["longest_s"]:
+                stalls["longest_s"], stalls["at"] = now - last, now
+            last = now
+
+    threading.Thread(target=stall_watch, daemon=True).start()
+    # When cflib last delivered log data of any block (cfclient's own blocks, counted from step 5 on).
+    log_seen = {"at": None}
+
+    def watch_log_blocks():
+        for block in cf.log.log_blocks:
+            block.data_received_cb.add_callback(lambda *_: log_seen.__setitem__("at", time.monotonic()))
+
+    def link_report():
+        age = "never" if log_seen["at"] is None else f"{time.monotonic() - log_seen['at']:.1f} s ago"
+        return (f"log data last received {age}; the harness's longest stall {stalls['longest_s']:.2f} s "
+                f"(a silent link loses its log blocks after 3 s)")
+
     deadline = time.monotonic() + args.timeout
     left = lambda: max(1.0, deadline - time.monotonic())  # noqa: E731
 
@@ -217,6 +245,7 @@ def main():
         shot("cfclient-parameters.png")
 
         # 5. Battery display and the Flight tab's state estimate, thrust and motors (from log blocks).
+        watch_log_blocks()
         flight = tabs["Flight Control"]
         window.tab_widget.setCurrentWidget(flight)
         wait(lambda: window._aff_volts.text() not in ("", "0.000") and flight.estimateZ.text() != "",
@@ -261,7 +290,8 @@ def main():
                   f"z {flight.estimateZ.text()}", flush=True)
             shot("cfclient-flying.png")
         cf.param.set_value("mission.start", "0")
-        wait(lambda: flight._supervisor_state.text() != "Flying", min(15, left()), "the abort's landing")
+        if not wait(lambda: flight._supervisor_state.text() != "Flying", min(15, left()), "the abort's landing"):
+            print(f"after the abort: {link_report()}", flush=True)
         print(f"after the abort: supervisor {flight._supervisor_state.text()!r}, "
               f"arm button {flight.armButton.text()!r}", flush=True)
 
@@ -273,6 +303,7 @@ def main():
         window.close()
         app.processEvents()
 
+    print(f"harness: longest stall {stalls['longest_s']:.2f} s", flush=True)
     # Every log block cfclient asked for was accepted (cflib marks a refused one `valid = False` or logs).
     if PROBLEMS:
         print(f"cfclient check: {len(PROBLEMS)} problem(s)", flush=True)

@@ -34,19 +34,18 @@ mkdir -p target/cfclient
 serve_pid=$!
 trap 'kill "$serve_pid" 2>/dev/null || true' EXIT
 python3 tools/e2e/wait_for_sim.py "$PORT" 30
+show_serve_log() { echo "--- the simulator's log (last 40 lines) ---"; tail -n 40 target/cfclient/serve.log; }
 
 if ! timeout 60 python3 tools/e2e/cflib_stock_names.py --uri "$URI"; then
   echo "cflib check of the stock parameter/log names failed (simulator log: target/cfclient/serve.log)"
-  echo "--- the simulator's log (last 40 lines) ---"
-  tail -n 40 target/cfclient/serve.log
+  show_serve_log
   exit 1
 fi
 # A fresh simulator state is not needed: the GUI check reads what is there and restores nothing.
 if ! timeout 120 xvfb-run -a -s "-screen 0 1600x1000x24" \
   python3 tools/e2e/cfclient_gui.py --uri "$URI" --timeout 90 --shots target/cfclient; then
   echo "stock cfclient check failed (screenshots in target/cfclient/, simulator log: target/cfclient/serve.log)"
-  echo "--- the simulator's log (last 40 lines) ---"
-  tail -n 40 target/cfclient/serve.log
+  show_serve_log
   exit 1
 fi
 kill "$serve_pid" 2>/dev/null || true

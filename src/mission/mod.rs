@@ -204,6 +204,8 @@ enum Phase {
         x: f32,
         y: f32,
         z_target: f32,
+        /// Below this height (arena frame, m) the climb is the fast lift-off (`navigate::TAKE_OFF_HOP_SPEED_M_S`).
+        hop_until_m: f32,
     },
     Navigate,
     NoPath {
@@ -900,7 +902,12 @@ impl<const CELLS: usize, const QUEUE: usize> Mission<CELLS, QUEUE> {
                 };
                 self.begin_leg(now, state, first)
             }
-            Phase::TakeOff { x: tx, y: ty, z_target } => {
+            Phase::TakeOff {
+                x: tx,
+                y: ty,
+                z_target,
+                hop_until_m,
+            } => {
                 // The hover test and the exploration start at the cruise height: the hold is measured there,
                 // and the first look around must map (beams map only near the cruise height).
                 if matches!(self.leg, Leg::Hover | Leg::Explore) && z >= self.params.height_m - MODE_HANDOVER_BELOW_M {
@@ -918,11 +925,30 @@ impl<const CELLS: usize, const QUEUE: usize> Mission<CELLS, QUEUE> {
                     self.avoidance.reset();
                     return self.navigate(now, state, dt_s);
                 }
+                // The lift-off: the first centimetres are climbed fast. Until flow and ranges settle the drone
+                // tilts by its attitude reference's error (the accelerometer's bias, the floor's slope: a few
+                // tenths of a degree), which moves it sideways by ~½·g·tilt·t²; a start beside a pad's side is
+                // clear of it only while that stays below a few millimetres.
+                if z < hop_until_m && z < self.params.height_m {
+                    self.phase = Phase::TakeOff {
+                        x: tx,
+                        y: ty,
+                        z_target: z.max(z_target),
+                        hop_until_m,
+                    };
+                    return Setpoint::Descend {
+                        x_m: tx,
+                        y_m: ty,
+                        vz_m_s: navigate::TAKE_OFF_HOP_SPEED_M_S,
+                        yaw_rad: self.heading,
+                    };
+                }
                 let target = (z_target + self.config.climb_speed_m_s * dt_s).min(self.params.height_m);
                 self.phase = Phase::TakeOff {
                     x: tx,
                     y: ty,
                     z_target: target,
+                    hop_until_m,
                 };
                 Setpoint::Position {
                     x_m: tx,

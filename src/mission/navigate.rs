@@ -44,6 +44,10 @@ const SCAN_PERIOD_S: f32 = 2.0;
 const TAKE_OFF_CLEAR_M: f32 = 0.14;
 /// Longest such step, m.
 const TAKE_OFF_MAX_STEP_M: f32 = 0.1;
+/// The fast lift-off's height above the take-off height, m: clear of a pad's top (0.1 m) beside the start.
+pub(super) const TAKE_OFF_HOP_M: f32 = 0.13;
+/// The fast lift-off's climb rate, m/s.
+pub(super) const TAKE_OFF_HOP_SPEED_M_S: f32 = 0.8;
 
 /// A map whose blocked cells grow by one cell (8-neighbourhood): the margin shortcuts keep.
 struct Dilated<'a, M: Traversability>(&'a M);
@@ -85,7 +89,13 @@ impl<const CELLS: usize, const QUEUE: usize> Mission<CELLS, QUEUE> {
             (x, y)
         };
         let z_target = state.position_m[2].max(0.0);
-        self.phase = Phase::TakeOff { x, y, z_target };
+        let hop_until_m = z_target + TAKE_OFF_HOP_M;
+        self.phase = Phase::TakeOff {
+            x,
+            y,
+            z_target,
+            hop_until_m,
+        };
         Setpoint::Position {
             x_m: x,
             y_m: y,

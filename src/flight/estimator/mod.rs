@@ -525,6 +525,8 @@ pub struct Diagnostics {
     pub gyro_bias_rad_s: [f32; 3],
     /// Accelerometer scale applied.
     pub accel_scale: f32,
+    /// Accelerometer offset subtracted (body x, y), m/s²: the level calibration at the first rest.
+    pub accel_offset_m_s2: [f32; 2],
     /// See [`Estimator::is_calibrated`].
     pub calibrated: bool,
     /// Flying (`set_flying(true)`) or higher than `airborne_height_m` above the surface.
@@ -608,6 +610,9 @@ pub struct Estimator {
     calib: Calibrator,
     gyro_bias: V3,
     accel_scale: f32,
+    /// The accelerometer's horizontal offset (body x, y; scaled, m/s²), measured at the first rest on the
+    /// assumption that the drone stands level (see `on_rest_window`); subtracted from every sample.
+    accel_offset_xy: [f32; 2],
     last_gyro: V3,
     last_accel: V3,
     have_imu: bool,
@@ -670,6 +675,7 @@ impl Estimator {
             calib: Calibrator::new(),
             gyro_bias: [0.0; 3],
             accel_scale: 1.0,
+            accel_offset_xy: [0.0; 2],
             last_gyro: [0.0; 3],
             last_accel: [0.0, 0.0, GRAVITY_M_S2],
             have_imu: false,
@@ -791,6 +797,7 @@ impl Estimator {
         d.time_s = self.now_us as f32 * 1e-6;
         d.gyro_bias_rad_s = self.gyro_bias;
         d.accel_scale = self.accel_scale;
+        d.accel_offset_m_s2 = self.accel_offset_xy;
         d.calibrated = self.calibrated;
         d.airborne = self.airborne;
         for i in 0..3 {

@@ -20,6 +20,9 @@ const NOMINAL_DT_MAX_S: f32 = 0.005;
 const PREDICT_PERIOD_S: f32 = 0.01;
 /// Weight of a new rest window in the bias and scale once calibrated.
 const REFINE_WEIGHT: f32 = 0.25;
+/// The largest horizontal accelerometer reading at the first rest taken as the sensor's offset rather than
+/// a tilt, m/s² (≈ 2°; the BMI088's zero-g offset is ±20 mg typical per axis, datasheet BST-BMI088-DS001 §1).
+const LEVEL_OFFSET_MAX_M_S2: f32 = 0.35;
 const REST_ACCEL_M_S2: f32 = 0.5;
 /// Per-sample rest test on the ground: |ω| and ||f| − g| below these.
 const REST_GYRO_RAD_S: f32 = 0.1;
@@ -78,6 +81,7 @@ impl Estimator {
         // Strapdown integration of this sample.
         let w = sub3(gyro, self.gyro_bias);
         let f = scale3(accel, self.accel_scale);
+        let f = [f[0] - self.accel_offset_xy[0], f[1] - self.accel_offset_xy[1], f[2]];
         self.omega = w;
         let rot = scale3(w, dt);
         self.quat = quat_normalize(quat_mul(self.quat, quat_from_rotvec(rot)));
@@ -117,10 +121,24 @@ impl Estimator {
             self.gyro_bias = w.gyro_mean;
             self.accel_scale = w.accel_scale();
             self.calibrated = true;
-            // Level from gravity (at rest f_b = g·(−sin θ, cos θ sin φ, cos θ cos φ)), heading from reset.
-            let a = w.accel_mean;
-            let roll = libm::atan2f(a[1], a[2]);
-            let pitch = libm::atan2f(-a[0], libm::sqrtf(a[1] * a[1] + a[2] * a[2]));
+            // At rest f_b = g·(−sin θ, cos θ sin φ, cos θ cos φ) + offset: a tilt and the accelerometer's
+            // offset read the same. Like stock, which starts "stationary and roughly flat" and pulls roll and
+            // pitch back to level while on the ground (kalman_core.c, ROLLPITCH_ZERO_REVERSION), the drone is
+            // taken to stand level, and a small horizontal reading is the offset. This matters at lift-off:
+            // levelled on the accelerometer instead, the controller would hold the offset as a real tilt
+            // (0.05 m/s² ≈ 0.3°) and the drone would slide a few millimetres before the flow loop reacts,
+            // enough to touch a pad's side beside the start. A reading too large for an offset is a tilt.
+            let a = scale3(w.accel_mean, self.accel_scale);
+            let (roll, pitch) = if libm::hypotf(a[0], a[1]) <= LEVEL_OFFSET_MAX_M_S2 && a[2] > 0.0 {
+                self.accel_offset_xy = [a[0], a[1]];
+                (0.0, 0.0)
+            } else {
+                self.accel_offset_xy = [0.0; 2];
+                (
+                    libm::atan2f(a[1], a[2]),
+                    libm::atan2f(-a[0], libm::sqrtf(a[1] * a[1] + a[2] * a[2])),
+                )
+            };
             self.quat = quat_from_euler(roll, pitch, self.home_yaw);
             self.pos = self.home_pos;
             self.vel = [0.0; 3];

@@ -57,7 +57,9 @@
 //!   lock the search widens and re-centres on the best estimate once; if that fails too, the drone lands
 //!   on the estimate only where the descent gate allows it, else clear of the pad, and the mission ends
 //!   with [`MissionState::PadNotFound`] after flying the rest of the round trip (see `landing`).
-//! - **Take-off**: climb at [`MissionConfig::climb_speed_m_s`], first stepping away (up to 0.1 m) from
+//! - **Take-off**: the first 0.13 m fast (0.8 m/s, so that the lift-off's sideways slide stays under a
+//!   millimetre until the body has passed a pad's top beside the start), then at
+//!   [`MissionConfig::climb_speed_m_s`], first stepping away (up to 0.1 m) from
 //!   any horizontal beam's return within 0.14 m on the ground (a start beside the home pad's side, one body
 //!   radius away, is valid); navigation takes over 0.1 m above the
 //!   minimum height, and the rest of the climb overlaps the first metres of travel.

@@ -379,6 +379,8 @@ struct Scenario {
     world: World,
     footprint: Footprint,
     gyro_bias: V3,
+    /// Constant accelerometer offset, body frame, m/s².
+    accel_offset: V3,
     gyro_sigma: f64,
     accel_sigma: f64,
     flow_sigma_counts: f64,
@@ -400,6 +402,7 @@ impl Scenario {
             world: World::default(),
             footprint: Footprint::Point,
             gyro_bias: [0.012, -0.008, 0.005],
+            accel_offset: [0.0; 3],
             gyro_sigma: 0.005,
             accel_sigma: 0.05,
             flow_sigma_counts: 0.5,
@@ -516,7 +519,7 @@ fn simulate_with(motion: &dyn Motion, sc: &Scenario, duration: f64, cfg: Estimat
         let (sig_a, sig_g) = (sc.accel_sigma.hypot(vib_a), sc.gyro_sigma.hypot(vib_g));
         for i in 0..3 {
             imu.gyro_rad_s[i] = (tr.omega[i] + sc.gyro_bias[i] + sig_g * gauss(&mut rng)) as f32;
-            imu.accel_m_s2[i] = (tr.f[i] + sig_a * gauss(&mut rng)) as f32;
+            imu.accel_m_s2[i] = (tr.f[i] + sc.accel_offset[i] + sig_a * gauss(&mut rng)) as f32;
         }
         match fault {
             Some(Fault::Garbage) => {
@@ -779,6 +782,50 @@ fn static_on_ground_calibrates_and_holds() {
     assert!(xy_max < 0.005, "xy drifted {xy_max} m at rest");
     assert!(last.est.valid);
     assert_eq!(last.est.surface_height_m, 0.0);
+}
+
+/// The level calibration: standing level with an accelerometer offset of 0.3°, the estimate starts level and
+/// stays so through a take-off and a hover (levelled on the accelerometer, it would be off by the offset,
+/// and the controller would tilt the drone by as much at lift-off); standing on a 4° slope, it is levelled
+/// on gravity (that is no offset).
+#[test]
+fn an_accelerometer_offset_at_rest_is_calibrated_out_a_slope_is_not() {
+    let offset = [0.04, -0.03, 0.0];
+    let start = [1.0, 1.0, 0.0];
+    let mut sc = Scenario::new(start, 0.3, (2.0, 1e9));
+    sc.accel_offset = offset;
+    let motion = Trajectory::new(start, 0.3).hold(2.0).climb(0.5, 0.3).hold(6.0);
+    let (est, rec) = simulate(&motion, &sc, motion.duration());
+    let tilt_at = |t: f64| tilt_error_deg(&at(&rec, t).est, &at(&rec, t).truth);
+    let tilt_air = window(&rec, 2.0, motion.duration())
+        .map(|r| tilt_error_deg(&r.est, &r.truth))
+        .fold(0.0, f64::max);
+    let got = est.diagnostics().accel_offset_m_s2;
+    println!(
+        "estimator level calibration: offset {:?} m/s² measured {got:?}; tilt error at lift-off {:.3}°, in the air \
+         max {tilt_air:.3}° (the offset alone would be {:.3}°)",
+        [offset[0], offset[1]],
+        tilt_at(1.99),
+        offset[0].hypot(offset[1]).atan2(G).to_degrees()
+    );
+    for i in 0..2 {
+        assert!(
+            (f64::from(got[i]) - offset[i]).abs() < 0.01,
+            "offset {got:?}, expected {offset:?}"
+        );
+    }
+    assert!(tilt_at(1.99) < 0.08, "tilt error {}° at lift-off", tilt_at(1.99));
+    assert!(tilt_air < 0.15, "tilt error {tilt_air}° in the air");
+
+    let att = [3.0f64.to_radians(), -2.5f64.to_radians(), 0.3];
+    let motion = Still { p: start, att };
+    let sc = Scenario::new(start, att[2], (1e9, 1e9));
+    let (est, rec) = simulate(&motion, &sc, 3.0);
+    let got = est.diagnostics().accel_offset_m_s2;
+    let tilt = tilt_error_deg(&at(&rec, 2.9).est, &at(&rec, 2.9).truth);
+    println!("estimator on a 3.9° slope: offset {got:?}, tilt error {tilt:.3}°");
+    assert_eq!(got, [0.0; 2]);
+    assert!(tilt < 0.2, "tilt error {tilt}° on a slope");
 }
 
 #[test]

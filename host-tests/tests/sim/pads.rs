@@ -55,6 +55,13 @@ fn pads_beside_walls_and_obstacles_are_found_and_landed_on() {
     // Goal pads 0.15 and 0.23 m from a wall or an obstacle. Before this work the first ended with the pad
     // not found, 27 cm off the goal pad, and the second 42 cm off the home pad (state 202); each now
     // completes (the widened, re-centred search after a failed lock).
+    //
+    // The first pad sits in a pocket (a wall 0.15 m below it, a cylinder 0.17 m beside it), where a search
+    // line can hardly cross it, and whether a crossing locks depends on the noise: on its own noise seed
+    // and seeds 1–60, 58 of 61 runs find it, before and after the level calibration alike (session 17;
+    // the others end safely, state 202, clear of the pad). So it flies its own seed and seeds 1–40: at
+    // least 90 % must complete (38 of 41 did), and every run must stay clear of everything and land on a
+    // pad or clear of it (the code before the level calibration touched the cylinder on seed 33).
     for seed in [7_000_051u64, 7_000_112] {
         let world = World::random(seed);
         let gap = goal_pad_gap(&world);
@@ -62,11 +69,32 @@ fn pads_beside_walls_and_obstacles_are_found_and_landed_on() {
             (0.1..=0.25).contains(&gap),
             "{seed}: the goal pad is {gap} m from the nearest wall or obstacle"
         );
-        let r = fly(&world);
-        println!("{seed}: gap {gap:.2} m, {r:?}");
-        assert_eq!(r.outcome, "completed", "{seed}: {r:?}");
-        assert_eq!(r.collisions, 0, "{seed}");
-        assert!(r.landings.iter().all(|l| l.on_pad), "{seed}: {:?}", r.landings);
+        let noise_seeds: Vec<u64> = if seed == 7_000_051 {
+            std::iter::once(seed).chain(1..=40).collect()
+        } else {
+            vec![seed]
+        };
+        let mut completed = 0;
+        for &noise in &noise_seeds {
+            let mut world = world.clone();
+            world.sim.seed = noise;
+            let r = fly(&world);
+            println!("{seed} (noise seed {noise}): gap {gap:.2} m, {r:?}");
+            assert_eq!(r.collisions, 0, "{seed} (noise seed {noise})");
+            clear_or_on_pad(&world, &r);
+            if r.outcome == "completed" {
+                assert!(r.landings.iter().all(|l| l.on_pad), "{seed}: {:?}", r.landings);
+                completed += 1;
+            } else {
+                assert_eq!(r.reason, Some("pad_not_found"), "{seed} (noise seed {noise}): {r:?}");
+            }
+        }
+        let needed = (noise_seeds.len() * 9).div_ceil(10);
+        assert!(
+            completed >= needed,
+            "{seed}: {completed} of {} noise seeds completed",
+            noise_seeds.len()
+        );
     }
 }
 

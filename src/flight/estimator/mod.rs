@@ -44,6 +44,15 @@
 //! `airborne_height_m` above the surface, gyro and accelerometer quiet) are a gravity-direction update
 //! (roll, pitch) and a zero-velocity update applied, every 10 ms.
 //!
+//! *Level calibration.* At rest a tilt and the accelerometer's horizontal offset read the same. The first
+//! rest window takes the drone to stand level, as stock does ("stationary and roughly flat", roll and pitch
+//! pulled back to zero on the ground, kalman_core.c `ROLLPITCH_ZERO_REVERSION`): a horizontal reading up to
+//! 0.35 m/s² (≈ 2°) is the offset and is subtracted from every later sample; a larger one is a slope, and
+//! the attitude is levelled on it. Levelled on an offset instead, the estimate is off by it (0.05 m/s² ≈
+//! 0.3°), the controller holds that as a real tilt, and the lift-off slides sideways before the flow loop
+//! reacts (a few millimetres: enough to touch a pad's side beside the start). A start on a slope under 2°
+//! gives the same error the other way; on a level floor it gives none.
+//!
 //! Process noise: stock adds `(σ·dt)²` per 10 ms prediction (kalman_core_params_defaults.h); here the same
 //! amount is added as a density `σ²·0.01 s·dt`, identical at 100 Hz and right for the shorter steps before
 //! an update. The defaults are lower than stock's (acceleration 0.3 xy / 0.15 z instead of 0.5 / 1.0

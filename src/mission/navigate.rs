@@ -45,7 +45,7 @@ const TAKE_OFF_CLEAR_M: f32 = 0.14;
 /// Longest such step, m.
 const TAKE_OFF_MAX_STEP_M: f32 = 0.1;
 /// The fast lift-off's height above the take-off height, m: clear of a pad's top (0.1 m) beside the start.
-pub(super) const TAKE_OFF_HOP_M: f32 = 0.13;
+const TAKE_OFF_HOP_M: f32 = 0.13;
 /// The fast lift-off's climb rate, m/s.
 pub(super) const TAKE_OFF_HOP_SPEED_M_S: f32 = 0.8;
 

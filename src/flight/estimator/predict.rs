@@ -121,13 +121,8 @@ impl Estimator {
             self.gyro_bias = w.gyro_mean;
             self.accel_scale = w.accel_scale();
             self.calibrated = true;
-            // At rest f_b = g·(−sin θ, cos θ sin φ, cos θ cos φ) + offset: a tilt and the accelerometer's
-            // offset read the same. Like stock, which starts "stationary and roughly flat" and pulls roll and
-            // pitch back to level while on the ground (kalman_core.c, ROLLPITCH_ZERO_REVERSION), the drone is
-            // taken to stand level, and a small horizontal reading is the offset. This matters at lift-off:
-            // levelled on the accelerometer instead, the controller would hold the offset as a real tilt
-            // (0.05 m/s² ≈ 0.3°) and the drone would slide a few millimetres before the flow loop reacts,
-            // enough to touch a pad's side beside the start. A reading too large for an offset is a tilt.
+            // At rest f_b = g·(−sin θ, cos θ sin φ, cos θ cos φ) + offset: the level calibration (module
+            // docs) takes a small horizontal reading as the offset, a large one as a tilt.
             let a = scale3(w.accel_mean, self.accel_scale);
             let (roll, pitch) = if libm::hypotf(a[0], a[1]) <= LEVEL_OFFSET_MAX_M_S2 && a[2] > 0.0 {
                 self.accel_offset_xy = [a[0], a[1]];

@@ -115,13 +115,18 @@ fn wall_fixes_hold_the_heading_against_a_gyro_drift() {
     // the flights are ≈ 4 s shorter and the bias has less time to act: with 2.9–3.9° and 3.0–3.3 cm,
     // without 5.5–8.4° and 9.3–19.9 cm (seed 3 without: 9.3 cm, was ≥ 11 cm); the position bound without
     // moved from 10 cm to 8 cm, plus an explicit "every run with below every run without".
+    // Since navigation looks at unseen space 0.22 m beside the path (session 19) the flights slow down and
+    // turn more in the obstacle corridor: with 2.5–3.7° and 3.9–7.4 cm, without 5.0–5.4° and 11.1–13.1 cm.
+    // The late position error with the fixes peaks in that corridor on seed 3 (7.4 cm, yaw error ≈ 1°
+    // there: flow drift between wall fixes, not heading), so its bound moved from 6 cm to 8 cm, the issue's
+    // bound for the default mission's maximum; every run with still sits below every run without.
     assert!(
         worst_on.0 <= 0.075,
         "with the heading fixes the late yaw error reaches {}",
         worst_on.0
     );
     assert!(
-        worst_on.1 <= 0.06,
+        worst_on.1 <= 0.08,
         "with the heading fixes the late position error reaches {}",
         worst_on.1
     );

@@ -1002,12 +1002,12 @@ fn zig_zag(w: &World) -> bool {
 #[test]
 fn wide_random_worlds_have_what_real_arenas_have() {
     use cfnav_tools::sim::world::{
-        DEFAULT_FIRMWARE_CELLS, FOREST_RADIUS_M, LARGE_ARENA_CELLS, MAX_PAD_OFFSET_M, WIDE_ARENA_MAX_M,
-        WIDE_ARENA_MIN_M,
+        DEFAULT_FIRMWARE_CELLS, FOREST_RADIUS_M, LARGE_ARENA_CELLS, MAX_PAD_OFFSET_M, START_PAD_GAP_M,
+        WIDE_ARENA_MAX_M, WIDE_ARENA_MIN_M,
     };
     let n = 600u64;
     let (mut by_wall, mut by_obstacle, mut forest, mut zigzag, mut large, mut far_pad) = (0, 0, 0, 0, 0, 0);
-    let mut bare = 0;
+    let (mut bare, mut beside_home) = (0, 0);
     let (mut min_size, mut max_size) = ([f32::INFINITY; 2], [0.0f32; 2]);
     let mut texts = HashSet::new();
     for seed in 0..n {
@@ -1068,6 +1068,22 @@ fn wide_random_worlds_have_what_real_arenas_have() {
             .count();
         forest += usize::from(thin_near >= 3);
         zigzag += usize::from(zig_zag(&w));
+        // The drone starts on the home pad's top or on the floor beside it, its body at least
+        // START_PAD_GAP_M clear of the pad's sides (never touching a corner it cannot see).
+        let home = w.pads[0].footprint();
+        let [hx, hy] = w.mission.start;
+        let on_top = hx >= home.0[0] && hx <= home.1[0] && hy >= home.0[1] && hy <= home.1[1];
+        if !on_top {
+            let gap = footprint_gap(
+                &Footprint::Rect(home.0, home.1),
+                &Footprint::Disc(w.mission.start, BODY_RADIUS_M),
+            );
+            assert!(
+                gap >= START_PAD_GAP_M - 1e-4,
+                "seed {seed}: the body starts {gap} m from the home pad"
+            );
+            beside_home += 1;
+        }
         // Start and home keep their room: nothing within the classic keep-out of the take-off point.
         let start = Footprint::Rect(w.mission.start, w.mission.start);
         assert!(
@@ -1086,6 +1102,7 @@ fn wide_random_worlds_have_what_real_arenas_have() {
     assert!(share(zigzag, 0.15), "zig-zags: {zigzag}");
     assert!(share(far_pad, 0.15), "goal pads beyond 0.25 m: {far_pad}");
     assert!(bare * 50 <= n as usize, "{bare} worlds without obstacles");
+    assert!(share(beside_home, 0.1), "starts beside the home pad: {beside_home}");
     assert!(
         large > 0 && share(n as usize - large, 0.5),
         "large-arena worlds: {large}"

@@ -53,7 +53,7 @@
 //! [`World::random`] (`wide`, the default since issue 14) draws what real arenas have: a 4–6.4 × 2–3.2 m
 //! arena ([`WIDE_ARENA_MIN_M`]..[`WIDE_ARENA_MAX_M`]); the take-off point 0.5–0.9 m from one end and the
 //! nominal goal 0.5–0.9 m from the other; the home pad under the take-off point (within 5 cm) or, one world
-//! in six, beside it (0.25–0.35 m, the drone starting on the floor); the goal pad 0.05–0.35 m from the
+//! in six, beside it (0.25–0.35 m, the drone starting on the floor [`START_PAD_GAP_M`] or more from its sides); the goal pad 0.05–0.35 m from the
 //! nominal goal, or (one world in three) 0.1–0.25 m from a side or end wall with the nominal goal within
 //! 0.35 m of it. Then either a zig-zag corridor (about one world in three: 2–4 walls across the arena whose
 //! 0.6–0.9 m gaps alternate between the two side walls, so every turn lies next to an arena wall) or 0–3
@@ -95,7 +95,7 @@ mod geometry;
 mod random;
 
 pub use random::{
-    FOREST_PAD_GAP_M, FOREST_RADIUS_M, Generator, KEEP_OUT_M, NEAR_PAD_GAP_M, SOLVABILITY_INFLATION_M,
+    FOREST_PAD_GAP_M, FOREST_RADIUS_M, Generator, KEEP_OUT_M, NEAR_PAD_GAP_M, SOLVABILITY_INFLATION_M, START_PAD_GAP_M,
     WIDE_ARENA_MAX_M, WIDE_ARENA_MIN_M,
 };
 

@@ -122,6 +122,13 @@ pub const NEAR_PAD_GAP_M: (f32, f32) = (0.1, 0.25);
 pub const FOREST_RADIUS_M: (f32, f32) = (0.08, 0.15);
 /// Least edge gap between a forest cylinder and the goal pad, metres.
 pub const FOREST_PAD_GAP_M: f32 = 0.1;
+/// Least gap between the body disc and the home pad's sides when the drone starts on the floor beside it,
+/// m. The world files allow 0 (touching); a generated start that close was always a pad's corner diagonal
+/// to the drone, which the four single-ray beams pass beside (a real VL53L1x's 27° cone would see it), so
+/// the lift-off's millimetres of drift counted as a collision before the flight began (worlds 23 000 223,
+/// 122 000 366, 127 000 456: BENCHMARKS.md §5, session 19). A person setting the drone down beside a pad
+/// leaves a few centimetres.
+pub const START_PAD_GAP_M: f32 = 0.03;
 
 /// Up to `count` cylinders of radius 5–25 cm where `keep` allows them (20 tries each), appended to `out`.
 fn scatter_cylinders(
@@ -513,11 +520,23 @@ impl World {
                 Generator::Classic => candidate(&mut rng, seed),
                 Generator::Wide => candidate_wide(&mut rng, seed),
             };
-            if w.check().is_ok() && w.is_solvable(SOLVABILITY_INFLATION_M) {
+            let start_room = generator == Generator::Classic || w.start_leaves_room_beside_home_pad();
+            if start_room && w.check().is_ok() && w.is_solvable(SOLVABILITY_INFLATION_M) {
                 return w;
             }
         }
         open_world(seed)
+    }
+
+    /// Whether the drone starts on the home pad's top or at least [`START_PAD_GAP_M`] clear of its sides.
+    fn start_leaves_room_beside_home_pad(&self) -> bool {
+        let Some(home) = self.pads.first() else {
+            return true;
+        };
+        let start = self.mission.start;
+        let footprint = home.footprint();
+        let on_top = (0..2).all(|k| start[k] >= footprint.0[k] && start[k] <= footprint.1[k]);
+        on_top || rect_point_distance(footprint, start) - super::BODY_RADIUS_M >= START_PAD_GAP_M - 1e-4
     }
 
     /// Whether a drone can fly from `mission.start` to the nominal goal, the goal pad's centre and the home

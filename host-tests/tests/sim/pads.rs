@@ -63,7 +63,14 @@ fn pads_beside_walls_and_obstacles_are_found_and_landed_on() {
     // least 90 % must complete (38 of 41 did), and every run must stay clear of everything and land on a
     // pad or clear of it (the code before the level calibration touched the cylinder on seed 33).
     for seed in [7_000_051u64, 7_000_112] {
-        let world = World::random(seed);
+        // 7 000 112 is the world the generator drew before starts beside the home pad kept 3 cm
+        // (`START_PAD_GAP_M`, session 19: its start is 2 cm clear), kept as it was in a file.
+        let world = if seed == 7_000_112 {
+            World::from_toml_str(include_str!("worlds/random-7000112.toml"), "random-7000112.toml")
+                .expect("the kept world loads")
+        } else {
+            World::random(seed)
+        };
         let gap = goal_pad_gap(&world);
         assert!(
             (0.1..=0.25).contains(&gap),

@@ -140,6 +140,9 @@ pub struct FastStatus {
     pub motors_stopped: bool,
     /// When the radio commander last sent a setpoint (cleared when a mission starts).
     pub commander_time: Option<Micros>,
+    /// What the map-relative fixes have moved the position so far (arena x, y), m
+    /// ([`crate::flight::estimator::Diagnostics::map_fix_shift_m`]).
+    pub map_fix_shift_m: [f32; 2],
 }
 
 /// What the navigator asks of the stabilizer.
@@ -389,6 +392,7 @@ impl Stabilizer {
             supervisor: self.last_supervisor,
             motors_stopped: self.duty == MotorDuty::default(),
             commander_time: self.commander_time,
+            map_fix_shift_m: self.estimator.map_fix_shift_m(),
         }
     }
 
@@ -645,6 +649,7 @@ impl<const CELLS: usize, const QUEUE: usize> Navigator<CELLS, QUEUE> {
             battery_v: sup.battery_v_filtered,
             battery_low_v: self.battery_low_v,
         };
+        self.mission.on_map_fix_shift(status.map_fix_shift_m);
         let setpoint = self.mission.tick(now, &status.estimate, &inputs);
         Some(MissionCommand::Setpoint { setpoint, time: now })
     }

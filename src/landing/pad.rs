@@ -494,6 +494,51 @@ impl<const EDGES: usize> PadDetector<EDGES> {
         *self = Self::fresh(self.config);
     }
 
+    /// Moves everything recorded (the motion anchor, the open bin, the closed bins, pending detections,
+    /// edges, crossings and the estimate) by `(dx_m, dy_m)`: the position estimate these were recorded in
+    /// has just been corrected by that much (a map fix's jump), and edges left in the old frame would put
+    /// the centre off by the correction. Non-finite shifts are ignored. O(`EDGES` + bins kept).
+    pub fn translate(&mut self, dx_m: f32, dy_m: f32) {
+        if !(dx_m.is_finite() && dy_m.is_finite()) {
+            return;
+        }
+        let shift = |p: &mut (f32, f32)| {
+            p.0 += dx_m;
+            p.1 += dy_m;
+        };
+        if let Some(anchor) = self.anchor.as_mut() {
+            shift(anchor);
+        }
+        self.bin_first.x += dx_m;
+        self.bin_first.y += dy_m;
+        let n = self.bin_len as f32;
+        self.bin_sum.0 += n * dx_m;
+        self.bin_sum.1 += n * dy_m;
+        for bin in self.ring.iter_mut() {
+            bin.x += dx_m;
+            bin.y += dy_m;
+        }
+        for detection in [self.last_detection.as_mut(), self.pending_enter.as_mut()]
+            .into_iter()
+            .flatten()
+        {
+            detection.edge.x += dx_m;
+            detection.edge.y += dy_m;
+        }
+        for edge in self.edges.iter_mut() {
+            edge.x += dx_m;
+            edge.y += dy_m;
+        }
+        for crossing in self.crossings.iter_mut() {
+            shift(&mut crossing.enter);
+            shift(&mut crossing.exit);
+        }
+        if let Some(estimate) = self.estimate.as_mut() {
+            estimate.x += dx_m;
+            estimate.y += dy_m;
+        }
+    }
+
     /// Feeds one downward-range sample taken at arena position `(x_m, y_m)`. Returns the edge stored
     /// because of this sample, if any (edges are reported once their step has settled, about `lag` bins
     /// after it). Non-finite or out-of-range samples are ignored.

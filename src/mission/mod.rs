@@ -291,6 +291,11 @@ const UNLOCKED_PAD_MARGIN_M: f32 = 0.06;
 /// A landing where the drone is descends once within this of its landing point, m; farther, it first flies
 /// there at its height.
 const EMERGENCY_MOVE_TOLERANCE_M: f32 = 0.05;
+/// The smallest and largest change of the map fixes' shift sum between two ticks that moves the pad
+/// search's records ([`Mission::on_map_fix_shift`]), m: a jump, not the fixes' steady pull; and not a
+/// filter reset's.
+const MIN_MAP_FIX_SHIFT_STEP_M: f32 = 0.02;
+const MAX_MAP_FIX_SHIFT_STEP_M: f32 = 0.5;
 /// Within this distance of the leg's target the navigating drone already feeds the pad detector, m.
 const PAD_LOOKOUT_RADIUS_M: f32 = 0.8;
 /// The hover test's hold and the exploration's first look begin once the climb is this close below the
@@ -329,6 +334,8 @@ pub struct Mission<const CELLS: usize, const QUEUE: usize> {
     /// The descent gate's state and the search's retries for this leg (`landing`).
     touchdown: landing::Touchdown,
     explorer: explore::Explorer,
+    /// The estimator's map-fix shift sum at the previous tick ([`Self::on_map_fix_shift`]).
+    last_map_fix_shift_m: Option<[f32; 2]>,
 }
 
 /// Counters for logs and the simulator's report.
@@ -402,6 +409,7 @@ impl<const CELLS: usize, const QUEUE: usize> Mission<CELLS, QUEUE> {
             stats: MissionStats::default(),
             touchdown: landing::Touchdown::new(),
             explorer: explore::Explorer::new(),
+            last_map_fix_shift_m: None,
         }
     }
 
@@ -446,6 +454,7 @@ impl<const CELLS: usize, const QUEUE: usize> Mission<CELLS, QUEUE> {
                 stats: _,
                 touchdown: _,
                 explorer: _,
+                last_map_fix_shift_m: _,
             } = m;
         };
         // SAFETY: the caller guarantees `slot` is valid and aligned; `addr_of_mut!` makes no reference to the
@@ -475,6 +484,7 @@ impl<const CELLS: usize, const QUEUE: usize> Mission<CELLS, QUEUE> {
             addr_of_mut!((*slot).stats).write(MissionStats::default());
             addr_of_mut!((*slot).touchdown).write(landing::Touchdown::new());
             addr_of_mut!((*slot).explorer).write(explore::Explorer::new());
+            addr_of_mut!((*slot).last_map_fix_shift_m).write(None);
         }
     }
 
@@ -589,7 +599,39 @@ impl<const CELLS: usize, const QUEUE: usize> Mission<CELLS, QUEUE> {
         self.phase = Phase::Preflight;
         self.heading = 0.0;
         self.touchdown = landing::Touchdown::new();
+        self.last_map_fix_shift_m = None;
         Ok(())
+    }
+
+    /// The estimator's running sum of what its map fixes moved the position (arena x, y, m; see
+    /// [`crate::flight::estimator::Diagnostics::map_fix_shift_m`]), given before every tick. A jump since
+    /// the previous tick of [`MIN_MAP_FIX_SHIFT_STEP_M`] to [`MAX_MAP_FIX_SHIFT_STEP_M`] moves what the pad
+    /// search recorded in the old frame (the detector's edges and estimate, the refinement's centre, the
+    /// approach and landing points) with the estimate. Smaller changes are left alone: they are the fixes'
+    /// steady pull against the flow's drift, which the records should keep (moving them with every fix
+    /// undid that pull: landings 1.77 / 3.96 → 2.72 / 5.79 cm median / p95 on stressed seeds 140–149,
+    /// BENCHMARKS.md §5).
+    pub fn on_map_fix_shift(&mut self, shift_m: [f32; 2]) {
+        let previous = self.last_map_fix_shift_m.replace(shift_m);
+        let Some(previous) = previous else { return };
+        let (dx, dy) = (shift_m[0] - previous[0], shift_m[1] - previous[1]);
+        let step = libm::hypotf(dx, dy);
+        if !(MIN_MAP_FIX_SHIFT_STEP_M..=MAX_MAP_FIX_SHIFT_STEP_M).contains(&step) {
+            return;
+        }
+        // (The detector is also fed while navigating near the leg's target, `PAD_LOOKOUT_RADIUS_M`.)
+        self.pad.translate(dx, dy);
+        match &mut self.phase {
+            Phase::Search(Search::Refine { centre, .. }) => {
+                centre.0 += dx;
+                centre.1 += dy;
+            }
+            Phase::Approach { x, y, .. } | Phase::Land { x, y } => {
+                *x += dx;
+                *y += dy;
+            }
+            _ => {}
+        }
     }
 
     /// Abort (`mission.start = 0` during a mission): land where it is, then end with

@@ -35,6 +35,11 @@ const UNOBSERVED_MIN_SPEED_M_S: f32 = 0.2;
 const UNOBSERVED_APPROACH_GAIN: f32 = 1.0;
 /// Largest turn away from the direction of travel to look at an unobserved region, rad.
 const LOOK_MAX_OFFSET_RAD: f32 = 0.8;
+/// A beam keeps looking at an unobserved region while its turn is within this much of the least turn any
+/// beam needs, rad. (With the least turn alone, a cell about 45° off the travel direction made the front
+/// and side beams trade places every few ticks: the heading flipped by 90°, reached neither, and the box's
+/// end between them was never seen: world 119 000 413, BENCHMARKS.md §5, session 19.)
+const LOOK_CHOICE_HYSTERESIS_RAD: f32 = 0.35;
 /// See [`UNOBSERVED_MIN_SPEED_M_S`] and [`UNOBSERVED_APPROACH_GAIN`]: the search lines use the same rule.
 pub(super) const SEARCH_UNOBSERVED_MIN_SPEED_M_S: f32 = UNOBSERVED_MIN_SPEED_M_S;
 pub(super) const SEARCH_UNOBSERVED_APPROACH_GAIN: f32 = UNOBSERVED_APPROACH_GAIN;
@@ -342,7 +347,7 @@ impl<const CELLS: usize, const QUEUE: usize> Mission<CELLS, QUEUE> {
                         // An unobserved region beside the path ahead: instead of sweeping (whose phase may
                         // look the other way all along the approach), point the beam that needs the least
                         // turn (front, left or right) at it, so it is seen before the drone is there.
-                        Some(cell) => Self::look_at_heading(travel, (x, y), cell),
+                        Some(cell) => Self::look_at_heading(travel, self.heading, (x, y), cell),
                         None => wrap_angle(travel + SCAN_AMPLITUDE_RAD * libm::sinf(phase)),
                     };
                     // The front beam must look where the drone actually goes: judge the heading against the
@@ -397,7 +402,9 @@ impl<const CELLS: usize, const QUEUE: usize> Mission<CELLS, QUEUE> {
     /// the path passes within [`UNOBSERVED_CLEARANCE_M`] of a region no beam has looked into, m (at most
     /// [`UNOBSERVED_LOOKAHEAD_M`]). The planner treats unknown space as free, so a path may graze a box the
     /// four beams have not seen yet; the drone slows there until the sweep has looked.
-    /// Also returns the centre of the unobserved cell found first, if any, for a beam to look at.
+    /// Also returns, for a beam to look at, the centre of the unobserved cell nearest the first path sample
+    /// that has one (the nearest is what the drone would graze; a raster-order pick was often a cell on the
+    /// far side of the path).
     pub(super) fn observed_ahead_m(&self, here: (f32, f32), target: (f32, f32)) -> (f32, Option<(f32, f32)>) {
         self.observed_along(here, target, true)
     }
@@ -425,6 +432,8 @@ impl<const CELLS: usize, const QUEUE: usize> Mission<CELLS, QUEUE> {
         let suspicious = |p: (f32, f32)| -> Option<(f32, f32)> {
             let cx = libm::floorf(p.0 / CELL_SIZE_M) as i32;
             let cy = libm::floorf(p.1 / CELL_SIZE_M) as i32;
+            // (squared distance from `p` to the cell's centre, the cell's centre)
+            let mut nearest: Option<(f32, (f32, f32))> = None;
             for y in cy.saturating_sub(reach)..=cy.saturating_add(reach) {
                 for x in cx.saturating_sub(reach)..=cx.saturating_add(reach) {
                     if !self.shape.contains(x, y) {
@@ -433,17 +442,25 @@ impl<const CELLS: usize, const QUEUE: usize> Mission<CELLS, QUEUE> {
                     let (x0, y0) = (x as f32 * CELL_SIZE_M, y as f32 * CELL_SIZE_M);
                     let dx = (x0 - p.0).max(p.0 - (x0 + CELL_SIZE_M)).max(0.0);
                     let dy = (y0 - p.1).max(p.1 - (y0 + CELL_SIZE_M)).max(0.0);
-                    if dx * dx + dy * dy <= UNOBSERVED_CLEARANCE_M * UNOBSERVED_CLEARANCE_M
-                        && ahead(x, y)
+                    if dx * dx + dy * dy > UNOBSERVED_CLEARANCE_M * UNOBSERVED_CLEARANCE_M {
+                        continue;
+                    }
+                    let centre = self.shape.center_of(Cell::new(x as u16, y as u16));
+                    let d2 = (centre.0 - p.0) * (centre.0 - p.0) + (centre.1 - p.1) * (centre.1 - p.1);
+                    // The region test reads nine cells: only for a cell that would be nearer.
+                    if nearest.is_some_and(|(best, _)| best <= d2) {
+                        continue;
+                    }
+                    if ahead(x, y)
                         && self
                             .grid
                             .is_unobserved_region(Cell::new(x as u16, y as u16), UNOBSERVED_MIN_NEIGHBOURS)
                     {
-                        return Some(self.shape.center_of(Cell::new(x as u16, y as u16)));
+                        nearest = Some((d2, centre));
                     }
                 }
             }
-            None
+            nearest.map(|(_, centre)| centre)
         };
         let later = if follow_path {
             self.waypoints.get(2..).unwrap_or(&[])
@@ -496,16 +513,28 @@ impl<const CELLS: usize, const QUEUE: usize> Mission<CELLS, QUEUE> {
         wrap_angle(heading + offset)
     }
 
-    /// The heading within [`LOOK_MAX_OFFSET_RAD`] of `travel` that points the front, left or right beam
-    /// (whichever needs the least turn away from `travel`) from `here` at `point`, rad.
-    pub(super) fn look_at_heading(travel: f32, here: (f32, f32), point: (f32, f32)) -> f32 {
+    /// The heading within [`LOOK_MAX_OFFSET_RAD`] of `travel` that points the front, left or right beam from
+    /// `here` at `point`, rad. The beam is the one whose heading lies nearest `previous` (the heading
+    /// commanded last) among those whose turn away from `travel` is within [`LOOK_CHOICE_HYSTERESIS_RAD`] of
+    /// the least turn, so a beam keeps the region until it has looked.
+    pub(super) fn look_at_heading(travel: f32, previous: f32, here: (f32, f32), point: (f32, f32)) -> f32 {
         let bearing = libm::atan2f(point.1 - here.1, point.0 - here.0);
-        let offset = [0.0, core::f32::consts::FRAC_PI_2, -core::f32::consts::FRAC_PI_2]
-            .into_iter()
-            .map(|beam| wrap_angle(bearing - beam - travel))
-            .fold(core::f32::consts::PI, |best, o| {
-                if libm::fabsf(o) < libm::fabsf(best) { o } else { best }
-            });
-        wrap_angle(travel + offset.clamp(-LOOK_MAX_OFFSET_RAD, LOOK_MAX_OFFSET_RAD))
+        let offsets = [0.0, core::f32::consts::FRAC_PI_2, -core::f32::consts::FRAC_PI_2]
+            .map(|beam| wrap_angle(bearing - beam - travel));
+        let least = offsets
+            .iter()
+            .fold(core::f32::consts::PI, |best, o| best.min(libm::fabsf(*o)));
+        let mut chosen: Option<(f32, f32)> = None; // (distance from `previous`, heading)
+        for offset in offsets {
+            if libm::fabsf(offset) > least + LOOK_CHOICE_HYSTERESIS_RAD {
+                continue;
+            }
+            let heading = wrap_angle(travel + offset.clamp(-LOOK_MAX_OFFSET_RAD, LOOK_MAX_OFFSET_RAD));
+            let from_previous = libm::fabsf(wrap_angle(heading - previous));
+            if chosen.is_none_or(|(best, _)| from_previous < best) {
+                chosen = Some((from_previous, heading));
+            }
+        }
+        chosen.map_or(travel, |(_, heading)| heading)
     }
 }

@@ -104,6 +104,19 @@ fn fly_with<const N: usize>(
     world: &World,
     path: &[(f32, f32)],
     rng: &mut SmallRng,
+    hook: impl FnMut(&mut PadDetector<N>, usize),
+) -> usize {
+    fly_estimated(det, world, path, rng, (0.0, 0.0), hook)
+}
+
+/// [`fly_with`], with the positions fed to `det` off the true ones by `estimate_error` (the position
+/// estimate's error, m): the ranges come from the true path.
+fn fly_estimated<const N: usize>(
+    det: &mut PadDetector<N>,
+    world: &World,
+    path: &[(f32, f32)],
+    rng: &mut SmallRng,
+    estimate_error: (f32, f32),
     mut hook: impl FnMut(&mut PadDetector<N>, usize),
 ) -> usize {
     let step = SPEED_MPS / RATE_HZ;
@@ -127,7 +140,7 @@ fn fly_with<const N: usize>(
                 r += if rng.random::<bool>() { 0.3 } else { -0.3 };
             }
             hook(det, samples);
-            det.update(r, x, y);
+            det.update(r, x + estimate_error.0, y + estimate_error.1);
             samples += 1;
             s += step;
         }
@@ -468,6 +481,61 @@ fn turn_backs_fix_the_centre_next_to_a_wall() {
         }
     }
     println!("pad next to a wall: {turn_back_locks} of 100 locked");
+}
+
+#[test]
+fn edges_recorded_before_a_position_correction_move_with_it() {
+    // The estimate is 9 cm off (random direction) for the first half of a fine crosshatch, which crosses
+    // the pad along one axis only; then a correction puts it right (a map fix's jump). The first half's
+    // edges measure one coordinate of the centre 9 cm off unless they are moved with the correction.
+    let run = |translate: bool| -> Vec<f32> {
+        let mut errors = Vec::new();
+        for seed in 0..60 {
+            let mut rng = SmallRng::seed_from_u64(1000 + seed);
+            let world = random_pad_world(&mut rng);
+            let start = random_start(&mut rng);
+            let path = sweep_path(&fine_sweep(), GOAL, start);
+            let bearing = rng.random_range(0.0..std::f32::consts::TAU);
+            let error = (0.09 * bearing.cos(), 0.09 * bearing.sin());
+            let mid = path.len() / 2;
+            let mut det = PadDetector::<EDGES>::new(PadConfig::default()).expect("valid config");
+            fly_estimated(&mut det, &world, &path[..=mid], &mut rng, error, |_, _| {});
+            if translate {
+                det.translate(-error.0, -error.1);
+            }
+            fly(&mut det, &world, &path[mid..], &mut rng);
+            det.flush();
+            errors.push(error_to(&det, world.pad.expect("pad")).unwrap_or(f32::INFINITY));
+        }
+        errors
+    };
+    let moved = run(true);
+    let left = run(false);
+    let within = |errors: &[f32]| errors.iter().filter(|e| **e <= 0.02).count();
+    println!(
+        "a 9 cm correction half-way: locked within 2 cm {} of 60 with the records moved, {} of 60 without",
+        within(&moved),
+        within(&left)
+    );
+    assert_eq!(within(&moved), 60, "errors with the records moved: {moved:?}");
+    // The scene is one where it matters: left in the old frame, the records put the centre off.
+    assert!(within(&left) <= 10, "errors without: {left:?}");
+}
+
+#[test]
+fn translate_ignores_a_non_finite_shift() {
+    let mut rng = SmallRng::seed_from_u64(5);
+    let world = World::pad_at(GOAL);
+    let path = sweep_path(&fine_sweep(), GOAL, (1.0, 1.0));
+    let mut det = PadDetector::<EDGES>::new(PadConfig::default()).expect("valid config");
+    fly(&mut det, &world, &path, &mut rng);
+    let before = det.estimate().expect("an estimate");
+    det.translate(f32::NAN, 0.01);
+    det.translate(0.01, f32::INFINITY);
+    assert_eq!(det.estimate(), Some(before));
+    det.translate(0.03, -0.02);
+    let after = det.estimate().expect("an estimate");
+    assert!((after.x - before.x - 0.03).abs() < 1e-5 && (after.y - before.y + 0.02).abs() < 1e-5);
 }
 
 /// The mission's detector tuning (three inlier crossings covering both directions lock).

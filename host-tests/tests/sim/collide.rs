@@ -64,6 +64,28 @@ fn paths_past_unseen_wall_ends_slow_down_and_look_first() {
     }
 }
 
+#[test]
+fn a_look_at_unseen_space_keeps_its_beam_until_it_gets_there() {
+    // Under worlds/stress.toml, the flight code of 6862444 touched a box's end at cruise height (state 11)
+    // in 21 000 079 and 28 000 098: the look-ahead pointed a beam at the first unobserved cell in raster
+    // order, often one on the far side of the path, and with the cell about 45° off the travel the front and
+    // side beams needed nearly the same turn, so the commanded heading flipped between them every few ticks
+    // (traced in 119 000 413: 69° and −17°), reached neither, and the sector where the box's end was went
+    // unswept. Now the nearest unobserved cell is looked at, and a beam keeps it while its turn is within
+    // 0.35 rad of the least.
+    let worlds = [stressed(World::random(21_000_079)), stressed(World::random(28_000_098))];
+    for world in worlds {
+        let report = fly(&world);
+        assert_eq!(report.collisions, 0, "{} collided: {report:?}", world.name);
+        assert!(
+            report.min_clearance_m.expect("flew") > 0.0,
+            "{}: {report:?}",
+            world.name
+        );
+        assert_eq!(report.outcome, "completed", "{report:?}");
+    }
+}
+
 /// The default world with the home pad moved beside the take-off point, its side `gap_m` beyond the body's
 /// radius (the start on the floor, as the widened generator places one world in six).
 fn home_pad_beside_start(gap_m: f32) -> World {

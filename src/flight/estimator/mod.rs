@@ -188,7 +188,7 @@
 //!
 //! ## Size and cost
 //!
-//! `size_of::<Estimator>()` is 1344 bytes on a 64-bit host (the covariance is 324 of them, the surface
+//! `size_of::<Estimator>()` is 1416 bytes on a 64-bit host (the covariance is 324 of them, the surface
 //! tracker's ranges 108, the wall anchors about 120; the `memory_size` test), a little less on the MCU; no
 //! heap; the prediction's stack frame holds one 9 × 9 temporary (324 B). Cortex-M4F instructions per call, measured under QEMU (mps2-an386,
 //! `-icount`, release profile with `opt-level = "s"` as the firmware), hovering:
@@ -603,6 +603,9 @@ pub struct Diagnostics {
     pub map_jumps_held: u32,
     /// Map-relative fixes fused with their heading term (against the arena's walls).
     pub map_heading_fused: u32,
+    /// Sum of what the map-relative fixes moved the horizontal position (arena x, y), m. Whoever holds
+    /// positions recorded in the estimate's frame (the pad search) moves them by this sum's jumps.
+    pub map_fix_shift_m: [f32; 2],
 }
 
 /// The estimator. See the module documentation.
@@ -798,6 +801,11 @@ impl Estimator {
             surface_height_m: self.surface.surface(),
             valid: self.is_valid(),
         }
+    }
+
+    /// [`Diagnostics::map_fix_shift_m`] alone (read at every step, without copying the diagnostics).
+    pub fn map_fix_shift_m(&self) -> [f32; 2] {
+        self.diag.map_fix_shift_m
     }
 
     /// Counters, innovations and health for logs.

@@ -253,6 +253,12 @@ impl Estimator {
                 Update::Unusable => {}
             }
         }
+        for (axis, from) in start.iter().enumerate() {
+            let moved = self.pos[axis] - from;
+            if moved.is_finite() {
+                self.diag.map_fix_shift_m[axis] += moved;
+            }
+        }
         self.supervise(true);
     }
 

@@ -20,17 +20,21 @@ trap 'kill "$serve_pid" 2>/dev/null || true' EXIT
 python3 tools/e2e/wait_for_sim.py "$PORT" 60
 
 state() { python3 -c 'import json,sys; print(json.load(open(sys.argv[1]))["mission_state"])' "$1"; }
+occupied() { python3 -c 'import json,sys; print(json.load(open(sys.argv[1]))["cells"].count(3))' "$1"; }
 
 # Before the mission: the map memory is there, and empty.
 "$cfnav" map --uri "$uri" --json "$out/idle.json"
 python3 tools/e2e/cflib_map.py --uri "$uri" --start
 
-# While flying: download until the drone is navigating (or searching, approaching), then compare.
+# While flying: download until the drone is navigating (or searching, approaching) and has mapped something,
+# then compare. (The first download in state 11 can come before the first sweep is written: on a loaded
+# machine it did, and the check then failed on "no occupied cell".)
 flying=0
 for _ in $(seq 1 60); do
   "$cfnav" map --uri "$uri" --json "$out/flying.json" 2>>"$out/map.log"
   s=$(state "$out/flying.json")
-  if { [ "$s" -ge 11 ] && [ "$s" -le 13 ]; } || { [ "$s" -ge 21 ] && [ "$s" -le 23 ]; }; then flying=1; break; fi
+  if { { [ "$s" -ge 11 ] && [ "$s" -le 13 ]; } || { [ "$s" -ge 21 ] && [ "$s" -le 23 ]; }; } \
+    && [ "$(occupied "$out/flying.json")" -gt 0 ]; then flying=1; break; fi
   if [ "$s" -ge 100 ]; then break; fi
   sleep 0.5
 done

@@ -55,6 +55,8 @@ pub(super) const FLOOR_SPOT_CLEARANCE_M: f32 = 0.22;
 /// Rings of candidate floor spots around the drone, and their spacing, m.
 const FLOOR_SPOT_RINGS: u8 = 9;
 const FLOOR_SPOT_STEP_M: f32 = 0.15;
+/// Candidate floor spots: the drone's own position and eight on each further ring.
+const FLOOR_SPOT_CANDIDATES: usize = 1 + 8 * (FLOOR_SPOT_RINGS as usize - 1);
 const REFINE_STAGES: u8 = 8;
 /// A live beam reading closer than this closes the way along it, m: the body's radius (0.06 m), the
 /// reading's age at 10 Hz and the velocity loop's lag (≈ 0.25 s: 8 cm at 0.3 m/s) and 4 cm of ranger
@@ -593,50 +595,61 @@ impl<const CELLS: usize, const QUEUE: usize> Mission<CELLS, QUEUE> {
     /// spot nearest the drone (rings [`FLOOR_SPOT_STEP_M`] apart, eight points each) that keeps
     /// [`FLOOR_SPOT_CLEARANCE_M`] from what is mapped, is reachable in a straight line, lies at least
     /// [`PAD_REACH_M`] from the pad's nominal point (the pad lies within 0.35 m of it) or, when even that
-    /// finds nothing, from the best estimate, from every earlier estimate of this leg ([`Touchdown::glimpses`])
-    /// and away from every pad edge seen; the descent gate then
-    /// wants the floor under the drone. Without any such spot: where the drone is.
+    /// finds nothing, the spot farthest from that point among those that keep away from the best estimate,
+    /// from every earlier estimate of this leg ([`Touchdown::glimpses`]) and from every pad edge seen; the
+    /// descent gate then wants the floor under the drone. Without any such spot: where the drone is.
     pub(super) fn land_clear_of_pad(&mut self, state: &StateEstimate) -> Setpoint {
         let here = (state.position_m[0], state.position_m[1]);
         let spot = self.floor_spot_clear_of_pad(here, usize::from(self.touchdown.floor_refusals));
         self.begin_approach(spot.unwrap_or(here), Target::Floor)
     }
 
-    /// The floor spot of [`Self::land_clear_of_pad`]'s rule nearest `here`, skipping the first `skip` that
-    /// qualify (spots refused already); `None` when none qualifies. At most 2 × 65 candidates, each
+    /// The floor spot of [`Self::land_clear_of_pad`]'s rule, skipping the first `skip` that qualify (spots
+    /// refused already), in the rule's order; `None` when none qualifies. At most 2 × 65 candidates, each
     /// O(edges + glimpses) plus a clearance look-up and a straight-line check on the grid.
     pub(super) fn floor_spot_clear_of_pad(&self, here: (f32, f32), skip: usize) -> Option<(f32, f32)> {
         let nominal = self.leg_target();
         let estimate = self.pad.estimate().map(|e| (e.x, e.y));
         let glimpses = self.touchdown.glimpses;
-        let mut found = 0usize;
         let far = |p: (f32, f32), q: (f32, f32), r: f32| libm::hypotf(p.0 - q.0, p.1 - q.1) >= r;
-        for strict in [true, false] {
-            for ring in 0..FLOOR_SPOT_RINGS {
+        let candidates = || {
+            (0..FLOOR_SPOT_RINGS).flat_map(move |ring| {
                 let radius = FLOOR_SPOT_STEP_M * f32::from(ring);
                 let points: u8 = if ring == 0 { 1 } else { 8 };
-                for k in 0..points {
+                (0..points).map(move |k| {
                     let a = core::f32::consts::FRAC_PI_4 * f32::from(k);
-                    let p = (here.0 + radius * libm::cosf(a), here.1 + radius * libm::sinf(a));
-                    let clear_of_pad = if strict {
-                        far(p, nominal, PAD_REACH_M)
-                    } else {
-                        estimate.is_none_or(|e| far(p, e, PAD_ESTIMATE_REACH_M))
-                            && glimpses.iter().flatten().all(|g| far(p, *g, PAD_ESTIMATE_REACH_M))
-                            && self.pad.edges().iter().all(|e| far(p, (e.x, e.y), PAD_EDGE_REACH_M))
-                    };
-                    if clear_of_pad
-                        && self.clearance(p) >= FLOOR_SPOT_CLEARANCE_M
-                        && self.clip_to_clearance(here, p) == p
-                    {
-                        if found == skip {
-                            return Some(p);
-                        }
-                        found += 1;
-                    }
-                }
+                    (here.0 + radius * libm::cosf(a), here.1 + radius * libm::sinf(a))
+                })
+            })
+        };
+        let usable =
+            |p: (f32, f32)| self.clearance(p) >= FLOOR_SPOT_CLEARANCE_M && self.clip_to_clearance(here, p) == p;
+        // Spots where the pad cannot be, nearest the drone first.
+        let mut strict = candidates().filter(|p| far(*p, nominal, PAD_REACH_M) && usable(*p));
+        let mut skip = skip;
+        for p in strict.by_ref() {
+            if skip == 0 {
+                return Some(p);
+            }
+            skip -= 1;
+        }
+        // None: spots clear of what the detector saw, farthest from the nominal point first (the pad lies
+        // within 0.35 m of it, so the farther the spot the fewer places the pad can have that reach it; the
+        // nearest to the drone put the body against the corner of a pad the search never crossed, world
+        // 157 000 588, BENCHMARKS.md §5, session 20).
+        let mut ranked: heapless::Vec<(f32, (f32, f32)), FLOOR_SPOT_CANDIDATES> = heapless::Vec::new();
+        for p in candidates() {
+            let clear_of_pad = estimate.is_none_or(|e| far(p, e, PAD_ESTIMATE_REACH_M))
+                && glimpses.iter().flatten().all(|g| far(p, *g, PAD_ESTIMATE_REACH_M))
+                && self.pad.edges().iter().all(|e| far(p, (e.x, e.y), PAD_EDGE_REACH_M));
+            if clear_of_pad && usable(p) {
+                let d = libm::hypotf(p.0 - nominal.0, p.1 - nominal.1);
+                // Kept in order as it fills (at most 65: an insertion costs less flash than a sort).
+                let at = ranked.iter().position(|(other, _)| *other < d).unwrap_or(ranked.len());
+                // (Capacity is the candidate count: never full.)
+                let _ = ranked.insert(at, (d, p));
             }
         }
-        None
+        ranked.get(skip).map(|(_, p)| *p)
     }
 }

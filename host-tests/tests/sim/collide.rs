@@ -16,6 +16,20 @@ fn stressed(world: World) -> World {
     crate::with_stress(world, "worlds/stress.toml")
 }
 
+/// Each world flies its mission to completion with the body disc never touching anything.
+fn completes_without_contact(worlds: impl IntoIterator<Item = World>) {
+    for world in worlds {
+        let report = fly(&world);
+        assert_eq!(report.collisions, 0, "{} collided: {report:?}", world.name);
+        assert!(
+            report.min_clearance_m.expect("flew") > 0.0,
+            "{}: {report:?}",
+            world.name
+        );
+        assert_eq!(report.outcome, "completed", "{report:?}");
+    }
+}
+
 #[test]
 fn search_lines_respect_the_live_beams() {
     // Before (commit dc14fef, the same worlds and seeds), each touched an obstacle while searching the
@@ -52,16 +66,7 @@ fn paths_past_unseen_wall_ends_slow_down_and_look_first() {
         stressed(World::random(28_000_100)),
         stressed(World::random(25_000_201)),
     ];
-    for world in worlds {
-        let report = fly(&world);
-        assert_eq!(report.collisions, 0, "{} collided: {report:?}", world.name);
-        assert!(
-            report.min_clearance_m.expect("flew") > 0.0,
-            "{}: {report:?}",
-            world.name
-        );
-        assert_eq!(report.outcome, "completed", "{report:?}");
-    }
+    completes_without_contact(worlds);
 }
 
 #[test]
@@ -74,16 +79,7 @@ fn a_look_at_unseen_space_keeps_its_beam_until_it_gets_there() {
     // unswept. Now the nearest unobserved cell is looked at, and a beam keeps it while its turn is within
     // 0.35 rad of the least.
     let worlds = [stressed(World::random(21_000_079)), stressed(World::random(28_000_098))];
-    for world in worlds {
-        let report = fly(&world);
-        assert_eq!(report.collisions, 0, "{} collided: {report:?}", world.name);
-        assert!(
-            report.min_clearance_m.expect("flew") > 0.0,
-            "{}: {report:?}",
-            world.name
-        );
-        assert_eq!(report.outcome, "completed", "{report:?}");
-    }
+    completes_without_contact(worlds);
 }
 
 /// The default world with the home pad moved beside the take-off point, its side `gap_m` beyond the body's

@@ -625,18 +625,17 @@ impl<const CELLS: usize, const QUEUE: usize> Mission<CELLS, QUEUE> {
         let usable =
             |p: (f32, f32)| self.clearance(p) >= FLOOR_SPOT_CLEARANCE_M && self.clip_to_clearance(here, p) == p;
         // Spots where the pad cannot be, nearest the drone first.
-        let mut strict = candidates().filter(|p| far(*p, nominal, PAD_REACH_M) && usable(*p));
         let mut skip = skip;
-        for p in strict.by_ref() {
+        for p in candidates().filter(|p| far(*p, nominal, PAD_REACH_M) && usable(*p)) {
             if skip == 0 {
                 return Some(p);
             }
             skip -= 1;
         }
-        // None: spots clear of what the detector saw, farthest from the nominal point first (the pad lies
-        // within 0.35 m of it, so the farther the spot the fewer places the pad can have that reach it; the
-        // nearest to the drone put the body against the corner of a pad the search never crossed, world
-        // 157 000 588, BENCHMARKS.md §5, session 20).
+        // No such spot (or all refused): spots clear of what the detector saw, farthest from the nominal
+        // point first (the pad lies within 0.35 m of it, so the farther the spot the fewer places the pad can
+        // have that reach it; the nearest to the drone put the body against the corner of a pad the search
+        // never crossed, world 157 000 588, BENCHMARKS.md §5, session 20).
         let mut ranked: heapless::Vec<(f32, (f32, f32)), FLOOR_SPOT_CANDIDATES> = heapless::Vec::new();
         for p in candidates() {
             let clear_of_pad = estimate.is_none_or(|e| far(p, e, PAD_ESTIMATE_REACH_M))

@@ -5,7 +5,8 @@
 //! mission against the simulator's ground truth with the fixes on and off.
 
 use cfnav::flight::estimator::map_fix::{
-    CONFIRMED_LOG_ODDS, LANDMARK_SETTLE, Landmarks, MAX_WALL_INCIDENCE_RAD, PRE_GATE_M, RayGrid, cast_fixes, ray_cast,
+    CONFIRMED_LOG_ODDS, FACE_END_MAX_DIFFERENCE_M, LANDMARK_SETTLE, Landmarks, MAX_WALL_INCIDENCE_RAD, PRE_GATE_M,
+    RayGrid, cast_fixes, ray_cast,
 };
 use cfnav::flight::estimator::{Estimator, EstimatorConfig};
 use cfnav::nav::grid::{ChangedCells, OccupancyGrid};
@@ -360,6 +361,55 @@ fn a_cell_is_used_only_once_a_second_sweep_confirms_it() {
     let l = landmarks.iter().next().unwrap();
     assert_eq!((l.axis, l.sign), (0, 1));
     assert!((l.plane_m - 2.0).abs() < 1e-4, "{l:?}");
+}
+
+/// A face's last cell (one neighbour along it mapped, not both) gives a fix only for a small difference:
+/// the map smears a surface's end and a cylinder's flank looks straight for a few cells, so a beam there
+/// reading far from the plane may have passed the end or met the curve behind it. Inside the face the same
+/// difference is an estimate error and gives a fix. The face: five rows (18–22) of cells at x = 2.0 m.
+#[test]
+fn a_face_end_gives_a_fix_only_near_the_plane() {
+    let (mut map, shape) = empty_map();
+    let x = 1.2;
+    // Two sweeps confirm the face (rows 1.025 ± 0.1 m), then five beams at its centre place the landmark.
+    let centre = 1.025;
+    let exact = exact_sweep(&arena(), &[BOX], (x, centre), 0.0);
+    let range = exact.front_m.unwrap();
+    write_front(&mut map, x, centre, range + 0.01);
+    write_front(&mut map, x, centre, range + 0.01);
+    let mut landmarks = Landmarks::new();
+    for _ in 0..LANDMARK_SETTLE {
+        assert!(cast_on(&map, shape, &exact, [x, centre], &mut landmarks).fixes[0].is_none());
+    }
+    let row = |y: f32| (y / CELL_SIZE_M) as u16;
+    assert!(map.is_occupied(Cell::new(40, row(1.125))) && !map.is_occupied(Cell::new(40, row(1.175))));
+    // From 1.2 m the beams read `long` further than the plane: the drone is that much nearer x = 0 than
+    // the estimate says, or the beam met something else behind the face's plane.
+    let fix_at = |y: f32, long: f32, landmarks: &mut Landmarks| {
+        let mut sample = exact_sweep(&arena(), &[BOX], (x, y), 0.0);
+        sample.front_m = Some(range + long);
+        cast_on(&map, shape, &sample, [x, y], landmarks).fixes[0]
+    };
+    let small = 0.5 * FACE_END_MAX_DIFFERENCE_M;
+    let large = FACE_END_MAX_DIFFERENCE_M + 0.02;
+    for (y, what) in [(1.025, "the face's middle"), (1.075, "inside the face")] {
+        for long in [small, large] {
+            let fix = fix_at(y, long, &mut landmarks).unwrap_or_else(|| panic!("{what}, {long} m long: a fix"));
+            assert!((fix.measured_m - fix.expected_m - long).abs() < 1e-4, "{fix:?}");
+        }
+    }
+    // The last row: the small difference is a fix, the large one none.
+    let end = 1.125;
+    let fix = fix_at(end, small, &mut landmarks).expect("the end, a small difference: a fix");
+    assert!((fix.measured_m - fix.expected_m - small).abs() < 1e-4, "{fix:?}");
+    assert!(
+        fix_at(end, large, &mut landmarks).is_none(),
+        "the end, {large} m long: no fix"
+    );
+    assert!(
+        fix_at(end, -large, &mut landmarks).is_none(),
+        "the end, {large} m short: no fix"
+    );
 }
 
 /// No self-reinforcing loop: a drone hovers 0.8 m in front of a box with noisy ranges and, every sweep,

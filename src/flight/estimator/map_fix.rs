@@ -21,7 +21,10 @@
 //! reaches the exact wall. *An obstacle's surface* is a [`Landmark`]: the ray cast finds its first
 //! confirmed cell and the face the ray entered by (x or y); a cell is used only if one of its two
 //! neighbours along that face is occupied too (a straight piece of surface, not the corner of a box or a
-//! thin cylinder, whose faces the grid cannot tell). The first [`LANDMARK_SETTLE`] beams that end at such
+//! thin cylinder, whose faces the grid cannot tell), and a face's last cell (one such neighbour, not both)
+//! only for a reading within [`FACE_END_MAX_DIFFERENCE_M`] of the plane: the map smears a surface's end,
+//! and a cylinder's flank looks straight for a few cells, so a beam there may have passed the end or met
+//! the curve behind the plane. The first [`LANDMARK_SETTLE`] beams that end at such
 //! a face place its plane (the mean of where they ended: estimated position + measured distance along the
 //! normal; no fix meanwhile), and from then on the plane is frozen and every beam that reaches a confirmed
 //! cell within 1.5 cells of it is a fix against it.
@@ -88,6 +91,12 @@ pub const MAX_WALL_INCIDENCE_RAD: f32 = 0.96;
 /// A measured range further than this from the expected one is something else (an unmapped object in
 /// front, an outlier), m.
 pub const PRE_GATE_M: f32 = 0.3;
+/// A beam that ends at the last cell of a face (one neighbour along it occupied, not both) gives a fix only
+/// if it differs from the expected distance by at most this, m. The map smears a surface's end by a cell
+/// or so, and a curved surface (a cylinder) looks straight for a few cells, so a beam there may pass the
+/// end or meet the curve far behind the plane: a 14 cm cylinder's flank, taken for its widest face, read
+/// 6–9 cm long for three sweeps running (stressed world 156 000 500) and pulled the estimate 5 cm off.
+pub const FACE_END_MAX_DIFFERENCE_M: f32 = 0.04;
 /// Ranger noise of the fix: this floor plus [`RANGER_STD_RELATIVE`] × range, m (the VL53L1x: a few mm plus
 /// ≈ 1 % of the range; doubled for surfaces that are not quite flat).
 pub const RANGER_STD_FLOOR_M: f32 = 0.005;
@@ -406,17 +415,19 @@ pub fn cast_fixes(
         if cos_inc.is_nan() || cos_inc < if hit.wall { min_cos_wall } else { min_cos } {
             continue;
         }
+        // A straight piece of surface: a neighbour along the face is occupied too; both, inside the face.
+        let mut face_interior = true;
         if !hit.wall {
-            // A straight piece of surface: a neighbour along the face is occupied too.
             let (x, y) = hit.cell;
-            let along = if hit.axis == 0 {
-                occupied(x, y - 1) || occupied(x, y + 1)
+            let (before, after) = if hit.axis == 0 {
+                (occupied(x, y - 1), occupied(x, y + 1))
             } else {
-                occupied(x - 1, y) || occupied(x + 1, y)
+                (occupied(x - 1, y), occupied(x + 1, y))
             };
-            if !along {
+            if !(before || after) {
                 continue;
             }
+            face_interior = before && after;
         }
         let mut normal = [0.0; 2];
         normal[hit.axis] = hit.sign;
@@ -439,6 +450,9 @@ pub fn cast_fixes(
         let expected = hit.sign * (plane_m - position_m[hit.axis]);
         let difference = (measured - expected).abs();
         if difference.is_nan() || difference > PRE_GATE_M {
+            continue;
+        }
+        if !face_interior && difference > FACE_END_MAX_DIFFERENCE_M {
             continue;
         }
         let ranger_std = (RANGER_STD_FLOOR_M + RANGER_STD_RELATIVE * r) * cos_inc;

@@ -21,8 +21,9 @@
 //!   sharply), through [`ReactiveAvoidance`] (repulsion, smoothing, and a speed clamp on the approach
 //!   towards each ranger's obstacle: flying along a wall is not slowed, flying into one is). The planner
 //!   treats unknown space as free, so a path may graze a box no beam has seen: where the path ahead passes
-//!   within 0.15 m of an *unobserved region* (an unknown cell among unknown or occupied neighbours, see
-//!   [`OccupancyGrid::is_unobserved_region`]), the drone slows (0.2 m/s there, 1 m/s more per metre of
+//!   within 0.22 m of an *unobserved region* (a cell not yet seen free, i.e. unknown or holding a hit below
+//!   the occupied threshold, among such or occupied neighbours, see
+//!   [`OccupancyGrid::is_weakly_observed_region`]), the drone slows (0.2 m/s there, 1 m/s more per metre of
 //!   observed path before it) and, instead of sweeping its heading, turns the front, left or right beam
 //!   (whichever needs the least turn) towards the first such cell until a beam has looked into it. The
 //!   heading slows the drone only when it lags the actual velocity by more than the sweep's amplitude.

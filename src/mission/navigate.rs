@@ -25,9 +25,16 @@ const UNOBSERVED_LOOKAHEAD_M: f32 = 0.6;
 /// centimetre off had marked free; the drone, 6 cm inside the path's corner, touched it: BENCHMARKS.md §5,
 /// session 18.)
 const UNOBSERVED_CLEARANCE_M: f32 = 0.22;
-/// An unknown cell belongs to an unobserved region with at least this many unknown or occupied
-/// neighbours (see [`OccupancyGrid::is_unobserved_region`]).
+/// A cell not seen free belongs to an unobserved region with at least this many such or occupied
+/// neighbours (see [`OccupancyGrid::is_weakly_observed_region`]).
 const UNOBSERVED_MIN_NEIGHBOURS: u8 = 5;
+/// A cell counts as seen free at this log-odds or below (net of its hits, at least one miss more: −3 is one
+/// miss). A cell a beam hit once and then missed (8 − 3 = 5), below the occupied threshold, is evidence of
+/// something, not free space: to [`OccupancyGrid::is_unobserved_region`] it was "seen". Stressed world
+/// 158 000 608 rounded a wall's end whose cells the map held as such (and unknown) 5 mm from contact;
+/// 167 000 577 flew at a 12 cm cylinder mapped as two sub-threshold cells. (−6, two misses net, slowed
+/// the median mission by 2.5 s on 4 000 runs for no fewer contacts: BENCHMARKS.md §5, session 21.)
+const SEEN_FREE_LOG_ODDS: i8 = -1;
 /// Speed next to an unobserved region, m/s: slow enough that the sweeping beams look into it before the
 /// drone is there.
 const UNOBSERVED_MIN_SPEED_M_S: f32 = 0.2;
@@ -452,9 +459,11 @@ impl<const CELLS: usize, const QUEUE: usize> Mission<CELLS, QUEUE> {
                         continue;
                     }
                     if ahead(x, y)
-                        && self
-                            .grid
-                            .is_unobserved_region(Cell::new(x as u16, y as u16), UNOBSERVED_MIN_NEIGHBOURS)
+                        && self.grid.is_weakly_observed_region(
+                            Cell::new(x as u16, y as u16),
+                            UNOBSERVED_MIN_NEIGHBOURS,
+                            SEEN_FREE_LOG_ODDS,
+                        )
                     {
                         nearest = Some((d2, centre));
                     }

@@ -371,6 +371,30 @@ impl<const CELLS: usize> OccupancyGrid<CELLS> {
         count >= min_neighbours
     }
 
+    /// [`Self::is_unobserved_region`] with a stricter idea of "seen": a cell counts as seen free only at
+    /// log-odds `free_max` or below, so a cell holding a hit below the occupied threshold (with
+    /// `free_max` −1), or also one that one grazing beam or one outlier crossed (with −6, two misses),
+    /// still belongs to the region. To [`Self::is_unobserved_region`] any cell with evidence is seen.
+    /// O(1).
+    pub fn is_weakly_observed_region(&self, cell: Cell, min_neighbours: u8, free_max: i8) -> bool {
+        let unseen = |b: u8| b & OCCUPIED == 0 && decode_log_odds(b) > free_max;
+        if !self.byte(i32::from(cell.x), i32::from(cell.y)).is_some_and(unseen) {
+            return false;
+        }
+        let (x, y) = (i32::from(cell.x), i32::from(cell.y));
+        let mut count = 0u8;
+        for dy in -1..=1 {
+            for dx in -1..=1 {
+                if (dx, dy) == (0, 0) {
+                    continue;
+                }
+                let not_free = self.byte(x + dx, y + dy).is_none_or(|b| b & OCCUPIED != 0 || unseen(b));
+                count += u8::from(not_free);
+            }
+        }
+        count >= min_neighbours
+    }
+
     /// Folds one range reading into the grid. `from` is the sensor position, `to` the point the beam
     /// reached, both arena-frame metres.
     ///

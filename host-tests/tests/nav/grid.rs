@@ -951,6 +951,91 @@ fn unknown_cells_and_unobserved_regions_match_brute_force() {
     assert!(!g.is_unknown(Cell::new(14, 0)) && !g.is_unobserved_region(Cell::new(0, 9), 0));
 }
 
+/// `is_weakly_observed_region` against a brute force that knows only the beams' geometry: each cell's
+/// log-odds is 8 per return that ended in it less 3 per beam that crossed it otherwise (exact segment–square
+/// test), beam by beam within the default bounds −8 … 24. A cell is unseen when it is not occupied and that sum
+/// lies above `free_max`; a region when it is unseen and at least `min` of its neighbours are unseen,
+/// occupied or outside the grid. With `free_max` −6 a cell one beam crossed (−3) is still unseen, while
+/// `is_unobserved_region` calls it free.
+#[test]
+fn weakly_observed_regions_match_brute_force() {
+    let mut rng = SmallRng::seed_from_u64(0x5ee_f12e);
+    let mut g = grid(14, 9, 2);
+    let shape = g.shape();
+    let (w, h) = (i32::from(shape.width), i32::from(shape.height));
+    let (mut regions, mut single_miss_regions) = (0usize, 0usize);
+    for case in 0..400 {
+        assert!(g.reset(shape, 2));
+        let mut changed = Changes::new();
+        let mut log_odds = vec![0i32; shape.cells()];
+        let beams = rng.random_range(0..9);
+        let mut shot = 0;
+        while shot < beams {
+            let (a, b) = random_beam(&mut rng, shape);
+            let crossings: Vec<Crossing> = all_cells(shape).map(|c| crossing(a, b, c)).collect();
+            if crossings.contains(&Crossing::Either) {
+                continue;
+            }
+            let hit = shot < 2 && rng.random_range(0..2) == 0;
+            let end = shape.cell_at(b.0, b.1);
+            g.integrate_beam(a, b, hit, &mut changed);
+            for (i, c) in all_cells(shape).enumerate() {
+                // The grid's default bounds: −8 (a few misses) to 24.
+                if hit && Some(c) == end {
+                    log_odds[i] = (log_odds[i] + 8).min(24);
+                } else if crossings[i] == Crossing::Must {
+                    log_odds[i] = (log_odds[i] - 3).max(-8);
+                }
+            }
+            shot += 1;
+        }
+        for c in all_cells(shape) {
+            assert_eq!(i32::from(g.log_odds(c)), log_odds[shape.index(c)], "case {case}: {c:?}");
+        }
+        for free_max in [-6i8, -3, -1] {
+            let unseen = |x: i32, y: i32| {
+                let c = Cell::new(x as u16, y as u16);
+                !g.is_occupied(c) && log_odds[shape.index(c)] > i32::from(free_max)
+            };
+            for c in all_cells(shape) {
+                let (x, y) = (i32::from(c.x), i32::from(c.y));
+                let around = (-1..=1)
+                    .flat_map(|dy| (-1..=1).map(move |dx| (dx, dy)))
+                    .filter(|&(dx, dy)| (dx, dy) != (0, 0))
+                    .filter(|&(dx, dy)| {
+                        let (nx, ny) = (x + dx, y + dy);
+                        !(0..w).contains(&nx)
+                            || !(0..h).contains(&ny)
+                            || unseen(nx, ny)
+                            || g.is_occupied(Cell::new(nx as u16, ny as u16))
+                    })
+                    .count() as u8;
+                for min in [0u8, 3, 5, 8] {
+                    let want = unseen(x, y) && around >= min;
+                    assert_eq!(
+                        g.is_weakly_observed_region(c, min, free_max),
+                        want,
+                        "case {case}: {c:?}, log-odds {}, {around} neighbours, min {min}, free at {free_max}",
+                        log_odds[shape.index(c)]
+                    );
+                }
+                if free_max == -6 && unseen(x, y) && around >= 5 {
+                    regions += 1;
+                    if log_odds[shape.index(c)] == -3 && !g.is_unobserved_region(c, 5) {
+                        single_miss_regions += 1;
+                    }
+                }
+            }
+        }
+    }
+    // Both the common case and the one the stricter test exists for occur.
+    assert!(
+        regions > 1000 && single_miss_regions > 100,
+        "{regions} {single_miss_regions}"
+    );
+    assert!(!g.is_weakly_observed_region(Cell::new(14, 0), 0, -6));
+}
+
 /// A fan of beams from one point leaves one-cell strips between its traces: those are not unobserved
 /// regions, while the untouched block beyond the fan's end is.
 #[test]

@@ -352,23 +352,7 @@ impl<const CELLS: usize> OccupancyGrid<CELLS> {
     /// traces in open space (an unknown cell in such a gap has at most two unknown neighbours along it,
     /// plus the diagonal ones where two gaps meet). O(1).
     pub fn is_unobserved_region(&self, cell: Cell, min_neighbours: u8) -> bool {
-        if !self.is_unknown(cell) {
-            return false;
-        }
-        let (x, y) = (i32::from(cell.x), i32::from(cell.y));
-        let mut count = 0u8;
-        for dy in -1..=1 {
-            for dx in -1..=1 {
-                if (dx, dy) == (0, 0) {
-                    continue;
-                }
-                let not_free = self
-                    .byte(x + dx, y + dy)
-                    .is_none_or(|b| b & OCCUPIED != 0 || decode_log_odds(b) == 0);
-                count += u8::from(not_free);
-            }
-        }
-        count >= min_neighbours
+        self.is_region_of(cell, min_neighbours, |b| b & OCCUPIED == 0 && decode_log_odds(b) == 0)
     }
 
     /// [`Self::is_unobserved_region`] with a stricter idea of "seen": a cell counts as seen free only at
@@ -377,11 +361,18 @@ impl<const CELLS: usize> OccupancyGrid<CELLS> {
     /// still belongs to the region. To [`Self::is_unobserved_region`] any cell with evidence is seen.
     /// O(1).
     pub fn is_weakly_observed_region(&self, cell: Cell, min_neighbours: u8, free_max: i8) -> bool {
-        let unseen = |b: u8| b & OCCUPIED == 0 && decode_log_odds(b) > free_max;
-        if !self.byte(i32::from(cell.x), i32::from(cell.y)).is_some_and(unseen) {
+        self.is_region_of(cell, min_neighbours, |b| {
+            b & OCCUPIED == 0 && decode_log_odds(b) > free_max
+        })
+    }
+
+    /// Whether `cell`'s byte is `unseen` and at least `min_neighbours` of its eight neighbours are unseen,
+    /// occupied or outside the grid (the two region tests above, with their idea of "unseen").
+    fn is_region_of(&self, cell: Cell, min_neighbours: u8, unseen: impl Fn(u8) -> bool) -> bool {
+        let (x, y) = (i32::from(cell.x), i32::from(cell.y));
+        if !self.byte(x, y).is_some_and(&unseen) {
             return false;
         }
-        let (x, y) = (i32::from(cell.x), i32::from(cell.y));
         let mut count = 0u8;
         for dy in -1..=1 {
             for dx in -1..=1 {

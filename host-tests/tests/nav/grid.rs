@@ -886,6 +886,38 @@ fn changing_the_inflation_radius_rebuilds_the_layer_and_keeps_the_evidence() {
 // Unknown cells and unobserved regions
 // ---------------------------------------------------------------------------------------------------------
 
+/// One beam of the brute-force region tests: whether it returned, the cell its end lies in, and how it
+/// crosses each cell of the grid (in `all_cells` order).
+struct ShotBeam {
+    hit: bool,
+    end: Option<Cell>,
+    crossings: Vec<Crossing>,
+}
+
+/// Shoots `beams` random beams into `g` (the first two return with probability ½, the others only miss)
+/// and returns them in order. A beam touching a cell only at a corner or along an edge, where either answer
+/// would be right, is drawn again.
+fn shoot_random_beams(g: &mut Grid, rng: &mut SmallRng, beams: usize) -> Vec<ShotBeam> {
+    let shape = g.shape();
+    let mut changed = Changes::new();
+    let mut shot = Vec::with_capacity(beams);
+    while shot.len() < beams {
+        let (a, b) = random_beam(rng, shape);
+        let crossings: Vec<Crossing> = all_cells(shape).map(|c| crossing(a, b, c)).collect();
+        if crossings.contains(&Crossing::Either) {
+            continue;
+        }
+        let hit = shot.len() < 2 && rng.random_range(0..2) == 0;
+        g.integrate_beam(a, b, hit, &mut changed);
+        shot.push(ShotBeam {
+            hit,
+            end: shape.cell_at(b.0, b.1),
+            crossings,
+        });
+    }
+    shot
+}
+
 /// `is_unknown` and `is_unobserved_region` against a brute force that knows only the beams' geometry: a
 /// cell is unknown exactly when no beam crossed it (exact segment–square test). Up to two beams with a
 /// return come first and only misses follow, so no touched cell can come back to log-odds 0 (a hit after
@@ -900,23 +932,12 @@ fn unknown_cells_and_unobserved_regions_match_brute_force() {
     let (mut regions, mut lone_unknown) = (0usize, 0usize);
     for case in 0..400 {
         assert!(g.reset(shape, 2));
-        let mut changed = Changes::new();
         let mut touched = vec![false; shape.cells()];
         let beams = rng.random_range(0..14);
-        let mut shot = 0;
-        while shot < beams {
-            let (a, b) = random_beam(&mut rng, shape);
-            let crossings: Vec<Crossing> = all_cells(shape).map(|c| crossing(a, b, c)).collect();
-            if crossings.contains(&Crossing::Either) {
-                continue;
-            }
-            let hit = shot < 2 && rng.random_range(0..2) == 0;
-            let end = shape.cell_at(b.0, b.1);
-            g.integrate_beam(a, b, hit, &mut changed);
+        for beam in shoot_random_beams(&mut g, &mut rng, beams) {
             for (i, c) in all_cells(shape).enumerate() {
-                touched[i] |= crossings[i] == Crossing::Must || (hit && Some(c) == end);
+                touched[i] |= beam.crossings[i] == Crossing::Must || (beam.hit && Some(c) == beam.end);
             }
-            shot += 1;
         }
         let unknown = |x: i32, y: i32| shape.contains(x, y) && !touched[(y * w + x) as usize];
         for c in all_cells(shape) {
@@ -966,28 +987,17 @@ fn weakly_observed_regions_match_brute_force() {
     let (mut regions, mut single_miss_regions) = (0usize, 0usize);
     for case in 0..400 {
         assert!(g.reset(shape, 2));
-        let mut changed = Changes::new();
         let mut log_odds = vec![0i32; shape.cells()];
         let beams = rng.random_range(0..9);
-        let mut shot = 0;
-        while shot < beams {
-            let (a, b) = random_beam(&mut rng, shape);
-            let crossings: Vec<Crossing> = all_cells(shape).map(|c| crossing(a, b, c)).collect();
-            if crossings.contains(&Crossing::Either) {
-                continue;
-            }
-            let hit = shot < 2 && rng.random_range(0..2) == 0;
-            let end = shape.cell_at(b.0, b.1);
-            g.integrate_beam(a, b, hit, &mut changed);
+        for beam in shoot_random_beams(&mut g, &mut rng, beams) {
             for (i, c) in all_cells(shape).enumerate() {
                 // The grid's default bounds: −8 (a few misses) to 24.
-                if hit && Some(c) == end {
+                if beam.hit && Some(c) == beam.end {
                     log_odds[i] = (log_odds[i] + 8).min(24);
-                } else if crossings[i] == Crossing::Must {
+                } else if beam.crossings[i] == Crossing::Must {
                     log_odds[i] = (log_odds[i] - 3).max(-8);
                 }
             }
-            shot += 1;
         }
         for c in all_cells(shape) {
             assert_eq!(i32::from(g.log_odds(c)), log_odds[shape.index(c)], "case {case}: {c:?}");

@@ -886,6 +886,20 @@ fn changing_the_inflation_radius_rebuilds_the_layer_and_keeps_the_evidence() {
 // Unknown cells and unobserved regions
 // ---------------------------------------------------------------------------------------------------------
 
+/// Oracle of the region tests: how many of cell (x, y)'s eight neighbours lie outside the grid, are
+/// occupied, or are `unseen` (asked only inside the grid).
+fn neighbours_not_free(g: &Grid, x: i32, y: i32, unseen: impl Fn(i32, i32) -> bool) -> u8 {
+    let shape = g.shape();
+    (-1..=1)
+        .flat_map(|dy| (-1..=1).map(move |dx| (dx, dy)))
+        .filter(|&(dx, dy)| (dx, dy) != (0, 0))
+        .filter(|&(dx, dy)| {
+            let (nx, ny) = (x + dx, y + dy);
+            !shape.contains(nx, ny) || unseen(nx, ny) || g.is_occupied(Cell::new(nx as u16, ny as u16))
+        })
+        .count() as u8
+}
+
 /// One beam of the brute-force region tests: whether it returned, the cell its end lies in, and how it
 /// crosses each cell of the grid (in `all_cells` order).
 struct ShotBeam {
@@ -928,7 +942,7 @@ fn unknown_cells_and_unobserved_regions_match_brute_force() {
     let mut rng = SmallRng::seed_from_u64(0x0b5e_12ed);
     let mut g = grid(14, 9, 2);
     let shape = g.shape();
-    let (w, h) = (i32::from(shape.width), i32::from(shape.height));
+    let w = i32::from(shape.width);
     let (mut regions, mut lone_unknown) = (0usize, 0usize);
     for case in 0..400 {
         assert!(g.reset(shape, 2));
@@ -943,17 +957,7 @@ fn unknown_cells_and_unobserved_regions_match_brute_force() {
         for c in all_cells(shape) {
             let (x, y) = (i32::from(c.x), i32::from(c.y));
             assert_eq!(g.is_unknown(c), unknown(x, y), "case {case}: {c:?}");
-            let not_free = (-1..=1)
-                .flat_map(|dy| (-1..=1).map(move |dx| (dx, dy)))
-                .filter(|&(dx, dy)| (dx, dy) != (0, 0))
-                .filter(|&(dx, dy)| {
-                    let (nx, ny) = (x + dx, y + dy);
-                    !(0..w).contains(&nx)
-                        || !(0..h).contains(&ny)
-                        || unknown(nx, ny)
-                        || g.is_occupied(Cell::new(nx as u16, ny as u16))
-                })
-                .count() as u8;
+            let not_free = neighbours_not_free(&g, x, y, unknown);
             for min in [0u8, 3, 5, 8, 9] {
                 let want = unknown(x, y) && not_free >= min;
                 assert_eq!(
@@ -983,7 +987,6 @@ fn weakly_observed_regions_match_brute_force() {
     let mut rng = SmallRng::seed_from_u64(0x5ee_f12e);
     let mut g = grid(14, 9, 2);
     let shape = g.shape();
-    let (w, h) = (i32::from(shape.width), i32::from(shape.height));
     let (mut regions, mut single_miss_regions) = (0usize, 0usize);
     for case in 0..400 {
         assert!(g.reset(shape, 2));
@@ -1009,17 +1012,7 @@ fn weakly_observed_regions_match_brute_force() {
             };
             for c in all_cells(shape) {
                 let (x, y) = (i32::from(c.x), i32::from(c.y));
-                let around = (-1..=1)
-                    .flat_map(|dy| (-1..=1).map(move |dx| (dx, dy)))
-                    .filter(|&(dx, dy)| (dx, dy) != (0, 0))
-                    .filter(|&(dx, dy)| {
-                        let (nx, ny) = (x + dx, y + dy);
-                        !(0..w).contains(&nx)
-                            || !(0..h).contains(&ny)
-                            || unseen(nx, ny)
-                            || g.is_occupied(Cell::new(nx as u16, ny as u16))
-                    })
-                    .count() as u8;
+                let around = neighbours_not_free(&g, x, y, unseen);
                 for min in [0u8, 3, 5, 8] {
                     let want = unseen(x, y) && around >= min;
                     assert_eq!(

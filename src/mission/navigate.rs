@@ -28,8 +28,8 @@ const UNOBSERVED_CLEARANCE_M: f32 = 0.22;
 /// A cell not seen free belongs to an unobserved region with at least this many such or occupied
 /// neighbours (see [`OccupancyGrid::is_weakly_observed_region`]).
 const UNOBSERVED_MIN_NEIGHBOURS: u8 = 5;
-/// A cell counts as seen free at this log-odds or below (net of its hits, at least one miss more: −3 is one
-/// miss). A cell a beam hit once and then missed (8 − 3 = 5), below the occupied threshold, is evidence of
+/// A cell counts as seen free at this log-odds or below: its misses (−3 each) outweigh its hits (+8 each),
+/// so one miss alone, or three after a hit. A cell a beam hit once and then missed (8 − 3 = 5), below the occupied threshold, is evidence of
 /// something, not free space: to [`OccupancyGrid::is_unobserved_region`] it was "seen". Stressed world
 /// 158 000 608 rounded a wall's end whose cells the map held as such (and unknown) 5 mm from contact;
 /// 167 000 577 flew at a 12 cm cylinder mapped as two sub-threshold cells. (−6, two misses net, slowed

@@ -272,7 +272,7 @@ fn a_wall_end_or_a_post_hit_once_below_the_threshold_is_still_looked_at() {
     // sub-threshold hit (a hit then a miss: 5); in the second it turned at a 12 cm cylinder mapped as two
     // sub-threshold cells. To the unobserved-region test such a cell was "seen", so the drone neither
     // slowed nor turned a beam there: 5 mm from contact, and −20 mm. A cell now counts as seen free only
-    // with more misses than hits.
+    // when its misses outweigh its hits in log-odds (negative).
     completes_without_contact([
         stressed(World::random(158_000_608)),
         stressed(World::random(167_000_577)),

@@ -243,6 +243,11 @@ impl<const CELLS: usize, const QUEUE: usize> Mission<CELLS, QUEUE> {
     /// `true` when a beam within 45° of the direction of travel reads closer than the stop distance (the
     /// way ahead is closed). A beam with no return, or an invalid one, bounds nothing.
     pub(super) fn live_beam_guard(&self, state: &StateEstimate, v: (f32, f32)) -> ((f32, f32), bool) {
+        self.live_beam_guard_at(state, v, LIVE_BEAM_STOP_M)
+    }
+
+    /// [`Self::live_beam_guard`] with the stop distance `stop_m` in place of [`LIVE_BEAM_STOP_M`].
+    pub(super) fn live_beam_guard_at(&self, state: &StateEstimate, v: (f32, f32), stop_m: f32) -> ((f32, f32), bool) {
         let yaw = state.attitude_rad[2];
         let speed = libm::hypotf(v.0, v.1);
         if !(yaw.is_finite() && speed.is_finite()) || speed < 1e-4 {
@@ -271,12 +276,12 @@ impl<const CELLS: usize, const QUEUE: usize> Mission<CELLS, QUEUE> {
             {
                 continue;
             }
-            let allowed = (LIVE_BEAM_GAIN_PER_S * (d - LIVE_BEAM_STOP_M)).max(0.0);
+            let allowed = (LIVE_BEAM_GAIN_PER_S * (d - stop_m)).max(0.0);
             let towards = out.0 * ux + out.1 * uy;
             if towards > allowed {
                 out = (out.0 - (towards - allowed) * ux, out.1 - (towards - allowed) * uy);
             }
-            if d < LIVE_BEAM_STOP_M && ux0 * ux + uy0 * uy > core::f32::consts::FRAC_1_SQRT_2 {
+            if d < stop_m && ux0 * ux + uy0 * uy > core::f32::consts::FRAC_1_SQRT_2 {
                 blocked = true;
             }
         }

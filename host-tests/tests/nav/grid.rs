@@ -1066,3 +1066,53 @@ fn gaps_between_beam_traces_are_not_regions() {
         }
     }
 }
+
+/// `integrate_no_return` against the beams' geometry: after random beams (many with returns), a reading
+/// with no return takes 3 off exactly the cells it crosses (exact segment–square test) that hold no hit
+/// evidence (log-odds 0 or below, not occupied), down to the lower clamp; every other cell, and every
+/// occupied state, stays as it was.
+#[test]
+fn a_reading_with_no_return_frees_only_cells_without_hits() {
+    let mut rng = SmallRng::seed_from_u64(0x0e7_b1a2);
+    let mut g = grid(14, 9, 2);
+    let shape = g.shape();
+    let (mut freed, mut kept_hits) = (0usize, 0usize);
+    for case in 0..400 {
+        assert!(g.reset(shape, 2));
+        let beams = rng.random_range(0..9);
+        shoot_random_beams(&mut g, &mut rng, beams);
+        // More returns, so the reading also crosses cells with hits (occupied, or a hit after misses).
+        let mut changed = Changes::new();
+        for _ in 0..rng.random_range(0..12) {
+            let (a, b) = random_beam(&mut rng, shape);
+            g.integrate_beam(a, b, true, &mut changed);
+        }
+        let before: Vec<(i8, bool)> = all_cells(shape).map(|c| (g.log_odds(c), g.is_occupied(c))).collect();
+        let (a, b) = loop {
+            let (a, b) = random_beam(&mut rng, shape);
+            if all_cells(shape).all(|c| crossing(a, b, c) != Crossing::Either) {
+                break (a, b);
+            }
+        };
+        let mut changed = Changes::new();
+        g.integrate_no_return(a, b, &mut changed);
+        for (i, c) in all_cells(shape).enumerate() {
+            let (log_odds, occupied) = before[i];
+            let crossed = crossing(a, b, c) == Crossing::Must;
+            let want = if crossed && !occupied && log_odds <= 0 {
+                freed += 1;
+                (log_odds - 3).max(-8)
+            } else {
+                kept_hits += usize::from(crossed && log_odds > 0);
+                log_odds
+            };
+            assert_eq!(
+                g.log_odds(c),
+                want,
+                "case {case}: {c:?} from {log_odds}, crossed {crossed}"
+            );
+            assert_eq!(g.is_occupied(c), occupied, "case {case}: {c:?}");
+        }
+    }
+    assert!(freed > 1000 && kept_hits > 40, "{freed} {kept_hits}");
+}

@@ -1,8 +1,7 @@
 //! The mission state machine on its own: start refusals, the thrust-lock handshake, abort, state codes.
 
 use cfnav::mission::{Mission, MissionConfig, MissionInputs, MissionParams, MissionState, StartRefusal};
-use cfnav::nav::map::Cell;
-use cfnav::types::{MultiRangerSample, Setpoint, StateEstimate};
+use cfnav::types::{Setpoint, StateEstimate};
 
 type M = Mission<{ 128 * 64 }, 1024>;
 
@@ -299,45 +298,4 @@ fn a_blind_descent_stops_the_motors_after_its_time_bound() {
     );
     assert_eq!(m.state(), MissionState::EstimatorFault);
     assert_eq!(m.tick(now + 20_000, &blind, &inputs), Setpoint::Stop);
-}
-
-#[test]
-fn a_beam_with_no_return_frees_its_first_metre_but_never_a_hit() {
-    // Flying at (0.62, 1.32), inside a cell, with yaw 0: front along +x, back −x, left +y, right −y.
-    let mut m = started_on_the_pad();
-    let here = at(0.62, 1.32, MissionParams::SEED.height_m);
-    let ranges = MultiRangerSample {
-        front_m: None,
-        back_m: Some(0.5),
-        left_m: Some(f32::NAN),
-        right_m: None,
-        up_m: None,
-    };
-    m.on_ranges(&ranges, &here);
-    let g = m.grid();
-    let cell = |x: f32, y: f32| Cell::new((x / 0.05) as u16, (y / 0.05) as u16);
-    // No return ahead: free to 1 m (past the body's own disc), unknown beyond.
-    for x in [0.77, 1.0, 1.3, 1.57] {
-        assert!(
-            g.log_odds(cell(x, 1.32)) < 0,
-            "front {x}: {}",
-            g.log_odds(cell(x, 1.32))
-        );
-    }
-    for x in [1.72, 2.0, 3.0] {
-        assert!(g.is_unknown(cell(x, 1.32)), "front {x}");
-    }
-    // The same to the right; the return behind is an obstacle at 0.5 m; a garbage reading maps nothing.
-    assert!(g.log_odds(cell(0.62, 0.37)) < 0 && g.is_unknown(cell(0.62, 0.22)));
-    assert!(g.is_occupied(cell(0.12, 1.32)) && g.log_odds(cell(0.32, 1.32)) < 0);
-    for y in [1.47, 1.8, 2.2] {
-        assert!(g.is_unknown(cell(0.62, y)), "left {y}");
-    }
-    // A dropout behind (no return where the obstacle was) frees the cells before it, never the obstacle.
-    let (obstacle, before) = (cell(0.12, 1.32), g.log_odds(cell(0.12, 1.32)));
-    let behind = g.log_odds(cell(0.32, 1.32));
-    m.on_ranges(&MultiRangerSample { back_m: None, ..ranges }, &here);
-    let g = m.grid();
-    assert_eq!(g.log_odds(obstacle), before);
-    assert!(g.is_occupied(obstacle) && g.log_odds(cell(0.32, 1.32)) < behind);
 }

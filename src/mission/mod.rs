@@ -15,8 +15,7 @@
 //!
 //! How each phase works:
 //! - **Navigate**: the four horizontal ranges update the [`OccupancyGrid`] (freed along each beam, the end
-//!   cell marked; a beam with no return frees its first metre where the map holds no hit, see
-//!   [`OccupancyGrid::integrate_no_return`]); the cells whose inflated state changed go to D\* Lite, which repairs its plan with an
+//!   cell marked); the cells whose inflated state changed go to D\* Lite, which repairs its plan with an
 //!   expansion budget per tick; the path is shortened by line of sight, and the drone flies towards its
 //!   first waypoint at cruise speed (slowing into the goal, and into a waypoint where the path turns
 //!   sharply), through [`ReactiveAvoidance`] (repulsion, smoothing, and a speed clamp on the approach
@@ -289,10 +288,6 @@ const TAKEOFF_HANDOVER_MARGIN_M: f32 = 0.1;
 const PAD_SNAP_M: f32 = 0.3;
 /// The drone's body radius (interfaces.md §3: the disc whose contact is a collision), m.
 const BODY_RADIUS_M: f32 = 0.06;
-/// A horizontal beam with no return maps this much of its length free, m: past the 0.6 m the navigation
-/// looks ahead for unobserved regions plus their 0.22 m clearance, and short enough that a dropout erases
-/// little.
-const NO_RETURN_FREE_RANGE_M: f32 = 1.0;
 /// Kept between the body and the square an unlocked pad estimate may cover, m: the estimate's error
 /// after one or two crossings (a few cm) and the landing's own drift.
 const UNLOCKED_PAD_MARGIN_M: f32 = 0.06;
@@ -862,30 +857,15 @@ impl<const CELLS: usize, const QUEUE: usize> Mission<CELLS, QUEUE> {
             (ranges.right_m, -core::f32::consts::FRAC_PI_2),
         ];
         for (range, offset) in beams {
-            let heading = yaw + offset;
-            let (length, hit) = match range {
-                // No return at all: nothing within the sensor's reach along the beam, or a dropout. The near
-                // part is mapped free where the map holds no hit, so a region the drone turns a beam to look
-                // at (`observed_along`) is seen even when the arena's far wall is out of range; without this
-                // the drone kept its front beam on such a region for 3 s and never swept it across a post
-                // beside the path (world 198 000 695).
-                None => {
-                    let end = (
-                        x + NO_RETURN_FREE_RANGE_M * libm::cosf(heading),
-                        y + NO_RETURN_FREE_RANGE_M * libm::sinf(heading),
-                    );
-                    self.grid.integrate_no_return((x, y), end, &mut self.changed);
-                    continue;
-                }
-                Some(d) if d.is_finite() && d > 0.02 => {
-                    if d <= self.config.max_mapping_range_m {
-                        (d, true)
-                    } else {
-                        (self.config.max_mapping_range_m, false)
-                    }
-                }
-                Some(_) => continue,
+            let Some(d) = range.filter(|d| d.is_finite() && *d > 0.02) else {
+                continue;
             };
+            let (length, hit) = if d <= self.config.max_mapping_range_m {
+                (d, true)
+            } else {
+                (self.config.max_mapping_range_m, false)
+            };
+            let heading = yaw + offset;
             let end = (x + length * libm::cosf(heading), y + length * libm::sinf(heading));
             self.grid.integrate_beam((x, y), end, hit, &mut self.changed);
         }

@@ -420,33 +420,6 @@ impl<const CELLS: usize> OccupancyGrid<CELLS> {
         }
     }
 
-    /// Folds one horizontal reading with no return (nothing within the sensor's reach, or a dropout) into
-    /// the grid, `from → to` being the stretch it vouches for: a miss in every cell the segment crosses
-    /// that holds no hit evidence (log-odds 0 or below, not occupied); a cell with a hit keeps it. A dropout
-    /// in front of an obstacle says nothing about it, so it must not erode the obstacle: the real VL53L1x
-    /// gives no valid status on dark or oblique faces too, and under 3 % of dropouts per beam plain misses
-    /// wore a 22 cm cylinder's face down to free cells during a long pad search (stressed world
-    /// 214 000 746). The same geometry and no-op cases as [`Self::integrate_beam`].
-    pub fn integrate_no_return<const N: usize>(
-        &mut self,
-        from: (f32, f32),
-        to: (f32, f32),
-        changed: &mut ChangedCells<N>,
-    ) {
-        let Some(walk) = BeamWalk::new(self.shape, from, to) else {
-            return;
-        };
-        let miss = -i16::from(self.config.miss_decrement);
-        for (x, y) in walk {
-            if self
-                .byte(x, y)
-                .is_some_and(|b| b & OCCUPIED == 0 && decode_log_odds(b) <= 0)
-            {
-                self.add_log_odds(x, y, miss, changed);
-            }
-        }
-    }
-
     /// Declares the disc around `center` (arena-frame metres) free, e.g. the drone's own footprint: every
     /// cell whose centre lies within `radius_m` of `center`, plus the cell containing `center`, is set to
     /// the minimum log-odds (and so becomes free). A negative radius clears only the centre cell;

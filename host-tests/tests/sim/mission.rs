@@ -622,9 +622,8 @@ fn an_abort_anywhere_in_a_pad_search_lands_on_the_pad_or_clear_of_it() {
 /// (session 19) 3.887 V; with the nearest-cell look, its beam held, and the pad search's records moved with
 /// the map fixes' jumps (session 20), 3.8912 V (battery low 21.0 s into the home search with the drone's
 /// centre over the pad; of 3.8900–3.8980 V in 0.2 mV steps, only 3.8904 V gives the scene too); with the
-/// live beams bounding the navigation and a beam with no return mapping its first metre free (session 22),
-/// 3.8926 V (low 21.2 s into the home search; of 3.8800–3.9000 V in 0.2 mV steps, eight others from 3.8866
-/// to 3.8980 V give the scene too). The test
+/// live beams bounding the navigation (session 22), 3.8926 V (low 21.2 s into the home search; of
+/// 3.8800–3.9000 V in 0.2 mV steps, seven others from 3.8872 to 3.8980 V give the scene too). The test
 /// checks the scene itself, so a flight change that moves it fails here rather than passing on a different
 /// scene.
 #[test]

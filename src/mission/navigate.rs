@@ -29,11 +29,12 @@ const UNOBSERVED_CLEARANCE_M: f32 = 0.22;
 /// neighbours (see [`OccupancyGrid::is_weakly_observed_region`]).
 const UNOBSERVED_MIN_NEIGHBOURS: u8 = 5;
 /// A cell counts as seen free at this log-odds or below: its misses (−3 each) outweigh its hits (+8 each),
-/// so one miss alone, or three after a hit. A cell a beam hit once and then missed (8 − 3 = 5), below the occupied threshold, is evidence of
-/// something, not free space: to [`OccupancyGrid::is_unobserved_region`] it was "seen". Stressed world
-/// 158 000 608 rounded a wall's end whose cells the map held as such (and unknown) 5 mm from contact;
-/// 167 000 577 flew at a 12 cm cylinder mapped as two sub-threshold cells. (−6, two misses net, slowed
-/// the median mission by 2.5 s on 4 000 runs for no fewer contacts: BENCHMARKS.md §5, session 21.)
+/// so one miss alone, or three after a hit. A cell a beam hit once and then missed (8 − 3 = 5), below the
+/// occupied threshold, is evidence of something, not free space: to
+/// [`OccupancyGrid::is_unobserved_region`] it was "seen". Stressed world 158 000 608 rounded a wall's end
+/// whose cells the map held as such (and unknown) 5 mm from contact; 167 000 577 flew at a 12 cm cylinder
+/// mapped as two sub-threshold cells. (−6, two misses net, slowed the median mission by 2.5 s on 4 000 runs
+/// for no fewer contacts: BENCHMARKS.md §5, session 21.)
 const SEEN_FREE_LOG_ODDS: i8 = -1;
 /// Speed next to an unobserved region, m/s: slow enough that the sweeping beams look into it before the
 /// drone is there.
@@ -51,8 +52,9 @@ const LOOK_CHOICE_HYSTERESIS_RAD: f32 = 0.35;
 pub(super) const SEARCH_UNOBSERVED_MIN_SPEED_M_S: f32 = UNOBSERVED_MIN_SPEED_M_S;
 pub(super) const SEARCH_UNOBSERVED_APPROACH_GAIN: f32 = UNOBSERVED_APPROACH_GAIN;
 /// The live beams' stop distance while navigating, m: the body's radius (0.06 m), 5 cm of the velocity
-/// loop's lag at the 0.2 m/s the drone flies near what the map does not hold, 2 cm of ranger noise. Less than
-/// a search line's [`LIVE_BEAM_STOP_M`](super::search::LIVE_BEAM_STOP_M): the legs thread gaps the search lines keep out of.
+/// loop's lag at the 0.2 m/s the drone flies near what the map does not hold, 2 cm of ranger noise. Less
+/// than a search line's [`LIVE_BEAM_STOP_M`](super::search::LIVE_BEAM_STOP_M): the legs thread gaps the
+/// search lines keep out of (0.2 m closed the 0.4 m gaps of worlds 201 000 701 and 203 000 628).
 const NAVIGATION_LIVE_BEAM_STOP_M: f32 = 0.13;
 /// Heading sweep while navigating: amplitude, rad, and period, s.
 const SCAN_AMPLITUDE_RAD: f32 = 0.6;

@@ -36,6 +36,9 @@ const UNOBSERVED_MIN_NEIGHBOURS: u8 = 5;
 /// mapped as two sub-threshold cells. (−6, two misses net, slowed the median mission by 2.5 s on 4 000 runs
 /// for no fewer contacts: BENCHMARKS.md §5, session 21.)
 const SEEN_FREE_LOG_ODDS: i8 = -1;
+/// Next to a contested cell (a hit and a miss), a cell counts as seen free only at this log-odds or below
+/// (two net misses): see [`OccupancyGrid::is_doubtful_region`].
+const CONTESTED_SEEN_FREE_LOG_ODDS: i8 = -6;
 /// Speed next to an unobserved region, m/s: slow enough that the sweeping beams look into it before the
 /// drone is there.
 const UNOBSERVED_MIN_SPEED_M_S: f32 = 0.2;
@@ -428,6 +431,10 @@ impl<const CELLS: usize, const QUEUE: usize> Mission<CELLS, QUEUE> {
 
     /// [`Self::observed_ahead_m`] along the straight line `here → target` only (`follow_path` false: a
     /// search line), or on along the planned path's later waypoints (`follow_path` true).
+    /// Along a path, a cell next to a contested one (a hit and a miss) needs two net misses to count as seen
+    /// ([`CONTESTED_SEEN_FREE_LOG_ODDS`]): stressed worlds 217 000 740 and 224 000 694 rounded wall ends
+    /// that grazing beams had left as single misses around a hit, at 0.3–0.45 m/s, and touched them
+    /// (BENCHMARKS.md §5, session 23). A search line keeps the plain test (not measured there).
     pub(super) fn observed_along(
         &self,
         here: (f32, f32),
@@ -469,11 +476,20 @@ impl<const CELLS: usize, const QUEUE: usize> Mission<CELLS, QUEUE> {
                         continue;
                     }
                     if ahead(x, y)
-                        && self.grid.is_weakly_observed_region(
-                            Cell::new(x as u16, y as u16),
-                            UNOBSERVED_MIN_NEIGHBOURS,
-                            SEEN_FREE_LOG_ODDS,
-                        )
+                        && if follow_path {
+                            self.grid.is_doubtful_region(
+                                Cell::new(x as u16, y as u16),
+                                UNOBSERVED_MIN_NEIGHBOURS,
+                                SEEN_FREE_LOG_ODDS,
+                                CONTESTED_SEEN_FREE_LOG_ODDS,
+                            )
+                        } else {
+                            self.grid.is_weakly_observed_region(
+                                Cell::new(x as u16, y as u16),
+                                UNOBSERVED_MIN_NEIGHBOURS,
+                                SEEN_FREE_LOG_ODDS,
+                            )
+                        }
                     {
                         nearest = Some((d2, centre));
                     }

@@ -72,6 +72,11 @@ use crate::nav::map::{CELL_SIZE_M, Cell, GridShape, Traversability};
 /// O(r⁴) un-inflation cost stays bounded on the MCU.
 pub const MAX_INFLATION_RADIUS_CELLS: u8 = 16;
 
+/// The largest log-odds of a *contested* cell (see [`OccupancyGrid::is_doubtful_region`]): below one clean
+/// hit (+8 with the default [`GridConfig`]), so a hit and a miss (5), a miss and a hit (5) or a hit and two
+/// misses (2).
+pub const CONTESTED_MAX_LOG_ODDS: i8 = 7;
+
 /// Smallest log-odds a cell byte can hold.
 pub const LOG_ODDS_MIN: i8 = -32;
 /// Largest log-odds a cell byte can hold.
@@ -364,6 +369,53 @@ impl<const CELLS: usize> OccupancyGrid<CELLS> {
         self.is_region_of(cell, min_neighbours, |b| {
             b & OCCUPIED == 0 && decode_log_odds(b) > free_max
         })
+    }
+
+    /// [`Self::is_weakly_observed_region`] where misses next to contested evidence count for less: a cell
+    /// with log-odds in `contested_free_max + 1 ..= free_max` (one net miss, with the defaults −6 and −1)
+    /// still counts as unseen when one of its eight neighbours is *contested*, i.e. holds log-odds 1 ..=
+    /// [`CONTESTED_MAX_LOG_ODDS`] (a hit and a miss, or less than one clean hit). Such a mix is what a wall's
+    /// end or a box's corner leaves: beams grazing the part of a cell the surface does not fill mark it free
+    /// as often as beams ending on the surface mark it hit. O(1): reads the 5 × 5 cells around `cell`.
+    pub fn is_doubtful_region(&self, cell: Cell, min_neighbours: u8, free_max: i8, contested_free_max: i8) -> bool {
+        let (cx, cy) = (i32::from(cell.x), i32::from(cell.y));
+        // The 5 × 5 block around `cell`; `None` outside the grid (the arena's wall).
+        let mut block = [[None::<u8>; 5]; 5];
+        for (j, row) in block.iter_mut().enumerate() {
+            for (i, b) in row.iter_mut().enumerate() {
+                *b = self.byte(cx + i as i32 - 2, cy + j as i32 - 2);
+            }
+        }
+        let contested = |b: Option<u8>| b.is_some_and(|b| (1..=CONTESTED_MAX_LOG_ODDS).contains(&decode_log_odds(b)));
+        let unseen = |i: usize, j: usize| -> bool {
+            let Some(b) = block[j][i] else {
+                return true;
+            };
+            if b & OCCUPIED != 0 {
+                return true;
+            }
+            let lo = decode_log_odds(b);
+            if lo > free_max {
+                return true;
+            }
+            if lo <= contested_free_max {
+                return false;
+            }
+            (i - 1..=i + 1).any(|ni| (j - 1..=j + 1).any(|nj| (ni, nj) != (i, j) && contested(block[nj][ni])))
+        };
+        // The centre must be an unseen cell inside the grid (not the wall, not occupied).
+        if block[2][2].is_none_or(|b| b & OCCUPIED != 0) || !unseen(2, 2) {
+            return false;
+        }
+        let mut count = 0u8;
+        for j in 1..=3 {
+            for i in 1..=3 {
+                if (i, j) != (2, 2) && unseen(i, j) {
+                    count += 1;
+                }
+            }
+        }
+        count >= min_neighbours
     }
 
     /// Whether `cell`'s byte is `unseen` and at least `min_neighbours` of its eight neighbours are unseen,

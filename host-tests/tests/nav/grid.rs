@@ -1039,6 +1039,108 @@ fn weakly_observed_regions_match_brute_force() {
     assert!(!g.is_weakly_observed_region(Cell::new(14, 0), 0, -6));
 }
 
+/// `is_doubtful_region` against the same brute force: a cell is unseen when it is not occupied and its
+/// log-odds lie above `free_max`, or above `contested_free_max` with a neighbour (inside the grid) whose
+/// log-odds lie in 1 ..= 7; a region when it is unseen and at least `min` of its neighbours are unseen,
+/// occupied or outside the grid. A cell one beam crossed next to a hit and a miss is the case it exists for.
+#[test]
+fn doubtful_regions_match_brute_force() {
+    let mut rng = SmallRng::seed_from_u64(0xd0b7_f001);
+    let mut g = grid(14, 9, 2);
+    let shape = g.shape();
+    let (mut regions, mut contested_regions) = (0usize, 0usize);
+    for case in 0..400 {
+        assert!(g.reset(shape, 2));
+        let beams = rng.random_range(0..12);
+        shoot_random_beams(&mut g, &mut rng, beams);
+        let log_odds = |x: i32, y: i32| g.log_odds(Cell::new(x as u16, y as u16));
+        let contested_next_to = |x: i32, y: i32| {
+            (-1..=1).any(|dy| {
+                (-1..=1).any(|dx| {
+                    (dx, dy) != (0, 0) && shape.contains(x + dx, y + dy) && (1..=7).contains(&log_odds(x + dx, y + dy))
+                })
+            })
+        };
+        for (free_max, contested_free_max) in [(-1i8, -6i8), (-1, -3), (-3, -8)] {
+            let unseen = |x: i32, y: i32| {
+                let lo = log_odds(x, y);
+                !g.is_occupied(Cell::new(x as u16, y as u16))
+                    && (lo > free_max || (lo > contested_free_max && contested_next_to(x, y)))
+            };
+            for c in all_cells(shape) {
+                let (x, y) = (i32::from(c.x), i32::from(c.y));
+                let around = neighbours_not_free(&g, x, y, unseen);
+                for min in [0u8, 3, 5, 8] {
+                    let want = unseen(x, y) && around >= min;
+                    assert_eq!(
+                        g.is_doubtful_region(c, min, free_max, contested_free_max),
+                        want,
+                        "case {case}: {c:?}, log-odds {}, {around} neighbours, min {min}, free at {free_max} / {contested_free_max}",
+                        log_odds(x, y)
+                    );
+                }
+                if (free_max, contested_free_max) == (-1, -6) && unseen(x, y) && around >= 5 {
+                    regions += 1;
+                    if !g.is_weakly_observed_region(c, 5, -1) {
+                        contested_regions += 1;
+                    }
+                }
+            }
+        }
+    }
+    // Both the common case and the one the contested rule adds occur.
+    assert!(
+        regions > 1000 && contested_regions > 20,
+        "{regions} {contested_regions}"
+    );
+    assert!(!g.is_doubtful_region(Cell::new(14, 0), 0, -1, -6));
+}
+
+/// A wall's end as grazing beams leave it: the end cell holds a hit and a miss (5), the cells around it one
+/// miss each (−3). To `is_weakly_observed_region` they were seen free; to `is_doubtful_region` the end is a
+/// region, while the same single misses in open space, with no contested cell near, are not.
+#[test]
+fn a_grazed_wall_end_is_a_doubtful_region() {
+    let mut g = grid(20, 12, 2);
+    let shape = g.shape();
+    // A short beam inside one cell: a hit there, or with no return one miss, and nothing elsewhere.
+    let shoot = |g: &mut Grid, x: u16, y: u16, hit: bool| {
+        let (cx, cy) = shape.center_of(Cell::new(x, y));
+        g.integrate_beam((cx - 0.01, cy), (cx + 0.01, cy), hit, &mut Changes::new());
+    };
+    let miss = |g: &mut Grid, x: u16, y: u16| shoot(g, x, y, false);
+    // The end cell (5, 5): a miss, then a hit.
+    miss(&mut g, 5, 5);
+    shoot(&mut g, 5, 5, true);
+    assert_eq!(g.log_odds(Cell::new(5, 5)), 5);
+    assert!(!g.is_occupied(Cell::new(5, 5)));
+    for (x, y) in [(4, 4), (5, 4), (6, 4), (4, 5), (6, 5), (4, 6), (5, 6), (6, 6)] {
+        miss(&mut g, x, y);
+    }
+    // The same ring of single misses in open space.
+    for (x, y) in [
+        (14, 4),
+        (15, 4),
+        (16, 4),
+        (14, 5),
+        (15, 5),
+        (16, 5),
+        (14, 6),
+        (15, 6),
+        (16, 6),
+    ] {
+        miss(&mut g, x, y);
+    }
+    assert!(!g.is_weakly_observed_region(Cell::new(5, 4), 5, -1));
+    assert!(g.is_doubtful_region(Cell::new(5, 4), 5, -1, -6));
+    assert!(g.is_doubtful_region(Cell::new(5, 5), 5, -1, -6));
+    assert!(!g.is_doubtful_region(Cell::new(15, 5), 5, -1, -6));
+    // A second miss settles a cell even next to the contested end.
+    miss(&mut g, 5, 4);
+    assert_eq!(g.log_odds(Cell::new(5, 4)), -6);
+    assert!(!g.is_doubtful_region(Cell::new(5, 4), 5, -1, -6));
+}
+
 /// A fan of beams from one point leaves one-cell strips between its traces: those are not unobserved
 /// regions, while the untouched block beyond the fan's end is.
 #[test]

@@ -121,6 +121,8 @@ pub struct RunReport {
     pub mission_time_s: Option<f64>,
     pub collisions: u32,
     pub min_clearance_m: Option<f32>,
+    /// The `mission.state` at the closest approach (`min_clearance_m`): which phase flies nearest.
+    pub min_clearance_state: Option<u8>,
     pub landings: Vec<Landing>,
     pub replans: u32,
     pub distance_m: f64,
@@ -168,6 +170,7 @@ impl RunReport {
             mission_time_s: None,
             collisions: 0,
             min_clearance_m: None,
+            min_clearance_state: None,
             landings: Vec::new(),
             replans: 0,
             distance_m: 0.0,
@@ -702,6 +705,7 @@ pub fn run(world: &World, options: &RunOptions) -> Result<RunResult, String> {
         mission_time_s,
         collisions: score.collisions,
         min_clearance_m: score.min_clearance.is_finite().then_some(score.min_clearance),
+        min_clearance_state: score.min_clearance.is_finite().then_some(score.min_clearance_state),
         landings: score.landings.clone(),
         replans: mission.stats().replans,
         distance_m: score.distance,
@@ -811,6 +815,7 @@ struct Score {
     collision_points: Vec<[f32; 3]>,
     in_collision: bool,
     min_clearance: f32,
+    min_clearance_state: u8,
     landings: Vec<Landing>,
     pending_landing: Option<u64>,
     distance: f64,
@@ -829,6 +834,7 @@ impl Score {
             collision_points: Vec::new(),
             in_collision: false,
             min_clearance: f32::INFINITY,
+            min_clearance_state: 0,
             landings: Vec::new(),
             pending_landing: None,
             distance: 0.0,
@@ -841,7 +847,10 @@ impl Score {
     }
 
     fn airborne(&mut self, clearance: f32, core: &SimCore, p: [f32; 3], take_off_surface: f32, surface: f32) {
-        self.min_clearance = self.min_clearance.min(clearance);
+        if clearance < self.min_clearance {
+            self.min_clearance = clearance;
+            self.min_clearance_state = core.mission_state().code();
+        }
         if clearance < 0.0 {
             if !self.in_collision {
                 self.collisions += 1;

@@ -379,6 +379,13 @@ impl<const CELLS: usize> OccupancyGrid<CELLS> {
     /// as often as beams ending on the surface mark it hit. O(1): reads the 5 × 5 cells around `cell`.
     pub fn is_doubtful_region(&self, cell: Cell, min_neighbours: u8, free_max: i8, contested_free_max: i8) -> bool {
         let (cx, cy) = (i32::from(cell.x), i32::from(cell.y));
+        // Most cells a path passes are plainly seen free (or occupied): decided from one byte.
+        if !self
+            .byte(cx, cy)
+            .is_some_and(|b| b & OCCUPIED == 0 && decode_log_odds(b) > contested_free_max)
+        {
+            return false;
+        }
         // The 5 × 5 block around `cell`; `None` outside the grid (the arena's wall).
         let mut block = [[None::<u8>; 5]; 5];
         for (j, row) in block.iter_mut().enumerate() {

@@ -26,10 +26,11 @@
 //!   within 0.22 m of an *unobserved region* (a cell not yet seen free, i.e. unknown or holding a hit below
 //!   the occupied threshold, among such or occupied neighbours; next to a *contested* cell, a hit and a
 //!   miss, a cell needs two net misses to count as seen free: a wall's end or a box's corner that grazing
-//!   beams left as such a mix is still unobserved, see [`OccupancyGrid::is_doubtful_region`]), the drone slows (0.2 m/s there, 1 m/s more per metre of
-//!   observed path before it) and, instead of sweeping its heading, turns the front, left or right beam
-//!   (whichever needs the least turn) towards the first such cell until a beam has looked into it. The
-//!   heading slows the drone only when it lags the actual velocity by more than the sweep's amplitude.
+//!   beams left as such a mix is still unobserved, see [`OccupancyGrid::is_doubtful_region`]), the drone
+//!   slows (0.2 m/s there, 1 m/s more per metre of observed path before it) and, instead of sweeping its
+//!   heading, turns the front, left or right beam (whichever needs the least turn) towards the first such
+//!   cell until a beam has looked into it. The heading slows the drone only when it lags the actual velocity
+//!   by more than the sweep's amplitude.
 //!   A nominal goal inside the inflated margin of something mapped is replaced by the nearest free cell
 //!   within 0.3 m (the search starts there).
 //! - **No path**: once per leg, plan again with [`MissionConfig::narrow_inflation_radius_m`] and fly at

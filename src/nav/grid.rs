@@ -376,60 +376,36 @@ impl<const CELLS: usize> OccupancyGrid<CELLS> {
     /// still counts as unseen when one of its eight neighbours is *contested*, i.e. holds log-odds 1 ..=
     /// [`CONTESTED_MAX_LOG_ODDS`] (a hit and a miss, or less than one clean hit). Such a mix is what a wall's
     /// end or a box's corner leaves: beams grazing the part of a cell the surface does not fill mark it free
-    /// as often as beams ending on the surface mark it hit. O(1): reads the 5 × 5 cells around `cell`.
+    /// as often as beams ending on the surface mark it hit. O(1): reads only cells of the 5 × 5 block around
+    /// `cell` (at most 81 reads; one for a cell plainly seen free or occupied).
     pub fn is_doubtful_region(&self, cell: Cell, min_neighbours: u8, free_max: i8, contested_free_max: i8) -> bool {
-        let (cx, cy) = (i32::from(cell.x), i32::from(cell.y));
-        // Most cells a path passes are plainly seen free (or occupied): decided from one byte.
-        if !self
-            .byte(cx, cy)
-            .is_some_and(|b| b & OCCUPIED == 0 && decode_log_odds(b) > contested_free_max)
-        {
-            return false;
-        }
-        // The 5 × 5 block around `cell`; `None` outside the grid (the arena's wall).
-        let mut block = [[None::<u8>; 5]; 5];
-        for (j, row) in block.iter_mut().enumerate() {
-            for (i, b) in row.iter_mut().enumerate() {
-                *b = self.byte(cx + i as i32 - 2, cy + j as i32 - 2);
-            }
-        }
-        let contested = |b: Option<u8>| b.is_some_and(|b| (1..=CONTESTED_MAX_LOG_ODDS).contains(&decode_log_odds(b)));
-        let unseen = |i: usize, j: usize| -> bool {
-            let Some(b) = block[j][i] else {
-                return true;
-            };
-            if b & OCCUPIED != 0 {
-                return true;
-            }
-            let lo = decode_log_odds(b);
-            if lo > free_max {
-                return true;
-            }
-            if lo <= contested_free_max {
-                return false;
-            }
-            (i - 1..=i + 1).any(|ni| (j - 1..=j + 1).any(|nj| (ni, nj) != (i, j) && contested(block[nj][ni])))
+        let contested_next_to = |x: i32, y: i32| {
+            (-1..=1).any(|dy| {
+                (-1..=1).any(|dx| {
+                    (dx, dy) != (0, 0)
+                        && self
+                            .byte(x + dx, y + dy)
+                            .is_some_and(|b| (1..=CONTESTED_MAX_LOG_ODDS).contains(&decode_log_odds(b)))
+                })
+            })
         };
-        // The centre must be an unseen cell inside the grid (not the wall, not occupied).
-        if block[2][2].is_none_or(|b| b & OCCUPIED != 0) || !unseen(2, 2) {
-            return false;
-        }
-        let mut count = 0u8;
-        for j in 1..=3 {
-            for i in 1..=3 {
-                if (i, j) != (2, 2) && unseen(i, j) {
-                    count += 1;
-                }
-            }
-        }
-        count >= min_neighbours
+        self.is_region_at(cell, min_neighbours, |x, y, b| {
+            let lo = decode_log_odds(b);
+            b & OCCUPIED == 0 && (lo > free_max || (lo > contested_free_max && contested_next_to(x, y)))
+        })
     }
 
     /// Whether `cell`'s byte is `unseen` and at least `min_neighbours` of its eight neighbours are unseen,
-    /// occupied or outside the grid (the two region tests above, with their idea of "unseen").
+    /// occupied or outside the grid (the region tests above, with their idea of "unseen").
     fn is_region_of(&self, cell: Cell, min_neighbours: u8, unseen: impl Fn(u8) -> bool) -> bool {
+        self.is_region_at(cell, min_neighbours, |_, _, b| unseen(b))
+    }
+
+    /// [`Self::is_region_of`] with an idea of "unseen" that may also look at the cell's position (`x`, `y`,
+    /// then its byte). The centre is tested first: a seen cell costs one read.
+    fn is_region_at(&self, cell: Cell, min_neighbours: u8, unseen: impl Fn(i32, i32, u8) -> bool) -> bool {
         let (x, y) = (i32::from(cell.x), i32::from(cell.y));
-        if !self.byte(x, y).is_some_and(&unseen) {
+        if !self.byte(x, y).is_some_and(|b| unseen(x, y, b)) {
             return false;
         }
         let mut count = 0u8;
@@ -438,7 +414,8 @@ impl<const CELLS: usize> OccupancyGrid<CELLS> {
                 if (dx, dy) == (0, 0) {
                     continue;
                 }
-                let not_free = self.byte(x + dx, y + dy).is_none_or(|b| b & OCCUPIED != 0 || unseen(b));
+                let (nx, ny) = (x + dx, y + dy);
+                let not_free = self.byte(nx, ny).is_none_or(|b| b & OCCUPIED != 0 || unseen(nx, ny, b));
                 count += u8::from(not_free);
             }
         }

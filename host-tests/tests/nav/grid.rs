@@ -1039,10 +1039,12 @@ fn weakly_observed_regions_match_brute_force() {
     assert!(!g.is_weakly_observed_region(Cell::new(14, 0), 0, -6));
 }
 
-/// `is_doubtful_region` against the same brute force: a cell is unseen when it is not occupied and its
-/// log-odds lie above `free_max`, or above `contested_free_max` with a neighbour (inside the grid) whose
-/// log-odds lie in 1 ..= 7; a region when it is unseen and at least `min` of its neighbours are unseen,
-/// occupied or outside the grid. A cell one beam crossed next to a hit and a miss is the case it exists for.
+/// `is_doubtful_region` against a brute force of its rule over the cells' log-odds after random beams (the
+/// log-odds themselves are checked against the beams' geometry by `weakly_observed_regions_match_brute_force`):
+/// a cell is unseen when it is not occupied and its log-odds lie above `free_max`, or above
+/// `contested_free_max` with a neighbour (inside the grid) whose log-odds lie in 1 ..= 7; a region when it is
+/// unseen and at least `min` of its neighbours are unseen, occupied or outside the grid. A cell one beam
+/// crossed next to a hit and a miss is the case it exists for.
 #[test]
 fn doubtful_regions_match_brute_force() {
     let mut rng = SmallRng::seed_from_u64(0xd0b7_f001);

@@ -120,6 +120,10 @@ fn wall_fixes_hold_the_heading_against_a_gyro_drift() {
     // The late position error with the fixes peaks in that corridor on seed 3 (7.4 cm, yaw error ≈ 1°
     // there: flow drift between wall fixes, not heading), so its bound moved from 6 cm to 8 cm, the issue's
     // bound for the default mission's maximum; every run with still sits below every run without.
+    // Since corridor faces become landmarks (session 24: one earlier hit locates a face, wider joins,
+    // settled landmarks kept), obstacle faces hold the position better with and without the heading term:
+    // with 2.2–3.0° and 2.7–3.9 cm, without 4.5–6.0° and 8.6–11.9 cm. The yaw bound without moved from
+    // 4.9° to 4.3°, equal to the bound with: one threshold still separates every run.
     assert!(
         worst_on.0 <= 0.075,
         "with the heading fixes the late yaw error reaches {}",
@@ -137,7 +141,7 @@ fn wall_fixes_hold_the_heading_against_a_gyro_drift() {
         worst_off.0
     );
     assert!(
-        worst_off.0 > 0.085,
+        worst_off.0 > 0.075,
         "without them the yaw error stays at {}",
         worst_off.0
     );

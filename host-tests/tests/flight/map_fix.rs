@@ -1,12 +1,13 @@
 //! Map-relative localization (`cfnav::flight::estimator::map_fix`): the ray cast against an independent
 //! geometric oracle (ray against axis-aligned rectangles and the arena's walls), the fixes a sweep gives
-//! (exact distances along the normal, incidence and outlier rules), the self-write rule against the real
-//! occupancy grid (a cell one beam wrote is not a surface until another confirms it), and the whole
+//! (exact distances along the normal, incidence and outlier rules), the landmark rules against the real
+//! occupancy grid (a face's plane placed from where beams ended, fixes only from a settled landmark long
+//! enough to be a face, no ratchet between the fixes and the map writes), and the whole
 //! mission against the simulator's ground truth with the fixes on and off.
 
 use cfnav::flight::estimator::map_fix::{
-    CONFIRMED_LOG_ODDS, FACE_END_MAX_DIFFERENCE_M, LANDMARK_SETTLE, Landmarks, MAX_WALL_INCIDENCE_RAD, PRE_GATE_M,
-    RayGrid, cast_fixes, ray_cast,
+    CONFIRMED_LOG_ODDS, FACE_END_MAX_DIFFERENCE_M, LANDMARK_MIN_EXTENT_CELLS, LANDMARK_SETTLE, Landmarks,
+    MAX_WALL_INCIDENCE_RAD, PRE_GATE_M, RayGrid, cast_fixes, ray_cast,
 };
 use cfnav::flight::estimator::{Estimator, EstimatorConfig};
 use cfnav::nav::grid::{ChangedCells, OccupancyGrid};
@@ -301,15 +302,22 @@ fn cast_on(
     )
 }
 
-/// Writes the front beam `range` from `x` into the map along five rows around `y` (a straight face).
-fn write_front(map: &mut Map, x: f32, y: f32, range: f32) {
-    let mut changed: ChangedCells<256> = ChangedCells::new();
-    for dy in [-0.1f32, -0.05, 0.0, 0.05, 0.1] {
+/// Writes the front beam `range` from `x` into the map along the `2·half_rows + 1` rows around `y` (one
+/// sweep's hits on a straight face, log-odds 8 at each row's end cell).
+fn write_face(map: &mut Map, x: f32, y: f32, range: f32, half_rows: i32) {
+    for j in -half_rows..=half_rows {
+        let mut changed: ChangedCells<64> = ChangedCells::new();
+        let dy = j as f32 * CELL_SIZE_M;
         map.integrate_beam((x, y + dy), (x + range, y + dy), true, &mut changed);
     }
 }
 
-/// The box of the self-write tests: its face at x = 2.0 m (cells 40..44 × 10..30).
+/// The centre of the `k`-th row from 1.025 m (whole cells: no beam runs along a cell boundary).
+fn row_centre(k: i32) -> f32 {
+    1.025 + k as f32 * CELL_SIZE_M
+}
+
+/// The box of the landmark tests: its face at x = 2.0 m (cells 40..44 × 10..30).
 const BOX: Rect = Rect {
     x0: 40,
     y0: 10,
@@ -317,72 +325,74 @@ const BOX: Rect = Rect {
     y1: 30,
 };
 
-/// The self-write rule on the real occupancy grid: the front beam's first return from a box marks its cell
-/// occupied (one hit, log-odds 8), which is *not* a surface for the fixes: a drone that casts against it
-/// would chase its own write. Only a second sweep's hit (16) confirms it; then the next
-/// `LANDMARK_SETTLE` beams place the face's plane (no fix yet), and from then on the fix measures against
-/// that frozen plane.
+/// The landmark rules on the real occupancy grid. Nothing mapped: no fix and no landmark. One earlier
+/// sweep's hits (log-odds 8; the caller casts before it writes, so never the same sweep's) locate the
+/// face; then `LANDMARK_SETTLE` beams place its plane (no fix yet). Beams that all meet one row give no
+/// fix however many there are (a cylinder's flank looks like that); the first beam that stretches the rows
+/// met to `LANDMARK_MIN_EXTENT_CELLS` gives one, against the plane where the beams ended (2.0 m), not the
+/// cell's centre (2.025 m).
 #[test]
-fn a_cell_is_used_only_once_a_second_sweep_confirms_it() {
+fn a_face_gives_fixes_once_its_landmark_is_settled_and_long_enough() {
     let (mut map, shape) = empty_map();
-    // Rows' centres (1.025 m ± whole cells): no beam runs along a cell boundary.
-    let (x, y) = (1.2, 1.025);
-    let sample = exact_sweep(&arena(), &[BOX], (x, y), 0.0);
-    let range = sample.front_m.unwrap();
+    let x = 1.2;
+    let sample_at = |k: i32| exact_sweep(&arena(), &[BOX], (x, row_centre(k)), 0.0);
+    let range = sample_at(0).front_m.unwrap();
     assert!((range - 0.8).abs() < 1e-4);
     let mut landmarks = Landmarks::new();
-    assert!(cast_on(&map, shape, &sample, [x, y], &mut landmarks).fixes[0].is_none());
-    // The hit lands just inside the face's cell (as a beam reading a hair long does).
-    write_front(&mut map, x, y, range + 0.01);
+    let cast = |k: i32, landmarks: &mut Landmarks, map: &Map| {
+        cast_on(map, shape, &sample_at(k), [x, row_centre(k)], landmarks).fixes[0]
+    };
+    assert!(cast(0, &mut landmarks, &map).is_none());
+    assert_eq!(landmarks.iter().count(), 0, "nothing mapped, no landmark");
+    // One pass of the drone along the face; the hits land just inside the face's cells (a hair long).
+    let extent = LANDMARK_MIN_EXTENT_CELLS as i32;
+    write_face(&mut map, x, row_centre(0), range + 0.01, extent);
     let face = Cell::new(40, 20);
-    assert!(map.is_occupied(face) && map.log_odds(face) < CONFIRMED_LOG_ODDS);
-    let once = cast_on(&map, shape, &sample, [x, y], &mut landmarks);
-    assert!(
-        once.fixes[0].is_none(),
-        "one sweep's own hit must not be used: {:?}",
-        once.fixes[0]
-    );
-    assert_eq!(landmarks.iter().count(), 0, "nor placed as a landmark");
-    write_front(&mut map, x, y, range + 0.01);
-    assert!(map.log_odds(face) >= CONFIRMED_LOG_ODDS);
-    for k in 0..LANDMARK_SETTLE {
-        let f = cast_on(&map, shape, &sample, [x, y], &mut landmarks);
-        assert!(
-            f.fixes[0].is_none(),
-            "beam {k} places the landmark, no fix yet: {:?}",
-            f.fixes[0]
-        );
+    assert!(map.log_odds(face) >= CONFIRMED_LOG_ODDS && map.log_odds(face) < 16);
+    for k in 0..2 * LANDMARK_SETTLE {
+        let f = cast(0, &mut landmarks, &map);
+        assert!(f.is_none(), "beam {k}, all at one row: no fix: {f:?}");
     }
-    let fix = cast_on(&map, shape, &sample, [x, y], &mut landmarks).fixes[0].expect("a settled face gives a fix");
-    // The plane where the beams ended (2.0 m), not the cell's centre (2.025 m).
+    assert_eq!(landmarks.iter().count(), 1);
+    assert!(landmarks.iter().all(|l| l.seen >= LANDMARK_SETTLE));
+    for k in 1..extent - 1 {
+        let f = cast(k, &mut landmarks, &map);
+        assert!(f.is_none(), "rows 0..={k} met, fewer than {extent}: no fix: {f:?}");
+    }
+    let fix = cast(extent - 1, &mut landmarks, &map).expect("a settled face met over enough rows gives a fix");
     assert!((fix.expected_m - 0.8).abs() < 1e-4, "{fix:?}");
     assert!((fix.measured_m - 0.8).abs() < 1e-4, "{fix:?}");
     assert!(fix.std_m > 0.005 && fix.std_m < 0.03, "{fix:?}");
     let l = landmarks.iter().next().unwrap();
     assert_eq!((l.axis, l.sign), (0, 1));
     assert!((l.plane_m - 2.0).abs() < 1e-4, "{l:?}");
+    assert_eq!(landmarks.iter().count(), 1, "one face, one landmark");
 }
 
 /// A face's last cell (one neighbour along it mapped, not both) gives a fix only for a small difference:
 /// the map smears a surface's end and a cylinder's flank looks straight for a few cells, so a beam there
 /// reading far from the plane may have passed the end or met the curve behind it. Inside the face the same
-/// difference is an estimate error and gives a fix. The face: five rows (18–22) of cells at x = 2.0 m.
+/// difference is an estimate error and gives a fix. The face: eleven rows (15–25) of cells at x = 2.0 m.
 #[test]
 fn a_face_end_gives_a_fix_only_near_the_plane() {
     let (mut map, shape) = empty_map();
     let x = 1.2;
-    // Two sweeps confirm the face (rows 1.025 ± 0.1 m), then five beams at its centre place the landmark.
-    let centre = 1.025;
-    let exact = exact_sweep(&arena(), &[BOX], (x, centre), 0.0);
-    let range = exact.front_m.unwrap();
-    write_front(&mut map, x, centre, range + 0.01);
-    write_front(&mut map, x, centre, range + 0.01);
+    // A pass maps the face (rows 1.025 ± 0.25 m), then beams across it place the landmark and stretch it.
+    let centre = row_centre(0);
+    let range = exact_sweep(&arena(), &[BOX], (x, centre), 0.0).front_m.unwrap();
+    write_face(&mut map, x, centre, range + 0.01, 5);
     let mut landmarks = Landmarks::new();
-    for _ in 0..LANDMARK_SETTLE {
-        assert!(cast_on(&map, shape, &exact, [x, centre], &mut landmarks).fixes[0].is_none());
+    for k in -5..=5 {
+        let exact = exact_sweep(&arena(), &[BOX], (x, row_centre(k)), 0.0);
+        cast_on(&map, shape, &exact, [x, row_centre(k)], &mut landmarks);
     }
+    assert!(
+        landmarks
+            .iter()
+            .all(|l| l.seen >= LANDMARK_SETTLE && l.along == (15, 25))
+    );
     let row = |y: f32| (y / CELL_SIZE_M) as u16;
-    assert!(map.is_occupied(Cell::new(40, row(1.125))) && !map.is_occupied(Cell::new(40, row(1.175))));
+    assert!(map.is_occupied(Cell::new(40, row(1.275))) && !map.is_occupied(Cell::new(40, row(1.325))));
     // From 1.2 m the beams read `long` further than the plane: the drone is that much nearer x = 0 than
     // the estimate says, or the beam met something else behind the face's plane.
     let fix_at = |y: f32, long: f32, landmarks: &mut Landmarks| {
@@ -399,7 +409,7 @@ fn a_face_end_gives_a_fix_only_near_the_plane() {
         }
     }
     // The last row: the small difference is a fix, the large one none.
-    let end = 1.125;
+    let end = row_centre(5);
     let fix = fix_at(end, small, &mut landmarks).expect("the end, a small difference: a fix");
     assert!((fix.measured_m - fix.expected_m - small).abs() < 1e-4, "{fix:?}");
     assert!(
@@ -412,10 +422,10 @@ fn a_face_end_gives_a_fix_only_near_the_plane() {
     );
 }
 
-/// No self-reinforcing loop: a drone hovers 0.8 m in front of a box with noisy ranges and, every sweep,
-/// first corrects its estimate with the fixes and then writes the beam into the map from the corrected
-/// estimate (what the navigator and the stabilizer do together). Over 400 sweeps the estimate stays at the
-/// truth. With the plane through the first confirmed cell's centre instead of a frozen landmark this loop
+/// No self-reinforcing loop: a drone flies to and fro along a box's face, 0.8 m from it, with noisy
+/// ranges and, every sweep, first corrects its estimate with the fixes and then writes the beam into the
+/// map from the corrected estimate (what the navigator and the stabilizer do together). Over 400 sweeps,
+/// most of them fixes, the estimate stays at the truth. With the plane through the first confirmed cell's centre instead of a frozen landmark this loop
 /// ratchets: the nearest of the cells the noisy hits straddle gets confirmed, its centre lies nearer than
 /// the surface, the fix moves the estimate back, the next hits confirm a nearer cell, and the estimate
 /// walks away from the wall (the default world's noise seed 14 crept 21 cm that way).
@@ -426,11 +436,15 @@ fn fixes_and_map_writes_do_not_ratchet() {
         let mut rng = SmallRng::seed_from_u64(seed);
         let (mut map, shape) = empty_map();
         let mut landmarks = Landmarks::new();
-        let (x_true, y) = (1.2f32, 1.025f32);
+        let x_true = 1.2f32;
         let mut late: Vec<f32> = Vec::new();
         let mut x_est = x_true;
         let mut worst = 0.0f32;
+        let mut fixed = 0;
         for k in 0..400 {
+            // Rows −6..=5 and back: 0.6 m of the face, one row per sweep.
+            let step = k % 24;
+            let y = row_centre(if step < 12 { step - 6 } else { 17 - step });
             let mut sample = exact_sweep(&arena(), &[BOX], (x_true, y), 0.0);
             let noise = |rng: &mut SmallRng, r: f32| {
                 let g: f32 = (0..12).map(|_| rng.random::<f32>()).sum::<f32>() - 6.0;
@@ -442,8 +456,9 @@ fn fixes_and_map_writes_do_not_ratchet() {
             if let Some(f) = fixes.fixes[0] {
                 // A scalar filter with a fixed gain along the normal (+x): p += −n·k·innovation.
                 x_est -= 0.3 * (f.measured_m - f.expected_m);
+                fixed += 1;
             }
-            write_front(&mut map, x_est, y, sample.front_m.unwrap());
+            write_face(&mut map, x_est, y, sample.front_m.unwrap(), 0);
             worst = worst.max((x_est - x_true).abs());
             if k >= 300 {
                 late.push(x_est - x_true);
@@ -452,6 +467,7 @@ fn fixes_and_map_writes_do_not_ratchet() {
         // The fixes' own noise (gain 0.3, ≈ 1.1 cm per range) and the landmark's placement error move the
         // estimate by a centimetre or two; a ratchet walks on by a cell per few sweeps.
         let mean_late = late.iter().sum::<f32>() / late.len() as f32;
+        assert!(fixed > 300, "seed {seed}: only {fixed} of 400 sweeps gave a fix");
         assert!(
             worst < 0.04,
             "seed {seed}: the estimate walked {worst} m from the truth"

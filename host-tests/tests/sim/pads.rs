@@ -233,11 +233,12 @@ fn a_landing_clear_of_a_pad_never_found_keeps_off_its_corner() {
     // nothing: the one nearest the drone was 0.253 m from the pad's centre and the body touched its corner
     // (state 14). Now the spot farthest from the nominal goal is taken. Oracle: the runner's truth (the
     // landing's distance from the pad against its half diagonal plus the body's radius, the collisions).
-    // The goal pad is lowered to 2.5 cm, under the detector's 3 cm least step: never found whatever the
-    // search lines do (session 21's search found the 10 cm pad of this world), and still a solid the body
-    // touches if it comes down on its corner.
+    // The goal pad is lowered under the detector's 3 cm least step: never found whatever the search lines
+    // do (session 21's search found the 10 cm pad of this world), and still a solid the body touches if it
+    // comes down on its corner. At 2.5 cm the step plus the ranger's noise reached the threshold on session
+    // 24's flight, which found that pad and landed on it 2.3 cm off; at 1.5 cm it stays unseen.
     let mut world = World::random(157_000_588);
-    world.pads.last_mut().expect("a goal pad").height = 0.025;
+    world.pads.last_mut().expect("a goal pad").height = 0.015;
     let r = fly(&world);
     assert_eq!((r.outcome, r.reason), ("aborted", Some("pad_not_found")), "{r:?}");
     assert_eq!(r.collisions, 0, "{r:?}");

@@ -8,12 +8,16 @@
 //! front beam walks 2.35 m (≈ 50 cells across both axes) to the box, the back one 2.04 m to the x = 0
 //! wall, the side ones 1.53 m to the y walls: four fixes per sweep, each walk near the 2.5 m bound. The
 //! estimator is calibrated at rest and airborne, as in the estimator benchmark; the box's face is settled
-//! as a landmark before the measured sweeps (every measured sweep matches it among the landmarks).
+//! as a landmark before the measured sweeps, by sweeps from seven points 5 cm apart along y, so that its
+//! beams meet more than `LANDMARK_MIN_EXTENT_CELLS` rows of it (every measured sweep matches it among the
+//! landmarks).
 //!
 //! Output: `map_fix_cast_instructions_{median,p90,max}`, `map_fix_update_instructions_{median,p90,max}`
 //! over 20 sweeps, `map_fix_fused=`.
 
-use cfnav::flight::estimator::map_fix::{CONFIRMED_LOG_ODDS, LANDMARK_SETTLE, Landmarks, RayGrid, cast_fixes};
+use cfnav::flight::estimator::map_fix::{
+    CONFIRMED_LOG_ODDS, LANDMARK_MIN_EXTENT_CELLS, LANDMARK_SETTLE, Landmarks, RayGrid, cast_fixes,
+};
 use cfnav::nav::grid::{ChangedCells, OccupancyGrid};
 use cfnav::nav::map::{ARENA_CELLS, CELL_SIZE_M, Cell, GridShape};
 use cfnav::types::MultiRangerSample;
@@ -69,10 +73,13 @@ pub fn map_fix_bench(meter: &mut impl Meter) -> Result<(), ()> {
 
     let confirmed = |cx: i32, cy: i32| map.log_odds(Cell::new(cx as u16, cy as u16)) >= CONFIRMED_LOG_ODDS;
     let occupied = |cx: i32, cy: i32| shape.contains(cx, cy) && map.is_occupied(Cell::new(cx as u16, cy as u16));
-    // The box's face becomes a landmark over its first sweeps (no fix from the front beam meanwhile).
+    // The box's face becomes a landmark over its first sweeps (no fix from the front beam meanwhile),
+    // from points along y so that the front beam meets seven of its rows.
     let mut landmarks = Landmarks::new();
-    for _ in 0..LANDMARK_SETTLE {
-        let _ = cast_fixes(&grid, &sweep, [x, y], yaw, &mut landmarks, confirmed, occupied);
+    let points = (LANDMARK_SETTLE as i16).max(LANDMARK_MIN_EXTENT_CELLS) + 1;
+    for k in 0..points {
+        let y_k = y + f32::from(k - points / 2) * CELL_SIZE_M;
+        let _ = cast_fixes(&grid, &sweep, [x, y_k], yaw, &mut landmarks, confirmed, occupied);
     }
     let mut cast_counts = [0u32; SWEEPS];
     let mut update_counts = [0u32; SWEEPS];

@@ -369,6 +369,58 @@ fn a_face_gives_fixes_once_its_landmark_is_settled_and_long_enough() {
     assert_eq!(landmarks.iter().count(), 1, "one face, one landmark");
 }
 
+/// When all `MAX_LANDMARKS` slots are taken, a new landmark replaces an unsettled one, never a settled one
+/// while an unsettled one is left: the faces found on the way out must still hold on the way back. A 50 m
+/// tall arena with one long face at x = 2.0 m; the front beam from x = 1.2 m meets it at rows 8 cells apart
+/// (beyond the join distance), so each row is a landmark of its own. Row 10 settles first; then
+/// `MAX_LANDMARKS` + 10 other rows are met once each (unsettled): row 10's landmark survives them all, and
+/// the slots hold the newest of the others.
+#[test]
+fn a_new_landmark_replaces_an_unsettled_one_first() {
+    use cfnav::flight::estimator::map_fix::{LANDMARK_GAP_CELLS, MAX_LANDMARKS};
+    let grid = RayGrid {
+        width: 120,
+        height: 1000,
+        cell_m: CELL_SIZE_M,
+        arena_m: (6.0, 50.0),
+    };
+    let face = |x: i32, _y: i32| x == 40;
+    let spacing = 8;
+    assert!(spacing > LANDMARK_GAP_CELLS as i32 + 1);
+    // Rows from 10 on: a cell within half a cell of the wall y = 0 is the wall's own trace.
+    let beam_at = |k: i32, landmarks: &mut Landmarks| {
+        let y = ((10 + k * spacing) as f32 + 0.5) * CELL_SIZE_M;
+        let sample = MultiRangerSample {
+            front_m: Some(0.8),
+            ..MultiRangerSample::default()
+        };
+        cast_fixes(&grid, &sample, [1.2, y], 0.0, landmarks, face, face)
+    };
+    let mut landmarks = Landmarks::new();
+    for _ in 0..LANDMARK_SETTLE {
+        assert!(beam_at(0, &mut landmarks).is_empty());
+    }
+    let others = MAX_LANDMARKS as i32 + 10;
+    for k in 1..=others {
+        assert!(beam_at(k, &mut landmarks).is_empty());
+    }
+    assert_eq!(landmarks.iter().count(), MAX_LANDMARKS);
+    let first = landmarks
+        .iter()
+        .find(|l| l.along == (10, 10))
+        .expect("the settled landmark is kept");
+    assert!(
+        first.seen >= LANDMARK_SETTLE && (first.plane_m - 2.0).abs() < 1e-4,
+        "{first:?}"
+    );
+    let mut rows: Vec<i16> = landmarks.iter().filter(|l| l.along.0 > 10).map(|l| l.along.0).collect();
+    rows.sort_unstable();
+    let newest: Vec<i16> = ((others - MAX_LANDMARKS as i32 + 2)..=others)
+        .map(|k| (10 + k * spacing) as i16)
+        .collect();
+    assert_eq!(rows, newest, "the unsettled slots hold the newest rows");
+}
+
 /// A face's last cell (one neighbour along it mapped, not both) gives a fix only for a small difference:
 /// the map smears a surface's end and a cylinder's flank looks straight for a few cells, so a beam there
 /// reading far from the plane may have passed the end or met the curve behind it. Inside the face the same

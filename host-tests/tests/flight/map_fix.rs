@@ -477,10 +477,11 @@ fn a_face_end_gives_a_fix_only_near_the_plane() {
 /// No self-reinforcing loop: a drone flies to and fro along a box's face, 0.8 m from it, with noisy
 /// ranges and, every sweep, first corrects its estimate with the fixes and then writes the beam into the
 /// map from the corrected estimate (what the navigator and the stabilizer do together). Over 400 sweeps,
-/// most of them fixes, the estimate stays at the truth. With the plane through the first confirmed cell's centre instead of a frozen landmark this loop
-/// ratchets: the nearest of the cells the noisy hits straddle gets confirmed, its centre lies nearer than
-/// the surface, the fix moves the estimate back, the next hits confirm a nearer cell, and the estimate
-/// walks away from the wall (the default world's noise seed 14 crept 21 cm that way).
+/// most of them fixes, the estimate stays at the truth. With the plane through the first confirmed cell's
+/// centre instead of a frozen landmark this loop ratchets: the nearest of the cells the noisy hits
+/// straddle gets confirmed, its centre lies nearer than the surface, the fix moves the estimate back, the
+/// next hits confirm a nearer cell, and the estimate walks away from the wall (the default world's noise
+/// seed 14 crept 21 cm that way).
 #[test]
 fn fixes_and_map_writes_do_not_ratchet() {
     use rand::{Rng, SeedableRng, rngs::SmallRng};

@@ -29,8 +29,10 @@
 //!   beams left as such a mix is still unobserved, see [`OccupancyGrid::is_doubtful_region`]), the drone
 //!   slows (0.2 m/s there, 1 m/s more per metre of observed path before it) and, instead of sweeping its
 //!   heading, turns the front, left or right beam (whichever needs the least turn) towards the first such
-//!   cell until a beam has looked into it. The heading slows the drone only when it lags the actual velocity
-//!   by more than the sweep's amplitude.
+//!   cell until a beam has looked into it; a beam with no return maps nothing, so when that beam has
+//!   returned nothing two sweeps in a row (open space beyond its 4 m) the heading sweeps for 2 s instead,
+//!   turning the beams onto what lies beside the path. The heading slows the drone only when it lags the
+//!   actual velocity by more than the sweep's amplitude.
 //!   A nominal goal inside the inflated margin of something mapped is replaced by the nearest free cell
 //!   within 0.3 m (the search starts there).
 //! - **No path**: once per leg, plan again with [`MissionConfig::narrow_inflation_radius_m`] and fly at
@@ -341,6 +343,8 @@ pub struct Mission<const CELLS: usize, const QUEUE: usize> {
     explorer: explore::Explorer,
     /// The estimator's map-fix shift sum at the previous tick ([`Self::on_map_fix_shift`]).
     last_map_fix_shift_m: Option<[f32; 2]>,
+    /// Which beams return nothing, for the navigation's look at unobserved regions (`navigate`).
+    blind_look: navigate::BlindLook,
 }
 
 /// Counters for logs and the simulator's report.
@@ -415,6 +419,7 @@ impl<const CELLS: usize, const QUEUE: usize> Mission<CELLS, QUEUE> {
             touchdown: landing::Touchdown::new(),
             explorer: explore::Explorer::new(),
             last_map_fix_shift_m: None,
+            blind_look: navigate::BlindLook::NEW,
         }
     }
 
@@ -460,6 +465,7 @@ impl<const CELLS: usize, const QUEUE: usize> Mission<CELLS, QUEUE> {
                 touchdown: _,
                 explorer: _,
                 last_map_fix_shift_m: _,
+                blind_look: _,
             } = m;
         };
         // SAFETY: the caller guarantees `slot` is valid and aligned; `addr_of_mut!` makes no reference to the
@@ -490,6 +496,7 @@ impl<const CELLS: usize, const QUEUE: usize> Mission<CELLS, QUEUE> {
             addr_of_mut!((*slot).touchdown).write(landing::Touchdown::new());
             addr_of_mut!((*slot).explorer).write(explore::Explorer::new());
             addr_of_mut!((*slot).last_map_fix_shift_m).write(None);
+            addr_of_mut!((*slot).blind_look).write(navigate::BlindLook::NEW);
         }
     }
 
@@ -835,6 +842,7 @@ impl<const CELLS: usize, const QUEUE: usize> Mission<CELLS, QUEUE> {
     /// A Multi-ranger reading (10 Hz): map it while flying, keep it for avoidance.
     pub fn on_ranges(&mut self, ranges: &MultiRangerSample, state: &StateEstimate) {
         self.last_ranges = RangerReadings::new(ranges.front_m, ranges.back_m, ranges.left_m, ranges.right_m);
+        self.blind_look.on_ranges(ranges);
         let airborne = matches!(
             self.phase,
             Phase::TakeOff { .. }

@@ -73,6 +73,69 @@ const TAKE_OFF_HOP_M: f32 = 0.13;
 /// The fast lift-off's climb rate, m/s.
 pub(super) const TAKE_OFF_HOP_SPEED_M_S: f32 = 0.8;
 
+/// A look at an unobserved cell is given up after its beam returned nothing this many sweeps in a row (one
+/// is a dropout: 3–5 % per beam in the stress settings).
+const BLIND_LOOK_SWEEPS: u8 = 2;
+/// A look given up stays given up this long, µs: one whole heading sweep, so the sweep's phase cannot flip
+/// the heading back and forth between the two.
+const BLIND_LOOK_SCAN_US: Micros = (SCAN_PERIOD_S * 1e6) as Micros;
+/// The look's beam points at its cell when the bearing lies this close to the beam's axis, rad (otherwise
+/// the look is clamped at [`LOOK_MAX_OFFSET_RAD`] and its beam's returns say nothing about the cell).
+const BLIND_LOOK_ON_AXIS_RAD: f32 = 0.1;
+
+/// Which horizontal beams return nothing, and whether a look at an unobserved cell was given up for that
+/// reason (see [`Mission::navigate`]). Four counters and a time: 16 bytes.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub(super) struct BlindLook {
+    /// Consecutive sweeps without a return, per beam: front, back, left, right (saturating).
+    no_return_sweeps: [u8; 4],
+    /// The heading sweeps instead of looking until then.
+    scan_until: Option<Micros>,
+}
+
+impl BlindLook {
+    pub(super) const NEW: Self = Self {
+        no_return_sweeps: [0; 4],
+        scan_until: None,
+    };
+
+    /// One Multi-ranger sweep.
+    pub(super) fn on_ranges(&mut self, ranges: &MultiRangerSample) {
+        for (count, reading) in self.no_return_sweeps.iter_mut().zip(ranges.horizontal()) {
+            *count = if reading.is_some_and(|d| d.is_finite() && d > 0.02) {
+                0
+            } else {
+                count.saturating_add(1)
+            };
+        }
+    }
+
+    /// Whether looking from `here` at `cell` with the heading `look` would map nothing: the front, left
+    /// or right beam that points at it has returned nothing for [`BLIND_LOOK_SWEEPS`] sweeps (it then stays
+    /// given up for [`BLIND_LOOK_SCAN_US`]).
+    pub(super) fn is_futile(&mut self, now: Micros, look: f32, here: (f32, f32), cell: (f32, f32)) -> bool {
+        if self.scan_until.is_some_and(|until| now < until) {
+            return true;
+        }
+        self.scan_until = None;
+        let bearing = libm::atan2f(cell.1 - here.1, cell.0 - here.0);
+        // (index into `no_return_sweeps`, the beam's axis in the body frame)
+        let beams = [
+            (0, 0.0),
+            (2, core::f32::consts::FRAC_PI_2),
+            (3, -core::f32::consts::FRAC_PI_2),
+        ];
+        let blind = beams.into_iter().any(|(beam, axis)| {
+            libm::fabsf(wrap_angle(bearing - look - axis)) <= BLIND_LOOK_ON_AXIS_RAD
+                && self.no_return_sweeps[beam] >= BLIND_LOOK_SWEEPS
+        });
+        if blind {
+            self.scan_until = Some(now.saturating_add(BLIND_LOOK_SCAN_US));
+        }
+        blind
+    }
+}
+
 /// A map whose blocked cells grow by one cell (8-neighbourhood): the margin shortcuts keep.
 struct Dilated<'a, M: Traversability>(&'a M);
 
@@ -363,7 +426,19 @@ impl<const CELLS: usize, const QUEUE: usize> Mission<CELLS, QUEUE> {
                         // An unobserved region beside the path ahead: instead of sweeping (whose phase may
                         // look the other way all along the approach), point the beam that needs the least
                         // turn (front, left or right) at it, so it is seen before the drone is there.
-                        Some(cell) => Self::look_at_heading(travel, self.heading, (x, y), cell),
+                        // Unless the beam that would look returns nothing: with no return a beam maps
+                        // nothing, so the region would stay unobserved however long it looked (open space
+                        // beyond the ranger's 4 m straight ahead: a box's corner 4 cm beside the path was
+                        // met by the drone still looking along it, world 306 000 918). The sweep then
+                        // turns the beams onto what they can return from, beside the path.
+                        Some(cell) => {
+                            let look = Self::look_at_heading(travel, self.heading, (x, y), cell);
+                            if self.blind_look.is_futile(now, look, (x, y), cell) {
+                                wrap_angle(travel + SCAN_AMPLITUDE_RAD * libm::sinf(phase))
+                            } else {
+                                look
+                            }
+                        }
                         None => wrap_angle(travel + SCAN_AMPLITUDE_RAD * libm::sinf(phase)),
                     };
                     // The front beam must look where the drone actually goes: judge the heading against the

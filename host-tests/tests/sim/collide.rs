@@ -301,3 +301,19 @@ fn a_wall_end_grazed_into_single_misses_around_a_hit_is_still_looked_at() {
         stressed(World::random(224_000_694)),
     ]);
 }
+
+#[test]
+fn a_look_along_a_beam_that_returns_nothing_gives_way_to_the_sweep() {
+    // Generated world 306 000 918 (held-out seeds of session 25, default settings): the first leg runs west
+    // along y = 1.22 m from (5.09, 1.22), with nothing for the front beam to return from within its 4 m, and
+    // a box's corner 4 cm beside the path, 1 m ahead. Every cell ahead was unobserved, so the drone slowed
+    // and pointed its front beam at the nearest one, on the path itself: a beam with no return maps nothing,
+    // the cells stayed unobserved, and the side beams met the box only when abeam of it: main of then
+    // touched the corner (-13 mm). A look whose beam returns nothing two sweeps in a row now gives way to
+    // the heading sweep for one period, which turns the front beam onto the box's face.
+    // Generated world 252 000 829 (held-out seeds of session 23, default settings; touched by every build
+    // since): during the take-off turn the look pointed the front beam north-west into more than 4 m of open
+    // space (no return, twice); the drone then flew the straight first leg at 0.45 m/s and met a 5 cm post
+    // 10 cm beside it (-10 mm). With the sweep instead it flies that leg at 0.2-0.3 m/s and passes 9 cm clear.
+    completes_without_contact([World::random(306_000_918), World::random(252_000_829)]);
+}

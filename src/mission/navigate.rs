@@ -84,7 +84,7 @@ const BLIND_LOOK_SCAN_US: Micros = (SCAN_PERIOD_S * 1e6) as Micros;
 const BLIND_LOOK_ON_AXIS_RAD: f32 = 0.1;
 
 /// Which horizontal beams return nothing, and whether a look at an unobserved cell was given up for that
-/// reason (see [`Mission::navigate`]). Four counters and a time: 16 bytes.
+/// reason (see [`Mission::navigate`]). Four counters and a time: 24 bytes.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub(super) struct BlindLook {
     /// Consecutive sweeps without a return, per beam: front, back, left, right (saturating).
@@ -422,6 +422,7 @@ impl<const CELLS: usize, const QUEUE: usize> Mission<CELLS, QUEUE> {
                     // four beams until the drone is abeam of it); fly only as fast as the ranger looks ahead.
                     let phase = 2.0 * core::f32::consts::PI * (now as f32 * 1e-6) / SCAN_PERIOD_S;
                     let travel = libm::atan2f(dy, dx);
+                    let sweep = || wrap_angle(travel + SCAN_AMPLITUDE_RAD * libm::sinf(phase));
                     self.heading = match unobserved_cell {
                         // An unobserved region beside the path ahead: instead of sweeping (whose phase may
                         // look the other way all along the approach), point the beam that needs the least
@@ -434,12 +435,12 @@ impl<const CELLS: usize, const QUEUE: usize> Mission<CELLS, QUEUE> {
                         Some(cell) => {
                             let look = Self::look_at_heading(travel, self.heading, (x, y), cell);
                             if self.blind_look.is_futile(now, look, (x, y), cell) {
-                                wrap_angle(travel + SCAN_AMPLITUDE_RAD * libm::sinf(phase))
+                                sweep()
                             } else {
                                 look
                             }
                         }
-                        None => wrap_angle(travel + SCAN_AMPLITUDE_RAD * libm::sinf(phase)),
+                        None => sweep(),
                     };
                     // The front beam must look where the drone actually goes: judge the heading against the
                     // velocity (which turns smoothly) rather than the new target's direction.

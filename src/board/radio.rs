@@ -46,7 +46,7 @@ use cfnav::radio::mem::MemService;
 use cfnav::radio::param::ParamService;
 use cfnav::radio::registry::{ID_RESET_ESTIMATION, ID_START, MissionParamState, Tuning};
 use cfnav::radio::supervisor_port::{SupervisorPortConfig, SupervisorStatus};
-use cfnav::radio::syslink::{BatteryState, SyslinkDecoder, SyslinkPacket, kind};
+use cfnav::radio::syslink::{BatteryState, DecodeError, SyslinkDecoder, SyslinkPacket, kind};
 use cfnav::radio::syslink_tx::{BootSettings, FlowTx, TxStep, nrf_version, nrf_version_request};
 use cfnav::stack::{FlightConfig, MissionCommand};
 use cfnav::system::config_block::RadioSettings;
@@ -464,6 +464,7 @@ pub async fn radio_task(mut uart: SyslinkUart, settings: RadioSettings, stored: 
     let mut chunk = [0u8; 64];
     let mut ready_sent = false;
     let mut rx_errors = 0u32;
+    let mut frames_dropped = 0u32;
     loop {
         if !ready_sent && BOOTED.load(Ordering::Acquire) {
             match uart.send(&SyslinkPacket::radio_ready()).await {
@@ -487,6 +488,21 @@ pub async fn radio_task(mut uart: SyslinkUart, settings: RadioSettings, stored: 
         for &byte in &chunk[..n] {
             let mut event = decoder.push(byte);
             while let Some(result) = event {
+                if let Err(e) = &result {
+                    // A frame lost on the wire is one request the host never gets an answer to (cflib does
+                    // not retry TOC or parameter requests): say so, at 1, 2, 4, … so a noisy line cannot flood.
+                    frames_dropped = frames_dropped.saturating_add(1);
+                    if frames_dropped.is_power_of_two() {
+                        match e {
+                            DecodeError::Oversized(len) => {
+                                warn!("syslink frame dropped: length {} ({} so far)", len, frames_dropped)
+                            }
+                            DecodeError::BadChecksum => {
+                                warn!("syslink frame dropped: bad checksum ({} so far)", frames_dropped)
+                            }
+                        }
+                    }
+                }
                 if let Ok(packet) = result {
                     if boot.on_received(&packet) {
                         info!("nRF confirmed radio setting {=u8:#x}", packet.kind);

@@ -15,15 +15,18 @@
 //! RXNE set, where the next transaction's stream picks it up as its first byte.
 //!
 //! For the CPU's view of a USART (`usart-cpu = 1`, USART6's CPU-side bridge) it keeps a received byte for the
-//! DMA: while `CR3.DMAR` is set and `SR.RXNE` shows a byte waiting, a CPU read of DR returns that byte's value
-//! without taking it (an ordinary read when an error flag is up, so the SR-then-DR clear still works). On the
+//! DMA: while `CR3.DMAR` is set, a CPU read of DR returns the value DR holds without taking it or pulling a
+//! new byte in (an ordinary read when an error flag is up, so the SR-then-DR clear still works). On the
 //! part a receive stream takes the byte a few bus cycles after RXNE sets (RM0090 §10.3.x: the request is served
 //! at the next arbitration), so the CPU's DR read in embassy's `check_idle_and_errors` (the IDLE/error clear
 //! sequence, run on every ring-buffer read) finds the byte already gone and reads the same value again. In
 //! rsemu 0.0.7 the byte waits for the DMA's next scheduling quantum, and a CPU read of SR even pulls the next
 //! host byte in at once (`st.usart` `poll_receiver` on every register read): the DR read then took a byte
 //! from the DMA's stream, one corrupted syslink frame in about twenty uplinks (docs/pil.md, milestone 2).
-//! [`USART_RX_KEPT`] counts those reads; [`set_usart_cpu_steals`] restores the 0.0.7 behaviour for comparison.
+//! Keeping only a byte already in DR (RXNE set) was not enough: with RXNE clear the ordinary DR read pulled
+//! the next host byte in and consumed it in the same access, about one byte in 12 000 (session 26).
+//! [`USART_RX_KEPT`] counts the reads that found a byte waiting; [`set_usart_cpu_steals`] restores the 0.0.7
+//! behaviour for comparison.
 //!
 //! Non-goals: no timing of its own; apart from the above, no change to what the CPU sees.
 
@@ -98,19 +101,27 @@ impl Ops {
 }
 
 impl Ops {
-    /// A CPU read of a USART's DR that must not take the byte the receive DMA is due to take.
+    /// A CPU read of a USART's DR that must not take a byte from the receive DMA: true while the DMA
+    /// receives and no error flag waits for the SR-then-DR clear, whether or not RXNE is up yet. With RXNE
+    /// clear the ordinary read would still take one: `st.usart` pulls the next host byte into DR on any
+    /// register read (`poll_receiver`) and the DR read then consumes it, so the byte arrives exactly when the
+    /// CPU looks and never reaches the ring (one lost syslink byte in about 12 000, session 26). On the part
+    /// a DR read with RXNE clear returns the last byte again and the next one arrives on the line's time.
     fn keep_for_dma(&self, space: &AddressSpace) -> MemResult<bool> {
         let sr = space.read(self.base + USART_SR, Width::U32, MemAttrs::DEBUG)?;
         let cr3 = space.read(self.base + USART_CR3, Width::U32, MemAttrs::DEBUG)?;
-        let waiting = cr3 & CR3_DMAR != 0 && sr & SR_RXNE != 0 && sr & SR_CLEARED_BY_DR == 0;
-        if waiting && USART_CPU_STEALS.load(Ordering::Relaxed) {
-            USART_RX_STOLEN.fetch_add(1, Ordering::Relaxed);
+        let dma_receives = cr3 & CR3_DMAR != 0 && sr & SR_CLEARED_BY_DR == 0;
+        let waiting = dma_receives && sr & SR_RXNE != 0;
+        if dma_receives && USART_CPU_STEALS.load(Ordering::Relaxed) {
+            if waiting {
+                USART_RX_STOLEN.fetch_add(1, Ordering::Relaxed);
+            }
             return Ok(false);
         }
         if waiting {
             USART_RX_KEPT.fetch_add(1, Ordering::Relaxed);
         }
-        Ok(waiting)
+        Ok(dma_receives)
     }
 }
 

@@ -316,6 +316,50 @@ mod tests {
             .expect("write");
     }
 
+    /// A guest-style (not debug) 32-bit read, as the firmware's LDR would make.
+    fn read32(board: &Board, addr: u64) -> u32 {
+        board.mem.read(addr, Width::U32, MemAttrs::DEFAULT).expect("read") as u32
+    }
+
+    /// embassy's ring-buffered reader reads SR then DR on every call (`check_idle_and_errors`) while the DMA
+    /// receives. A byte the nRF sends between the two must still reach the DMA when the DR read comes:
+    /// `st.usart` latches a waiting host byte on any register access, and the bridge once let the CPU's read
+    /// consume it there (one syslink byte in about 12 000 never reached the ring, docs/pil.md).
+    #[test]
+    fn a_cpu_read_of_usart6_dr_leaves_the_next_byte_to_the_receive_dma() {
+        const USART6: u64 = 0x4001_1400;
+        // The DMA's view of USART6 (`usart6-alias` in crazyflie21.machine): `st.usart` itself.
+        const USART6_DMA_VIEW: u64 = 0x4fff_0000;
+        let fitted = Fitted {
+            multiranger: false,
+            flow: false,
+        };
+        let board = Board::new(vec![0xFF; FLASH_SIZE], Faults::default(), fitted).expect("machine");
+        write32(&board, 0x4002_3844, 1 << 5); // RCC_APB2ENR.USART6EN (RM0090 §7.3.14)
+        write32(&board, USART6 + 0x0C, (1 << 13) | (1 << 2)); // CR1: UE, RE
+        write32(&board, USART6 + 0x14, 1 << 6); // CR3: DMAR
+        assert_eq!(
+            board.peek32(USART6).unwrap() & 0x20,
+            0,
+            "RXNE clear: nothing received yet"
+        );
+        // The sequence's SR read finds nothing; the byte comes off the line before its DR read.
+        let _ = read32(&board, USART6);
+        assert_eq!(board.syslink.feed(&[0xBC]), 1);
+        let _ = read32(&board, USART6 + 0x04);
+        let sr = board
+            .mem
+            .read(USART6_DMA_VIEW, Width::U32, MemAttrs::DEFAULT)
+            .expect("SR") as u32;
+        assert_ne!(sr & 0x20, 0, "the byte is waiting for the DMA (RXNE)");
+        let dr = board
+            .mem
+            .read(USART6_DMA_VIEW + 0x04, Width::U32, MemAttrs::DEFAULT)
+            .expect("DR") as u32;
+        assert_eq!(dr & 0xFF, 0xBC, "the DMA's read takes the byte the nRF sent");
+        assert_eq!(board.peek32(USART6).unwrap() & 0x20, 0, "and RXNE clears with it");
+    }
+
     /// What the firmware's recovery does (`src/board/sensors.rs` `I2cRecoveryPins`), by register, on the
     /// machine's own GPIO model: SCL PA8 and SDA PC9 as open-drain outputs, released; reading IDR shows
     /// the stuck slave; each BSRR reset/set of PA8 is one SCL clock.

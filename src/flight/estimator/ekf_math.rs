@@ -1,17 +1,17 @@
-//! The estimator's own small algebra: the 9 × 9 error covariance and its vectors, and the second-order
+//! The estimator's own small algebra: the 10 × 10 error covariance and its vectors, and the second-order
 //! low-pass of the rate output. Everything else (3-vectors, rotations, quaternions) is [`crate::math`].
 //! Plain arrays, no allocation; every index is a constant or a loop counter bounded by the array's own
 //! length, so none can panic.
 
-/// Error-state dimension: position (3), velocity (3), attitude error (3).
-pub(crate) const N: usize = 9;
-/// A 9 × 9 matrix (the covariance), row-major.
-pub(crate) type Mat9 = [[f32; N]; N];
-/// A 9-vector (a measurement Jacobian row, a gain, a state correction).
-pub(crate) type Vec9 = [f32; N];
+/// Error-state dimension: position (3), velocity (3), attitude error (3), the flow's scale error (1).
+pub(crate) const N: usize = 10;
+/// An N × N matrix (the covariance), row-major.
+pub(crate) type MatN = [[f32; N]; N];
+/// An N-vector (a measurement Jacobian row, a gain, a state correction).
+pub(crate) type VecN = [f32; N];
 
-/// `m · v` for a 9 × 9 matrix.
-pub(crate) fn mul9_v(m: &Mat9, v: &Vec9) -> Vec9 {
+/// `m · v` for an N × N matrix.
+pub(crate) fn mul_mat_vec(m: &MatN, v: &VecN) -> VecN {
     let mut out = [0.0; N];
     for (o, row) in out.iter_mut().zip(m.iter()) {
         *o = row.iter().zip(v.iter()).map(|(x, y)| x * y).sum();

@@ -16,7 +16,8 @@
 //! ## State
 //!
 //! Nominal state: position `p` (arena, m), velocity `v` (**arena** frame, m/s), attitude quaternion `q`
-//! (body → arena). Error state (9, as stock): `δp`, `δv`, `δθ`, with the attitude error in the body frame,
+//! (body → arena), and the flow's scale error `e`. Error state (10: stock's 9 and `δe`): `δp`, `δv`, `δθ`,
+//! `δe`, with the attitude error in the body frame,
 //! `R_true = R·exp([δθ]×)`, folded into `q` after every update (stock `kalmanCoreFinalize`, including the
 //! covariance rotation `G = I − [δθ/2]×`).
 //!
@@ -92,6 +93,24 @@
 //! tilt (`R22 ≥ 0.5`), airborne, and a joint Mahalanobis gate `νx²/Sx + νy²/Sy ≤ flow_gate_sigma²` that
 //! yields after `flow_max_gate_rejections` consecutive rejections (a filter that drifted must be able to
 //! come back).
+//!
+//! ## Flow scale
+//!
+//! A PMW3901 over a real floor reads the translational flow `(1 + e)` times what the model predicts: the
+//! height the model divides by is the range's (a few mm off), the lens and the floor's texture differ from
+//! the stock constants. The flow alone cannot tell `e` from a velocity, so uncorrected it scales every
+//! distance flown: 3 % over a 4 m leg is 12 cm, and in the simulator's stress batch (±3 % per seed) it made
+//! most of the estimate's tail (BENCHMARKS.md §5, session 25). `e` is therefore a state: the flow's
+//! prediction is `(1 + e)·c·R22/h·v_b − c·ω` (the rotational part, from the gyro, is not scaled), its
+//! Jacobian on `δe` is the translational flow `c·R22/h·v_b`. Only the map fixes against the arena's exact
+//! walls *learn* it (through the velocity's correlation with it): they measure position in a frame that
+//! does not move with the estimate. To every other update it is a consider state (`scalar_update_bounded`):
+//! learnt from the flow and the accelerometer alone it walked to −3 % on a vibrating transit, and from the
+//! landmarks (planes placed from the estimate a sweep late) it took their lag for a scale, +1 % with the
+//! estimate trailing the truth by 8 mm (the `latency` test). It starts at 0 with std
+//! `initial_std_flow_scale` (0.05) at every reset, walks by 0.001/√s (a room's floor is not one texture),
+//! moves at most 0.005 per update and is bounded to ±0.3; a divergence reset starts it over. Cost: the
+//! error state grows from 9 to 10, about a quarter more work per update.
 //!
 //! ## Range update (stock mm_tof.c / zranger2.c, §9)
 //!
@@ -188,9 +207,9 @@
 //!
 //! ## Size and cost
 //!
-//! `size_of::<Estimator>()` is 1416 bytes on a 64-bit host (the covariance is 324 of them, the surface
+//! `size_of::<Estimator>()` is 1504 bytes on a 64-bit host (the covariance is 400 of them, the surface
 //! tracker's ranges 108, the wall anchors about 120; the `memory_size` test), a little less on the MCU; no
-//! heap; the prediction's stack frame holds one 9 × 9 temporary (324 B). Cortex-M4F instructions per call, measured under QEMU (mps2-an386,
+//! heap; the prediction's stack frame holds one 10 × 10 temporary (400 B). Cortex-M4F instructions per call, measured under QEMU (mps2-an386,
 //! `-icount`, release profile with `opt-level = "s"` as the firmware), hovering:
 //!
 //! | call | instructions | per second |
@@ -209,7 +228,7 @@
 //! Files: `predict` (IMU strapdown, covariance propagation, rest windows), `updates` (flow, height through
 //! the surface tracker, wall anchors, map fixes; the scalar update), `map_fix` (the map fixes' ray cast and
 //! landmarks, run by the navigator), `surface` (pad-step tracking), `calib` (gyro
-//! bias and levelling at rest), `wall_hold` (the wall anchors' geometry), `ekf_math` (the 9 × 9 covariance
+//! bias and levelling at rest), `wall_hold` (the wall anchors' geometry), `ekf_math` (the 10 × 10 covariance
 //! and the rate low-pass; vectors and quaternions are [`crate::math`]); this file holds the state, its
 //! configuration, validity and the public readout.
 
@@ -229,7 +248,7 @@ use crate::math::{
 };
 use crate::types::{GRAVITY_M_S2, StateEstimate};
 use calib::Calibrator;
-use ekf_math::{Mat9, N, Vec9, mul9_v};
+use ekf_math::{MatN, N, VecN, mul_mat_vec};
 use surface::{Params, SurfaceTracker};
 use wall_hold::WallHold;
 
@@ -237,6 +256,16 @@ use wall_hold::WallHold;
 const SZ: usize = 2;
 const SV: usize = 3;
 const SD: usize = 6;
+/// The flow's scale error `e` (the sensor reads `1 + e` times the translational flow the model predicts).
+const SS: usize = 9;
+/// The largest flow scale error the state may hold (interfaces.md §3 allows ±0.3 in the simulator).
+const FLOW_SCALE_MAX: f32 = 0.3;
+/// Random walk of the flow scale error, 1/√s: the floor's texture and the height change across a room.
+const FLOW_SCALE_WALK_PER_SQRT_S: f32 = 0.001;
+/// The most one scalar update may move the flow scale error. A sound update moves it by far less (the
+/// scale is learnt over many sweeps); a larger step comes from garbage that passed a gate (the flow's gate
+/// yields after ten rejections so that a drifted filter can come back), and would scale every later metre.
+const FLOW_SCALE_MAX_STEP: f32 = 0.005;
 
 /// Measured counts are ~10× pixels (stock `FLOW_RESOLUTION`).
 const FLOW_RESOLUTION: f32 = 0.1;
@@ -254,7 +283,9 @@ const IMU_RATE_HZ: f32 = 1000.0;
 const GYRO_LPF_HZ: f32 = 80.0;
 
 /// Standard deviations after a divergence reset: position 1 m / 0.5 m (z), velocity 1 m/s, attitude 0.1 rad.
-const DIVERGENCE_STD: [f32; N] = [1.0, 1.0, 0.5, 1.0, 1.0, 1.0, 0.1, 0.1, 0.1];
+/// (The flow scale restarts at 0 with a std of only 0.01: with the velocity this uncertain a wide scale
+/// would take the flow's weight while the state comes back, and recovering comes first.)
+const DIVERGENCE_STD: [f32; N] = [1.0, 1.0, 0.5, 1.0, 1.0, 1.0, 0.1, 0.1, 0.1, 0.01];
 
 /// No held-back map-fix jump (see `Estimator::map_jump_mm`).
 const NO_JUMP: i16 = i16::MIN;
@@ -381,6 +412,9 @@ pub struct EstimatorConfig {
     pub initial_std_roll_pitch_rad: f32,
     /// Initial std of yaw, rad (stock 0.01).
     pub initial_std_yaw_rad: f32,
+    /// Initial std of the flow's scale error at a reset (a fraction; module docs, "Flow scale"). Default
+    /// 0.05; 0 leaves the scale at 1 (no scale state).
+    pub initial_std_flow_scale: f32,
 }
 
 impl Default for EstimatorConfig {
@@ -431,6 +465,7 @@ impl Default for EstimatorConfig {
             initial_std_velocity_m_s: 0.01,
             initial_std_roll_pitch_rad: 0.01,
             initial_std_yaw_rad: 0.01,
+            initial_std_flow_scale: 0.05,
         }
     }
 }
@@ -504,6 +539,11 @@ impl EstimatorConfig {
             initial_std_velocity_m_s: pos(self.initial_std_velocity_m_s, d.initial_std_velocity_m_s),
             initial_std_roll_pitch_rad: pos(self.initial_std_roll_pitch_rad, d.initial_std_roll_pitch_rad),
             initial_std_yaw_rad: pos(self.initial_std_yaw_rad, d.initial_std_yaw_rad),
+            initial_std_flow_scale: if self.initial_std_flow_scale.is_finite() {
+                self.initial_std_flow_scale.clamp(0.0, FLOW_SCALE_MAX)
+            } else {
+                d.initial_std_flow_scale
+            },
         }
     }
 
@@ -606,6 +646,10 @@ pub struct Diagnostics {
     /// Sum of what the map-relative fixes moved the horizontal position (arena x, y), m. Whoever holds
     /// positions recorded in the estimate's frame (the pad search) moves them by this sum's jumps.
     pub map_fix_shift_m: [f32; 2],
+    /// The flow's scale error the filter holds (the sensor reads `1 +` this times the model), and its std.
+    pub flow_scale_error: f32,
+    /// The std of [`Diagnostics::flow_scale_error`].
+    pub flow_scale_std: f32,
 }
 
 /// The estimator. See the module documentation.
@@ -616,7 +660,9 @@ pub struct Estimator {
     pos: V3,
     vel: V3,
     quat: Quat,
-    cov: Mat9,
+    cov: MatN,
+    /// The flow's scale error `e` (state `SS`).
+    flow_scale: f32,
     // Calibration and IMU processing.
     calibrated: bool,
     calib: Calibrator,
@@ -683,6 +729,7 @@ impl Estimator {
             vel: [0.0; 3],
             quat: QUAT_IDENTITY,
             cov: [[0.0; N]; N],
+            flow_scale: 0.0,
             calibrated: false,
             calib: Calibrator::new(),
             gyro_bias: [0.0; 3],
@@ -761,6 +808,7 @@ impl Estimator {
         self.vel = [0.0; 3];
         self.quat = quat_from_euler(roll, pitch, self.home_yaw);
         self.cov = self.initial_covariance();
+        self.flow_scale = 0.0;
         self.surface.reset(self.home_pos[2]);
         self.clear_blocks();
         self.flow_reject_streak = 0;
@@ -822,6 +870,8 @@ impl Estimator {
             d.velocity_std_m_s[i] = libm::sqrtf(self.cov[SV + i][SV + i].max(0.0));
             d.attitude_std_rad[i] = libm::sqrtf(self.cov[SD + i][SD + i].max(0.0));
         }
+        d.flow_scale_error = self.flow_scale;
+        d.flow_scale_std = libm::sqrtf(self.cov[SS][SS].max(0.0));
         d.flow_age_s = self.age_s(self.last_flow_us);
         d.tof_age_s = self.age_s(self.last_tof_us);
         d.surface_mode = self.surface.mode();
@@ -890,7 +940,7 @@ impl Estimator {
     }
 
     /// The covariance at a reset on the pad (the configured initial std's).
-    fn initial_covariance(&self) -> Mat9 {
+    fn initial_covariance(&self) -> MatN {
         let c = &self.cfg;
         diagonal([
             c.initial_std_xy_m,
@@ -902,6 +952,7 @@ impl Estimator {
             c.initial_std_roll_pitch_rad,
             c.initial_std_roll_pitch_rad,
             c.initial_std_yaw_rad,
+            c.initial_std_flow_scale,
         ])
     }
 
@@ -935,13 +986,15 @@ impl Estimator {
         // Unlike a reset on the pad, nothing is known well after a divergence: wide enough for the flow and
         // the range to pull the state back (with the pad's 1 cm/s, a wrong velocity would stay).
         self.cov = diagonal(DIVERGENCE_STD);
+        // Whatever diverged may have dragged the scale along: start it over too.
+        self.flow_scale = 0.0;
         self.surface.clear();
         self.clear_blocks();
     }
 }
 
 /// A covariance with these standard deviations on the diagonal (bounded as always).
-fn diagonal(std: [f32; N]) -> Mat9 {
+fn diagonal(std: [f32; N]) -> MatN {
     let mut p = [[0.0; N]; N];
     for (i, row) in p.iter_mut().enumerate() {
         row[i] = sq(std[i]).clamp(COVARIANCE_MIN, COVARIANCE_MAX);
@@ -953,6 +1006,6 @@ fn sq(x: f32) -> f32 {
     x * x
 }
 
-fn dot9(a: &Vec9, b: &Vec9) -> f32 {
+fn dot_n(a: &VecN, b: &VecN) -> f32 {
     a.iter().zip(b.iter()).map(|(x, y)| x * y).sum()
 }

@@ -4,8 +4,9 @@
 
 use super::calib::RestWindow;
 use super::{
-    COVARIANCE_MAX, COVARIANCE_MIN, Estimator, M3, N, SD, SV, V3, Vec9, add3, dot3, finite3, mul_m3, mul_m3_v3, norm3,
-    quat_from_euler, quat_from_rotvec, quat_mul, quat_normalize, quat_to_rot, scale3, skew, sq, sub3,
+    COVARIANCE_MAX, COVARIANCE_MIN, Estimator, FLOW_SCALE_WALK_PER_SQRT_S, M3, N, SD, SS, SV, V3, VecN, add3, dot3,
+    finite3, mul_m3, mul_m3_v3, norm3, quat_from_euler, quat_from_rotvec, quat_mul, quat_normalize, quat_to_rot,
+    scale3, skew, sq, sub3,
 };
 use crate::types::{GRAVITY_M_S2, ImuSample};
 
@@ -175,7 +176,7 @@ impl Estimator {
             }
         }
         // x ↦ F·x for one 9-vector x (a column of P, then a row of F·P).
-        let apply = |x: &Vec9| -> Vec9 {
+        let apply = |x: &VecN| -> VecN {
             let (v, t) = ([x[SV], x[SV + 1], x[SV + 2]], [x[SD], x[SD + 1], x[SD + 2]]);
             let mut y = [0.0; N];
             for i in 0..3 {
@@ -183,6 +184,7 @@ impl Estimator {
                 y[SV + i] = v[i] + dot3(b[i], t);
                 y[SD + i] = dot3(th[i], t);
             }
+            y[SS] = x[SS];
             y
         };
         // F·P, column by column (P is symmetric, so its rows are its columns).
@@ -207,6 +209,9 @@ impl Estimator {
         for i in 0..3 {
             self.cov[SV + i][SV + i] += q_vel[i] * PREDICT_PERIOD_S * dt;
             self.cov[SD + i][SD + i] += q_att[i] * PREDICT_PERIOD_S * dt;
+        }
+        if c.initial_std_flow_scale > 0.0 {
+            self.cov[SS][SS] += sq(FLOW_SCALE_WALK_PER_SQRT_S) * dt;
         }
         self.condition_covariance();
         self.blk_dt = 0.0;

@@ -601,8 +601,10 @@ pub fn run(world: &World, options: &RunOptions) -> Result<RunResult, String> {
             let c = core.control();
             let sup = core.supervisor();
             eprintln!(
-                "{:8.3} s    err ({:+.3}, {:+.3}) yaw err {:+.2}° roll/pitch err ({:+.2}, {:+.2})° xy ({:.2}, {:.2}) v ({:.2}, {:.2}) pad edges {} crossings {} est {:?} sp {:?}\n             z {:.3} (truth {:.3}) surface {:.3} vz {:.3} cmd {:?} duty {:?} sup {:?} flags {:?} valid {}",
+                "{:8.3} s    flow scale {:+.4} ± {:.4}  err ({:+.3}, {:+.3}) yaw err {:+.2}° roll/pitch err ({:+.2}, {:+.2})° xy ({:.2}, {:.2}) v ({:.2}, {:.2}) pad edges {} crossings {} est {:?} sp {:?}\n             z {:.3} (truth {:.3}) surface {:.3} vz {:.3} cmd {:?} duty {:?} sup {:?} flags {:?} valid {}",
                 tick as f64 * 1e-3,
+                core.estimator().diagnostics().flow_scale_error,
+                core.estimator().diagnostics().flow_scale_std,
                 e.position_m[0] - p[0],
                 e.position_m[1] - p[1],
                 (e.attitude_rad[2] - quad.attitude_rad()[2]).to_degrees(),

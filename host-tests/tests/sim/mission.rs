@@ -2,7 +2,7 @@
 //! simulated sensors, the estimator against the simulator's truth, and the mission's outcomes on the
 //! shipped worlds and under faults (each judged on the true state by the runner).
 
-use cfnav::mission::MissionState;
+use cfnav::mission::{MissionParams, MissionState};
 use cfnav::types::Setpoint;
 use cfnav_tools::sim::runner::{Faults, RunOptions, SimDrone, run};
 use cfnav_tools::sim::world::World;
@@ -676,6 +676,18 @@ fn a_battery_low_in_the_home_search_lands_clear_of_the_home_pad() {
     );
 }
 
+/// One millisecond of a round trip flown tick by tick: the mission starts 1 s after power-on (as
+/// `cfnav sim` starts it) and a radio packet arrives every 10 ms, so the link-loss watch stays quiet.
+fn mission_tick(drone: &mut SimDrone, world: &World, params: MissionParams, tick: u64) {
+    if tick == 1000 {
+        drone.core.start_mission(params).expect("starts");
+    }
+    if tick.is_multiple_of(10) {
+        drone.core.on_radio_packet(tick * 1000);
+    }
+    drone.step(world);
+}
+
 /// Flying off the home pad, the downward range drops by the pad's height below the surface the estimate
 /// counts heights from; the estimator re-anchors the height on the floor. That jump says nothing about the
 /// vertical velocity: measured against the simulator's truth over the 3 s after the drone's centre leaves
@@ -694,13 +706,7 @@ fn flying_off_the_home_pad_keeps_the_vertical_velocity() {
         let mut off_pad_at: Option<u64> = None;
         let mut worst = 0.0f32;
         for tick in 0..8000u64 {
-            if tick == 1000 {
-                drone.core.start_mission(params).expect("starts");
-            }
-            if tick.is_multiple_of(10) {
-                drone.core.on_radio_packet(tick * 1000);
-            }
-            drone.step(&world);
+            mission_tick(&mut drone, &world, params, tick);
             let p = drone.quad.position();
             if off_pad_at.is_none() && tick > 1500 && world.surface_height(p[0], p[1]) == 0.0 {
                 off_pad_at = Some(tick);
@@ -739,22 +745,16 @@ fn the_flow_scale_is_learnt_from_the_walls() {
             world.stress = world.stress.overlaid(&stress);
             let params = cfnav_tools::sim::runner::mission_params(&world);
             let mut drone = SimDrone::new(&world, seed, &Faults::default()).unwrap();
-            let mut at_goal: Option<(f32, f32)> = None;
+            let mut at_home: Option<(f32, f32)> = None;
             for tick in 0..120_000u64 {
-                if tick == 1000 {
-                    drone.core.start_mission(params).expect("starts");
-                }
-                if tick.is_multiple_of(10) {
-                    drone.core.on_radio_packet(tick * 1000);
-                }
-                drone.step(&world);
+                mission_tick(&mut drone, &world, params, tick);
                 if drone.core.mission_state() == MissionState::LandOnHomePad {
                     let d = drone.core.estimator().diagnostics();
-                    at_goal = Some((d.flow_scale_error, d.flow_scale_std));
+                    at_home = Some((d.flow_scale_error, d.flow_scale_std));
                     break;
                 }
             }
-            let (held, std) = at_goal.unwrap_or_else(|| panic!("scale {truth}, seed {seed}: never came home"));
+            let (held, std) = at_home.unwrap_or_else(|| panic!("scale {truth}, seed {seed}: never came home"));
             report.push((truth, seed, held, std));
         }
     }

@@ -196,7 +196,9 @@ impl Stabilizer {
             setpoint: Setpoint::Stop,
             setpoint_time: None,
             last_imu_time: None,
-            battery_v: 0.0,
+            // No report yet (the nRF's first comes about 1 s after boot): ignored, not 0 V, which the
+            // supervisor's 0.5 s critical-voltage rule would latch as a dead battery.
+            battery_v: f32::NAN,
             last_control: ControlOutput::default(),
             last_supervisor: SupervisorOutput::default(),
             duty: MotorDuty::default(),

@@ -5,8 +5,8 @@
 //! Flow control at byte granularity: every frame goes out through [`FlowTx`] in chunks of
 //! [`cfnav::radio::syslink_tx::CHUNK`] bytes, PA4 read before each and each chunk awaited to the USART's
 //! transmission-complete flag, so at most four bytes reach the nRF after it raises RTS (its FIFO's headroom;
-//! see `cfnav::radio::syslink_tx`). PA4 held high longer than [`FLOW_CONTROL_TIMEOUT`] drops the rest of
-//! the frame. The RX DMA ring is started in `main` before anything is sent, so the nRF's echoes are kept.
+//! see `cfnav::radio::syslink_tx`). A frame not gone within [`FRAME_TX_TIMEOUT`] (PA4 held high, or a TX
+//! DMA transfer or TC flag that never completes) drops the rest of the frame. The RX DMA ring is started in `main` before anything is sent, so the nRF's echoes are kept.
 //!
 //! Boot order (§3.4): RADIO_CHANNEL, RADIO_DATARATE, RADIO_ADDRESS from the EEPROM config block (or the
 //! defaults), each resent until the nRF echoes it ([`BootSettings`]), PM_BATTERY_AUTOUPDATE, SYS_NRF_VERSION
@@ -73,8 +73,9 @@ pub const FIRMWARE_TAG: &str = concat!("cfnav-", env!("CARGO_PKG_VERSION"));
 pub const ROUTER_QUEUE: usize = 16;
 /// Console packets waiting for a downlink.
 const CONSOLE_QUEUE: usize = 16;
-/// How long PA4 may hold one frame back (in total) before the rest of it is dropped.
-const FLOW_CONTROL_TIMEOUT: Duration = Duration::from_millis(20);
+/// How long one frame may take in total (PA4 hold-backs plus its chunks' DMA transfers, 0.7 ms for a
+/// full frame at 1 Mbaud) before the rest of it is dropped.
+const FRAME_TX_TIMEOUT: Duration = Duration::from_millis(20);
 /// Log blocks are stopped when no uplink came for this long (cflib pings at least every 100 ms).
 const LINK_TIMEOUT: Duration = Duration::from_secs(3);
 
@@ -93,10 +94,12 @@ pub struct SyslinkUart {
 /// Why a frame was not sent.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, defmt::Format)]
 enum SendError {
-    /// The nRF held PA4 high for longer than [`FLOW_CONTROL_TIMEOUT`].
+    /// The nRF held PA4 high past the frame's [`FRAME_TX_TIMEOUT`].
     FlowControl,
     /// The UART/DMA transfer failed.
     Uart,
+    /// A chunk's DMA transfer or its TC flush did not finish by the frame's deadline.
+    Stalled,
     /// The packet does not fit a frame (cannot happen for the packets built here).
     Encode,
 }
@@ -105,7 +108,7 @@ impl SyslinkUart {
     /// Sends one frame, chunk by chunk, pausing while PA4 is high.
     async fn send(&mut self, packet: &SyslinkPacket) -> Result<(), SendError> {
         self.frame_tx.load(packet).map_err(|_| SendError::Encode)?;
-        let deadline = Instant::now() + FLOW_CONTROL_TIMEOUT;
+        let deadline = Instant::now() + FRAME_TX_TIMEOUT;
         loop {
             match self.frame_tx.next(self.flow.is_high()) {
                 TxStep::Done => return Ok(()),
@@ -118,13 +121,24 @@ impl SyslinkUart {
                 TxStep::Send(bytes) => {
                     let n = bytes.len();
                     // `flush` waits for TC: the chunk has left the shift register before PA4 is read again.
-                    let written = match self.tx.write(bytes).await {
-                        Ok(()) => self.tx.flush().await,
-                        Err(e) => Err(e),
-                    };
-                    if written.is_err() {
-                        self.frame_tx.abandon();
-                        return Err(SendError::Uart);
+                    // Both share the frame's deadline: a TX DMA or TC that never completes must not
+                    // park the radio task (dropping the futures stops the DMA stream).
+                    let tx = &mut self.tx;
+                    let written = with_deadline(deadline, async move {
+                        tx.write(bytes).await?;
+                        tx.flush().await
+                    })
+                    .await;
+                    match written {
+                        Ok(Ok(())) => {}
+                        Ok(Err(_)) => {
+                            self.frame_tx.abandon();
+                            return Err(SendError::Uart);
+                        }
+                        Err(_) => {
+                            self.frame_tx.abandon();
+                            return Err(SendError::Stalled);
+                        }
                     }
                     self.frame_tx.sent(n);
                 }

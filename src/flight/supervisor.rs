@@ -62,8 +62,11 @@
 //!   [`SupervisorConfig::hover_cmd`]; learning needs all four motors running). A garbage estimate never
 //!   counts as touchdown.
 //! - **Battery**: the voltage is low-passed (τ = 1 s; it sags under load); `battery_low` when the filtered
-//!   voltage stays below 3.2 V for > 5 s, **latched until reset** (the voltage recovers once the motors
-//!   stop; the mission must not take that as a charged battery). Readings outside 0..10 V or non-finite
+//!   voltage stays below 3.2 V for > 5 s, or below 3.0 V (stock's critical level) for > 0.5 s (a cell that
+//!   far down is collapsing, not sagging: under the 6× drain of the battery scenario the loaded voltage fell
+//!   from 3.0 to 2.4 V in 3 s and the drone dropped from 0.5 m before the 5 s had passed), **latched until
+//!   reset** (the voltage recovers once the motors stop; the mission must not take that as a charged
+//!   battery). Readings outside 0..10 V or non-finite
 //!   are ignored. The mission decides to land.
 //! - **Minimum height**: [`clamp_min_height`] raises a Position/Velocity setpoint's height to ≥ 0.2 m
 //!   (above the arena floor); Descend and Stop are left alone (landing is a Descend).
@@ -115,6 +118,11 @@ pub struct SupervisorConfig {
     pub battery_low_v: f32,
     /// Low-battery duration, µs (stock 5 s).
     pub battery_low_time_us: u64,
+    /// Critical battery threshold, V (stock `PM_BAT_CRITICAL_LOW_VOLTAGE`, `src/hal/interface/pm.h`: 3.0).
+    pub battery_critical_v: f32,
+    /// Critical battery duration, µs: a voltage this far down is collapsing, not sagging (see the module
+    /// documentation), so the low-battery latch does not wait [`Self::battery_low_time_us`].
+    pub battery_critical_time_us: u64,
     /// Battery low-pass time constant, s.
     pub battery_tau_s: f32,
     /// Minimum height of Position/Velocity setpoints, m above the arena floor.
@@ -141,6 +149,8 @@ impl Default for SupervisorConfig {
             motors_off_landed_us: 2_000_000,
             battery_low_v: 3.2,
             battery_low_time_us: 5_000_000,
+            battery_critical_v: 3.0,
+            battery_critical_time_us: 500_000,
             battery_tau_s: 1.0,
             min_height_m: 0.2,
         }
@@ -313,6 +323,7 @@ pub struct Supervisor {
     hover_cmd: f32,
     vbat: Option<f32>,
     battery_low_since: Option<Micros>,
+    battery_critical_since: Option<Micros>,
     battery_low: bool,
     last_now: Option<Micros>,
     /// Height and heading to hold while levelling out.
@@ -338,6 +349,7 @@ impl Supervisor {
             hover_cmd: config.hover_cmd,
             vbat: None,
             battery_low_since: None,
+            battery_critical_since: None,
             battery_low: false,
             last_now: None,
             hold: None,
@@ -435,8 +447,19 @@ impl Supervisor {
                 if now.saturating_sub(since) > self.cfg.battery_low_time_us {
                     self.battery_low = true;
                 }
+                if f < self.cfg.battery_critical_v {
+                    let since = *self.battery_critical_since.get_or_insert(now);
+                    if now.saturating_sub(since) > self.cfg.battery_critical_time_us {
+                        self.battery_low = true;
+                    }
+                } else {
+                    self.battery_critical_since = None;
+                }
             }
-            Some(_) => self.battery_low_since = None,
+            Some(_) => {
+                self.battery_low_since = None;
+                self.battery_critical_since = None;
+            }
             None => {}
         }
         flags.set(SupervisorFlags::BATTERY_LOW, self.battery_low);

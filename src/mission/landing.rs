@@ -46,6 +46,11 @@ pub(super) struct Touchdown {
     /// since the detector's current estimate (if any) knows nothing of them (measured: a pad next to a
     /// wall, three rounds without a lock, then a floor spot 5 cm beside the pad's side, touched).
     pub glimpses: [Option<(f32, f32)>; GLIMPSES],
+    /// The detector's latest centre estimate since it last started afresh: a refit whose outlier loop
+    /// fails drops the estimate itself, and the glimpse it would have left with it (measured: world
+    /// 411 001 354, an estimate 16 cm from the pad's centre gone two seconds before the restart, then a floor
+    /// spot on that pad's rim, touched).
+    pub latest: Option<(f32, f32)>,
 }
 
 impl Touchdown {
@@ -58,6 +63,7 @@ impl Touchdown {
             floor_refusals: 0,
             since: None,
             glimpses: [None; GLIMPSES],
+            latest: None,
         }
     }
 
@@ -117,11 +123,13 @@ impl<const CELLS: usize, const QUEUE: usize> Mission<CELLS, QUEUE> {
         (((height_m + 0.2) / slowest_m_s + 1.0) * 1e6) as u64
     }
 
-    /// Start the pad detector afresh within a leg, remembering its estimate (if any) as a glimpse.
+    /// Start the pad detector afresh within a leg, remembering its estimate (or, when a refit has dropped
+    /// that, its latest one) as a glimpse.
     pub(super) fn restart_pad_detector(&mut self) {
-        if let Some(e) = self.pad.estimate() {
-            self.touchdown.remember_glimpse((e.x, e.y));
+        if let Some(centre) = self.pad.estimate().map(|e| (e.x, e.y)).or(self.touchdown.latest) {
+            self.touchdown.remember_glimpse(centre);
         }
+        self.touchdown.latest = None;
         self.pad.reset();
     }
 

@@ -26,7 +26,9 @@
 //!   within 0.22 m of an *unobserved region* (a cell not yet seen free, i.e. unknown or holding a hit below
 //!   the occupied threshold, among such or occupied neighbours; next to a *contested* cell, a hit and a
 //!   miss, a cell needs two net misses to count as seen free: a wall's end or a box's corner that grazing
-//!   beams left as such a mix is still unobserved, see [`OccupancyGrid::is_doubtful_region`]), the drone
+//!   beams left as such a mix is still unobserved, see [`OccupancyGrid::is_doubtful_region`]; within
+//!   0.12 m of the path, the width the body sweeps, three such neighbours suffice instead of five, so a
+//!   thin post whose surroundings the beams have swept is not taken for a gap between their traces), the drone
 //!   slows (0.2 m/s there, 1 m/s more per metre of observed path before it) and, instead of sweeping its
 //!   heading, turns the front, left or right beam (whichever needs the least turn) towards the first such
 //!   cell until a beam has looked into it; a beam with no return maps nothing, so when that beam has
@@ -46,7 +48,8 @@
 //!   [`PadDetector`] has a first crossing (on every line, and on the approach back to a locked centre, the
 //!   speed towards each horizontal beam's return the arena's walls do not explain is bounded by what that
 //!   beam reads now, and a line ends where such a beam within 45° of its direction reads closer than 0.2 m;
-//!   a line that passes within 0.15 m of an unobserved region slows before it like navigation, and the
+//!   a line that passes within 0.22 m of an unobserved region (0.12 m: the same corridor rule) slows
+//!   before it like navigation, and the
 //!   beam nearest to the region's first cell turns onto it: a line may run diagonally to all four beams);
 //!   then short refinement stages
 //!   centred on the latest estimate —
@@ -899,6 +902,9 @@ impl<const CELLS: usize, const QUEUE: usize> Mission<CELLS, QUEUE> {
             let (sx, sy) = (state.position_m[0] + r * down[0], state.position_m[1] + r * down[1]);
             if sx.is_finite() && sy.is_finite() {
                 self.pad.update(r, sx, sy);
+                if let Some(e) = self.pad.estimate() {
+                    self.touchdown.latest = Some((e.x, e.y));
+                }
             }
         }
         if let (true, Some(r)) = (matches!(self.phase, Phase::Approach { .. } | Phase::Land { .. }), range) {

@@ -25,6 +25,17 @@ const UNOBSERVED_LOOKAHEAD_M: f32 = 0.6;
 /// centimetre off had marked free; the drone, 6 cm inside the path's corner, touched it: BENCHMARKS.md §5,
 /// session 18.)
 const UNOBSERVED_CLEARANCE_M: f32 = 0.22;
+/// Within this distance of the path ahead (the body's radius, 0.06 m, and as much again of tracking and
+/// estimate error: the width the drone sweeps), a cell not seen free needs only
+/// [`CORRIDOR_MIN_NEIGHBOURS`] such neighbours to count as unobserved, m. The region test's five is meant
+/// for the one-cell gaps four beams leave between their traces in open space; a post of 2 × 2 cells whose
+/// surroundings the beams have already swept has only three, so it passed as a gap: world 314 001 008's
+/// search line turned south at 0.5 m/s onto an unseen post (about 10 cm across) by the west wall (−45 mm), and stressed
+/// world 334 001 007's return leg flew at one at 0.47 m/s (−0.8 mm), both with every beam pointing
+/// elsewhere (BENCHMARKS.md §5, session 26).
+const CORRIDOR_M: f32 = 0.12;
+/// See [`CORRIDOR_M`]: a gap between beam traces has at most two unseen neighbours along it.
+const CORRIDOR_MIN_NEIGHBOURS: u8 = 3;
 /// A cell not seen free belongs to an unobserved region with at least this many such or occupied
 /// neighbours (see [`OccupancyGrid::is_weakly_observed_region`]).
 const UNOBSERVED_MIN_NEIGHBOURS: u8 = 5;
@@ -551,21 +562,29 @@ impl<const CELLS: usize, const QUEUE: usize> Mission<CELLS, QUEUE> {
                     if nearest.is_some_and(|(best, _)| best <= d2) {
                         continue;
                     }
+                    // The swept corridor's own test: see [`CORRIDOR_M`].
+                    let in_corridor = dx * dx + dy * dy <= CORRIDOR_M * CORRIDOR_M;
                     if ahead(x, y)
-                        && if follow_path {
-                            self.grid.is_doubtful_region(
+                        && ((in_corridor
+                            && self.grid.is_weakly_observed_region(
                                 Cell::new(x as u16, y as u16),
-                                UNOBSERVED_MIN_NEIGHBOURS,
+                                CORRIDOR_MIN_NEIGHBOURS,
                                 SEEN_FREE_LOG_ODDS,
-                                CONTESTED_SEEN_FREE_LOG_ODDS,
-                            )
-                        } else {
-                            self.grid.is_weakly_observed_region(
-                                Cell::new(x as u16, y as u16),
-                                UNOBSERVED_MIN_NEIGHBOURS,
-                                SEEN_FREE_LOG_ODDS,
-                            )
-                        }
+                            ))
+                            || if follow_path {
+                                self.grid.is_doubtful_region(
+                                    Cell::new(x as u16, y as u16),
+                                    UNOBSERVED_MIN_NEIGHBOURS,
+                                    SEEN_FREE_LOG_ODDS,
+                                    CONTESTED_SEEN_FREE_LOG_ODDS,
+                                )
+                            } else {
+                                self.grid.is_weakly_observed_region(
+                                    Cell::new(x as u16, y as u16),
+                                    UNOBSERVED_MIN_NEIGHBOURS,
+                                    SEEN_FREE_LOG_ODDS,
+                                )
+                            })
                     {
                         nearest = Some((d2, centre));
                     }

@@ -50,6 +50,13 @@ pub(super) const PAD_REACH_M: f32 = 0.67;
 const PAD_ESTIMATE_REACH_M: f32 = 0.33;
 /// ... and this far from each pad edge seen (the body and drift), m.
 pub(super) const PAD_EDGE_REACH_M: f32 = 0.14;
+/// How far the goal pad's centre may lie from its nominal point (interfaces.md §3), m.
+const PAD_OFFSET_M: f32 = 0.35;
+/// Spacing of the pad centres [`Mission::distance_to_possible_pad_centres`] tries, m.
+const PAD_CENTRE_LATTICE_M: f32 = 0.03;
+/// An edge seen lies on the rim of a pad whose centre is within half the pad's diagonal plus this (the
+/// edge's position error, a few cm, and half the lattice's diagonal), m.
+const PAD_CENTRE_EDGE_SLACK_M: f32 = 0.05;
 /// A floor spot keeps this far from mapped obstacles and the arena walls, m.
 pub(super) const FLOOR_SPOT_CLEARANCE_M: f32 = 0.22;
 /// Rings of candidate floor spots around the drone, and their spacing, m.
@@ -600,8 +607,11 @@ impl<const CELLS: usize, const QUEUE: usize> Mission<CELLS, QUEUE> {
     /// spot nearest the drone (rings [`FLOOR_SPOT_STEP_M`] apart, eight points each) that keeps
     /// [`FLOOR_SPOT_CLEARANCE_M`] from what is mapped, is reachable in a straight line, lies at least
     /// [`PAD_REACH_M`] from the pad's nominal point (the pad lies within 0.35 m of it) or, when even that
-    /// finds nothing, the spot farthest from that point among those that keep away from the best estimate,
-    /// from every earlier estimate of this leg ([`Touchdown::glimpses`]) and from every pad edge seen; the
+    /// finds nothing, the spot farthest from where the pad's centre can still be (within 0.35 m of that
+    /// point and explaining every edge seen, [`Self::distance_to_possible_pad_centres`]) among those that
+    /// keep away from the best estimate (or the latest, if a refit dropped it: [`Touchdown::latest`]), from
+    /// every earlier estimate of this leg ([`Touchdown::glimpses`])
+    /// and from every pad edge seen; the
     /// descent gate then wants the floor under the drone. Without any such spot: where the drone is.
     pub(super) fn land_clear_of_pad(&mut self, state: &StateEstimate) -> Setpoint {
         let here = (state.position_m[0], state.position_m[1]);
@@ -616,6 +626,7 @@ impl<const CELLS: usize, const QUEUE: usize> Mission<CELLS, QUEUE> {
         let nominal = self.leg_target();
         let estimate = self.pad.estimate().map(|e| (e.x, e.y));
         let glimpses = self.touchdown.glimpses;
+        let latest = self.touchdown.latest;
         let far = |p: (f32, f32), q: (f32, f32), r: f32| libm::hypotf(p.0 - q.0, p.1 - q.1) >= r;
         let candidates = || {
             (0..FLOOR_SPOT_RINGS).flat_map(move |ring| {
@@ -637,23 +648,64 @@ impl<const CELLS: usize, const QUEUE: usize> Mission<CELLS, QUEUE> {
             }
             skip -= 1;
         }
-        // No such spot (or all refused): spots clear of what the detector saw, farthest from the nominal
-        // point first (the pad lies within 0.35 m of it, so the farther the spot the fewer places the pad can
-        // have that reach it; the nearest to the drone put the body against the corner of a pad the search
-        // never crossed, world 157 000 588, BENCHMARKS.md §5, session 20).
+        // No such spot (or all refused): spots clear of what the detector saw, farthest first from every
+        // place the pad's centre can still have (the nearest to the drone put the body against the corner
+        // of a pad the search never crossed, world 157 000 588, BENCHMARKS.md §5, session 20; farthest
+        // from the nominal point alone put it against the corner of a pad whose two edges the search had
+        // seen on the far side, world 347 001 180, session 28).
         let mut ranked: heapless::Vec<(f32, (f32, f32)), FLOOR_SPOT_CANDIDATES> = heapless::Vec::new();
         for p in candidates() {
             let clear_of_pad = estimate.is_none_or(|e| far(p, e, PAD_ESTIMATE_REACH_M))
+                && latest.is_none_or(|e| far(p, e, PAD_ESTIMATE_REACH_M))
                 && glimpses.iter().flatten().all(|g| far(p, *g, PAD_ESTIMATE_REACH_M))
                 && self.pad.edges().iter().all(|e| far(p, (e.x, e.y), PAD_EDGE_REACH_M));
             if clear_of_pad && usable(p) {
-                let d = libm::hypotf(p.0 - nominal.0, p.1 - nominal.1);
-                // Kept in order as it fills (at most 65: an insertion costs less flash than a sort).
-                let at = ranked.iter().position(|(other, _)| *other < d).unwrap_or(ranked.len());
                 // (Capacity is the candidate count: never full.)
-                let _ = ranked.insert(at, (d, p));
+                let _ = ranked.push((f32::INFINITY, p));
+            }
+        }
+        self.distance_to_possible_pad_centres(nominal, &mut ranked);
+        // Largest distance first (at most 65: an insertion sort costs less flash than a sort call).
+        for i in 1..ranked.len() {
+            let mut j = i;
+            while j > 0 && ranked[j - 1].0 < ranked[j].0 {
+                ranked.swap(j - 1, j);
+                j -= 1;
             }
         }
         ranked.get(skip).map(|(_, p)| *p)
+    }
+
+    /// Sets each spot's key in `spots` to its distance from the nearest place the leg's pad centre can
+    /// still have: a lattice ([`PAD_CENTRE_LATTICE_M`]) over the disc of [`PAD_OFFSET_M`] around the
+    /// pad's `nominal` point, less the centres that cannot have put every pad edge seen on their pad's rim
+    /// (each edge within half the pad's diagonal of the centre, plus [`PAD_CENTRE_EDGE_SLACK_M`]; the
+    /// pad's yaw is unknown). Edges no centre explains together (one of them came from something else)
+    /// constrain nothing: the whole disc stays. Without edges the key orders spots as their distance from
+    /// the nominal point does. About 530 lattice points, each O(edges + spots): ≤ 60 k multiply-adds, once
+    /// per pad-not-found landing (and per spot the descent gate refuses).
+    fn distance_to_possible_pad_centres(
+        &self,
+        nominal: (f32, f32),
+        spots: &mut heapless::Vec<(f32, (f32, f32)), FLOOR_SPOT_CANDIDATES>,
+    ) {
+        let edge_reach = core::f32::consts::FRAC_1_SQRT_2 * self.config.pad.pad_size_m + PAD_CENTRE_EDGE_SLACK_M;
+        let edges = self.pad.edges();
+        let steps = libm::ceilf(PAD_OFFSET_M / PAD_CENTRE_LATTICE_M) as i32;
+        let lattice = move || {
+            (-steps..=steps).flat_map(move |i| {
+                (-steps..=steps).filter_map(move |j| {
+                    let (dx, dy) = (i as f32 * PAD_CENTRE_LATTICE_M, j as f32 * PAD_CENTRE_LATTICE_M);
+                    (libm::hypotf(dx, dy) <= PAD_OFFSET_M).then_some((nominal.0 + dx, nominal.1 + dy))
+                })
+            })
+        };
+        let explains_edges = |c: (f32, f32)| edges.iter().all(|e| libm::hypotf(e.x - c.0, e.y - c.1) <= edge_reach);
+        let any_explains = lattice().any(explains_edges);
+        for c in lattice().filter(|c| !any_explains || explains_edges(*c)) {
+            for (key, p) in spots.iter_mut() {
+                *key = key.min(libm::hypotf(p.0 - c.0, p.1 - c.1));
+            }
+        }
     }
 }

@@ -151,8 +151,12 @@ fn wall_fixes_hold_the_heading_against_a_gyro_drift() {
         worst_on.1,
         worst_off.1
     );
+    // Since a thin post in the swept corridor counts as unobserved (session 26) the flights slow once more
+    // beside the corridor's posts, which leaves the bias less distance to act on: with 1.7–3.8° and
+    // 2.3–4.5 cm, without 4.9–6.7° and 6.7–17.4 cm (seed 3 without: 6.7 cm, was ≥ 8.6 cm). The position
+    // bound without moved from 8 cm to 6 cm; the bound with stays the 8 cm.
     assert!(
-        worst_off.1 > 0.08,
+        worst_off.1 > 0.06,
         "without them the position error stays at {}",
         worst_off.1
     );

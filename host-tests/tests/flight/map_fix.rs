@@ -239,6 +239,37 @@ fn an_unmapped_object_in_front_of_a_wall_gives_no_fix() {
     assert!(fixes.fixes[1].is_some() && fixes.fixes[2].is_some() && fixes.fixes[3].is_some());
 }
 
+/// A beam that ends well short of the wall the cast reaches, beside a cell an earlier sweep hit, met that
+/// object, not the wall (world 368 001 203: a cylinder in front of the west wall, whose every sweep read
+/// the same shortfall and so "confirmed" a 19 cm jump). The drone at (1.5, 1.025) m faces the east wall
+/// (x = 3 m); its front beam reads 0.22 m short. Without an earlier hit near its end the beam gives a fix
+/// (a drift it could be); with one sweep's hit a row beside its end it gives none; hits of the wall itself
+/// (its trace, within a cell of the plane) do not count, so a real drift towards a mapped wall still gives
+/// its fix.
+#[test]
+fn a_short_beam_that_ends_beside_an_earlier_hit_gives_no_fix() {
+    let (x, y) = (1.5, 1.025);
+    let mut sample = exact_sweep(&arena(), &[], (x, y), 0.0);
+    let true_range = sample.front_m.unwrap();
+    sample.front_m = Some(true_range - 0.22);
+    // Nothing mapped: the beam's shortfall is a fix (within the pre-gate).
+    let (mut map, shape) = empty_map();
+    let fix = cast_on(&map, shape, &sample, [x, y], &mut Landmarks::new()).fixes[0].expect("a fix");
+    assert!((fix.expected_m - fix.measured_m - 0.22).abs() < 1e-3, "{fix:?}");
+    // The wall's own trace (an earlier sweep's hit in the last cell before x = 3 m, a row beside): still a fix.
+    let mut changed: ChangedCells<64> = ChangedCells::new();
+    map.integrate_beam((x, 1.075), (2.99, 1.075), true, &mut changed);
+    assert!(map.is_occupied(Cell::new(59, 21)));
+    assert!(cast_on(&map, shape, &sample, [x, y], &mut Landmarks::new()).fixes[0].is_some());
+    // One earlier sweep met the object a row beside this beam's end (x = 2.78 m): no fix.
+    map.integrate_beam((x, 0.975), (x + true_range - 0.22, 0.975), true, &mut changed);
+    assert!(map.is_occupied(Cell::new(55, 19)));
+    let fixes = cast_on(&map, shape, &sample, [x, y], &mut Landmarks::new());
+    assert!(fixes.fixes[0].is_none(), "{:?}", fixes.fixes[0]);
+    // The other beams (to the side walls and the west wall, read exactly) keep their fixes.
+    assert!(fixes.fixes[1].is_some() && fixes.fixes[2].is_some() && fixes.fixes[3].is_some());
+}
+
 #[test]
 fn bad_input_gives_no_fix() {
     let grid = arena();

@@ -250,6 +250,26 @@ fn a_landing_clear_of_a_pad_never_found_keeps_off_its_corner() {
 }
 
 #[test]
+fn a_landing_clear_of_a_pad_whose_edges_were_seen_keeps_off_the_side_they_imply() {
+    // Generated world 347 001 180 (default settings; seeds 344–353 held out, looked at after the batch
+    // that found it): the goal pad sits among cylinders, 0.22 m east of the nominal goal; the search
+    // saw two of its edges near its south-east corner and no lock. No floor spot 0.67 m from the nominal
+    // goal was reachable, and the spot farthest from the nominal goal, (4.20, 1.22), was 5 cm from the
+    // pad's north-east corner: the body touched it (2 collisions, state 14). Now the spot farthest from
+    // every pad centre that explains both edges is taken. Oracle: the runner's truth (collisions, and the
+    // landing against the pad's half diagonal plus the body's radius).
+    let world = World::random(347_001_180);
+    let r = fly(&world);
+    assert_eq!(r.collisions, 0, "{r:?}");
+    for landing in &r.landings {
+        assert!(
+            crate::on_pad_centre_or_clear_of_it(&world, landing.pad, landing),
+            "landed {landing:?}, neither on the pad's centre nor clear of it"
+        );
+    }
+}
+
+#[test]
 fn a_half_crossing_over_a_pads_side_along_the_line_is_not_landed_on() {
     // Generated world 163 000 537 (seeds 160–169 had not been flown before it): a search line 17° off the
     // x axis came onto the goal pad over its side along the line, ended there, and its half crossing put

@@ -227,9 +227,17 @@ impl Board {
             .bindings
             .bind(apb8::CLASS_NAME, |props| Ok(Arc::new(apb8::Apb8::new(props)?)))
             .map_err(|e| anyhow!("binding pil.apb8: {e}"))?;
+        let tx_dead = faults.syslink_tx_dead;
         options
             .bindings
-            .bind(dreq::CLASS_NAME, |props| Ok(Arc::new(dreq::Dreq::new(props)?)))
+            .bind(dreq::CLASS_NAME, move |props| {
+                let line = dreq::Dreq::new(props)?;
+                Ok(Arc::new(if tx_dead && dreq::Dreq::is_usart_tx(props) {
+                    line.dead()
+                } else {
+                    line
+                }))
+            })
             .map_err(|e| anyhow!("binding pil.dreq: {e}"))?;
         let hosts = Arc::clone(&options.realize.hosts);
         let imu = Arc::new(Bmi088::new(faults));

@@ -38,6 +38,9 @@ pub struct Faults {
     pub deck_bus_stuck: Option<crate::stuck::Release>,
     /// The nRF51 holds RTS (PA4) high from power-on.
     pub rts_high: bool,
+    /// USART6's transmit DMA request never rises from power-on: every TX DMA transfer the image starts
+    /// hangs (as a stalled stream or a TXE that never comes would).
+    pub syslink_tx_dead: bool,
     /// The Flow deck stops answering from this virtual time (ms) on, as when its connector works loose in
     /// flight: the PMW3901 leaves MISO floating high and its VL53L1x is off the deck bus.
     pub flow_deck_lost_at_ms: Option<u64>,

@@ -81,6 +81,8 @@ struct Peer {
     base: u64,
     rule: RequestRule,
     space: OnceLock<Arc<AddressSpace>>,
+    /// The line never rises (a fault: a stream armed on it never moves a byte).
+    dead: bool,
 }
 
 impl Peer {
@@ -103,6 +105,9 @@ impl DmaPeripheral for Peer {
     fn dma_write(&self, _byte: u8, _terminal: bool) {}
 
     fn dma_ready(&self) -> bool {
+        if self.dead {
+            return false;
+        }
         match (self.read(self.rule.enable_off), self.read(self.rule.status_off)) {
             (Some(enable), Some(status)) => self.rule.level(enable, status),
             _ => false,
@@ -147,8 +152,27 @@ impl Dreq {
                 base,
                 rule: RequestRule::new(kind, tx),
                 space: OnceLock::new(),
+                dead: false,
             }),
         })
+    }
+
+    /// Whether the machine file's properties name a USART transmit line (the one `--fault syslink-tx-dead`
+    /// kills: the board has one USART, USART6).
+    pub fn is_usart_tx(props: &Props) -> bool {
+        props.get("kind").and_then(|v| v.as_str()) == Some("usart")
+            && props.get("dir").and_then(|v| v.as_str()) == Some("tx")
+    }
+
+    /// The same line, never raised.
+    pub fn dead(self) -> Self {
+        let peer = Peer {
+            base: self.peer.base,
+            rule: self.peer.rule,
+            space: OnceLock::new(),
+            dead: true,
+        };
+        Self { peer: Arc::new(peer) }
     }
 }
 

@@ -85,7 +85,8 @@ struct Args {
     /// Inject a fault: bmi088-reset-nack (the IMU does not acknowledge its soft reset), sensor-bus-dead
     /// (nothing on I2C3 acknowledges), sensor-bus-stuck[:K|never] / deck-bus-stuck[:K|never] (a slave holds
     /// SDA of I2C3 / I2C1 low from power-on and lets go after K falling SCL edges, 1..=9, default 9, or
-    /// never), rts-high (the nRF51 holds its RTS, PA4, high from power-on: "stop sending"),
+    /// never), rts-high (the nRF51 holds its RTS, PA4, high from power-on: "stop sending"), syslink-tx-dead
+    /// (USART6's transmit DMA request never rises: every TX DMA transfer hangs),
     /// flow-deck-lost:SECONDS (from that virtual time on the Flow deck answers nothing: the PMW3901's MISO
     /// floats high, its height ranger leaves the deck bus), imu-lost:SECONDS (from that virtual time on the
     /// BMI088 NACKs both its addresses and its INT3 data-ready stops), multiranger-lost:SECONDS (from then on
@@ -356,6 +357,7 @@ fn parse_faults(names: &[String]) -> Result<Faults> {
             "bmi088-reset-nack" => f.bmi088_reset_nack = true,
             "sensor-bus-dead" => f.sensor_bus_dead = true,
             "rts-high" => f.rts_high = true,
+            "syslink-tx-dead" => f.syslink_tx_dead = true,
             other => {
                 let (name, arg) = other.split_once(':').map_or((other, None), |(n, a)| (n, Some(a)));
                 let release = || stuck::Release::parse(arg).map_err(|e| anyhow::anyhow!("--fault {name}: {e}"));
@@ -375,7 +377,7 @@ fn parse_faults(names: &[String]) -> Result<Faults> {
                         }
                     }
                     _ => bail!(
-                        "unknown fault `{other}` (known: bmi088-reset-nack, sensor-bus-dead, rts-high, \
+                        "unknown fault `{other}` (known: bmi088-reset-nack, sensor-bus-dead, rts-high, syslink-tx-dead, \
                          sensor-bus-stuck[:K|never], deck-bus-stuck[:K|never], flow-deck-lost:SECONDS, imu-lost:SECONDS, \
                          multiranger-lost:SECONDS)"
                     ),

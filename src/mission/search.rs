@@ -95,8 +95,12 @@ impl<const CELLS: usize, const QUEUE: usize> Mission<CELLS, QUEUE> {
             };
         }
         self.sweep = LawnmowerSweep::new(centre, here, &sweep, &arena).ok();
+        // The detector keeps what it saw on the approach (it was reset when the leg began), and so does
+        // the memory of its estimates: a refit can drop the estimate the arrival made before the first
+        // restart (measured: world 411 001 354, a floor spot on the rim of a pad seen only on arrival).
+        let latest = self.touchdown.latest;
         self.touchdown = Touchdown::new();
-        // The detector keeps what it saw on the approach (it was reset when the leg began).
+        self.touchdown.latest = latest;
         let search = Search::Coarse {
             step: 0,
             reverse: false,

@@ -903,7 +903,7 @@ impl<const CELLS: usize, const QUEUE: usize> Mission<CELLS, QUEUE> {
             if sx.is_finite() && sy.is_finite() {
                 self.pad.update(r, sx, sy);
                 if let Some(e) = self.pad.estimate() {
-                    self.touchdown.latest = Some((e.x, e.y));
+                    self.touchdown.note_estimate((e.x, e.y));
                 }
             }
         }

@@ -315,9 +315,8 @@ impl<const CELLS: usize, const QUEUE: usize> Mission<CELLS, QUEUE> {
     }
 
     pub(super) fn search(&mut self, search: Search, state: &StateEstimate, _dt_s: f32) -> Setpoint {
-        if let Some((px, py)) = self.pad.locked_centre().or_else(|| self.two_crossing_lock()) {
-            self.stats.pad_centres[self.leg_index()] = Some((px, py));
-            return self.begin_approach((px, py), Target::PadTop);
+        if let Some(sp) = self.approach_if_locked() {
+            return sp;
         }
         match search {
             Search::Coarse { step, reverse } => {
@@ -387,7 +386,7 @@ impl<const CELLS: usize, const QUEUE: usize> Mission<CELLS, QUEUE> {
             } => {
                 if stage >= REFINE_STAGES {
                     self.pad.flush();
-                    return self.give_up_search(state);
+                    return self.approach_if_locked().unwrap_or_else(|| self.give_up_search(state));
                 }
                 // Even stages fly across the first crossing's direction, odd stages along it; after the first
                 // two, more passes re-centred on the latest estimate give the detector more crossings.
@@ -451,6 +450,12 @@ impl<const CELLS: usize, const QUEUE: usize> Mission<CELLS, QUEUE> {
                     // afresh: the position estimate drifts (≈ 1 cm/√s on flow alone), so crossings half a
                     // minute apart disagree by more than the pad detection error.
                     self.pad.flush();
+                    // The flush can close the crossing that locks: land on it rather than start afresh
+                    // (measured: world 440 001 438 under stress, a lock four crossings deep thrown away by
+                    // the restart below, five rounds without another, then a landing against the pad).
+                    if let Some(sp) = self.approach_if_locked() {
+                        return sp;
+                    }
                     let c = self.pad.estimate().map(|e| (e.x, e.y)).unwrap_or(centre);
                     if (stage + 1) % 2 == 0 {
                         self.restart_pad_detector();
@@ -468,6 +473,13 @@ impl<const CELLS: usize, const QUEUE: usize> Mission<CELLS, QUEUE> {
                 sp
             }
         }
+    }
+
+    /// The approach to the detector's lock (its own or [`Self::two_crossing_lock`]), if it has one.
+    fn approach_if_locked(&mut self) -> Option<Setpoint> {
+        let (px, py) = self.pad.locked_centre().or_else(|| self.two_crossing_lock())?;
+        self.stats.pad_centres[self.leg_index()] = Some((px, py));
+        Some(self.begin_approach((px, py), Target::PadTop))
     }
 
     /// A lock on two crossings, one each way, that agree on a square pad (estimate confidence ≥

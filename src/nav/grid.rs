@@ -85,10 +85,6 @@ pub const LOG_ODDS_MAX: i8 = 31;
 /// Beam endpoints farther than this from the arena origin (in cells, ≈ 3.3 km) are rejected as corrupt. It
 /// covers the widest grid a [`GridShape`] can describe; beyond it `f32` resolves less than 1/128 cell.
 const MAX_BEAM_COORD_CELLS: f32 = 65_536.0;
-/// Cells before a beam's hit, in its row or column, that the beam leaves as they were
-/// ([`OccupancyGrid::integrate_beam`]): 0.4 m, about where a beam 2° off a face's plane leaves the face's
-/// cell row.
-pub const GRAZE_CELLS: i32 = 8;
 
 const BLOCKED: u8 = 0x80;
 const OCCUPIED: u8 = 0x40;
@@ -431,16 +427,7 @@ impl<const CELLS: usize> OccupancyGrid<CELLS> {
     ///
     /// Every grid cell the segment crosses gets a miss, except the cell containing `to`, which gets a hit
     /// when `hit` is true (a return) and a miss like the others when `hit` is false (a max-range or
-    /// no-return reading, which therefore marks nothing occupied). With a return, the [`GRAZE_CELLS`]
-    /// cells before the hit in its row (a beam nearer the x axis) or column get their miss only down to
-    /// log-odds 0 (a hit there is taken back, but the cell is not seen free by this beam): a beam
-    /// nearly parallel to a face, a few millimetres off it, crosses the cells of the face's own row (which
-    /// the face fills only partly or, with a millimetre of estimate error, wholly) and ends on that face
-    /// far along. Marked free, those cells hid a box's end from the tests of unseen space (world
-    /// 438 001 497: an 11 cm slab seen end-on, beams grazing both long faces, its middle row alone left
-    /// unseen, taken for a gap between beam traces; the drone touched its corner). A beam hitting a wall
-    /// head-on leaves the same row unseen: its neighbours, crossed by the beams of the heading sweep, are
-    /// still seen. The part of the segment outside the grid
+    /// no-return reading, which therefore marks nothing occupied). The part of the segment outside the grid
     /// is ignored; if `to` lies outside, no cell gets a hit (the return came from beyond the map). A cell
     /// the segment only touches at a corner or along an edge may or may not be updated (measure zero); when
     /// the segment passes exactly through a corner the walk steps along x first. Non-finite endpoints, or
@@ -462,26 +449,8 @@ impl<const CELLS: usize> OccupancyGrid<CELLS> {
             self.add_log_odds(x, y, i16::from(self.config.hit_increment), changed);
         }
         let miss = -i16::from(self.config.miss_decrement);
-        let along_x = libm::fabsf(to.0 - from.0) >= libm::fabsf(to.1 - from.1);
         for (x, y) in walk {
-            let grazed = hit_cell.is_some_and(|(hx, hy)| {
-                if along_x {
-                    y == hy && (x - hx).abs() <= GRAZE_CELLS
-                } else {
-                    x == hx && (y - hy).abs() <= GRAZE_CELLS
-                }
-            });
-            if Some((x, y)) == hit_cell {
-                continue;
-            }
-            if grazed {
-                // Evidence of an obstacle there is still taken back (it moved, or was an outlier's), but
-                // not beyond "no evidence".
-                let held = self.byte(x, y).map_or(0, decode_log_odds);
-                if held > 0 {
-                    self.add_log_odds(x, y, miss.max(-i16::from(held)), changed);
-                }
-            } else {
+            if Some((x, y)) != hit_cell {
                 self.add_log_odds(x, y, miss, changed);
             }
         }

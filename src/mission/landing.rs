@@ -49,10 +49,9 @@ pub(super) struct Touchdown {
     /// since the detector's current estimate (if any) knows nothing of them (measured: a pad next to a
     /// wall, three rounds without a lock, then a floor spot 5 cm beside the pad's side, touched).
     pub glimpses: [Option<(f32, f32)>; GLIMPSES],
-    /// The detector's latest centre estimate since it last started afresh: a refit whose outlier loop
-    /// fails drops the estimate itself, and the glimpse it would have left with it (measured: world
-    /// 411 001 354, an estimate 16 cm from the pad's centre gone two seconds before the restart, then a floor
-    /// spot on that pad's rim, touched).
+    /// The detector's latest centre estimate since it last started afresh ([`Touchdown::note_estimate`]):
+    /// kept when a refit drops the estimate itself (its outlier loop can leave none), so that the restart
+    /// still leaves it as a glimpse, and compared with each new estimate to keep the ones refit elsewhere.
     pub latest: Option<(f32, f32)>,
 }
 

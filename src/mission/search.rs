@@ -96,8 +96,7 @@ impl<const CELLS: usize, const QUEUE: usize> Mission<CELLS, QUEUE> {
         }
         self.sweep = LawnmowerSweep::new(centre, here, &sweep, &arena).ok();
         // The detector keeps what it saw on the approach (it was reset when the leg began), and so does
-        // the memory of its estimates: a refit can drop the estimate the arrival made before the first
-        // restart (measured: world 411 001 354, a floor spot on the rim of a pad seen only on arrival).
+        // the memory of its latest estimate, which belongs to those edges.
         let latest = self.touchdown.latest;
         self.touchdown = Touchdown::new();
         self.touchdown.latest = latest;

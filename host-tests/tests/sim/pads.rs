@@ -50,6 +50,18 @@ fn clear_or_on_pad(world: &World, report: &RunReport) {
     }
 }
 
+/// The world flies without contact and every landing is on a pad's centre or clear of the pad.
+fn lands_without_contact_on_a_pads_centre_or_clear_of_it(world: &World) {
+    let r = fly(world);
+    assert_eq!(r.collisions, 0, "{r:?}");
+    for landing in &r.landings {
+        assert!(
+            crate::on_pad_centre_or_clear_of_it(world, landing.pad, landing),
+            "landed {landing:?}, neither on the pad's centre nor clear of it"
+        );
+    }
+}
+
 #[test]
 fn pads_beside_walls_and_obstacles_are_found_and_landed_on() {
     // Goal pads 0.15 and 0.23 m from a wall or an obstacle. Before this work the first ended with the pad
@@ -258,15 +270,7 @@ fn a_landing_clear_of_a_pad_whose_edges_were_seen_keeps_off_the_side_they_imply(
     // pad's north-east corner: the body touched it (2 collisions, state 14). Now the spot farthest from
     // every pad centre that explains both edges is taken. Oracle: the runner's truth (collisions, and the
     // landing against the pad's half diagonal plus the body's radius).
-    let world = World::random(347_001_180);
-    let r = fly(&world);
-    assert_eq!(r.collisions, 0, "{r:?}");
-    for landing in &r.landings {
-        assert!(
-            crate::on_pad_centre_or_clear_of_it(&world, landing.pad, landing),
-            "landed {landing:?}, neither on the pad's centre nor clear of it"
-        );
-    }
+    lands_without_contact_on_a_pads_centre_or_clear_of_it(&World::random(347_001_180));
 }
 
 #[test]
@@ -278,15 +282,7 @@ fn a_landing_clear_of_a_pad_keeps_off_an_estimate_the_detector_refit_elsewhere()
     // centres, (3.93, 1.95), was 0.35 m from the kept estimate and on the pad's north rim: the landing touched
     // it (2 collisions, state 14). Now an estimate refit more than 10 cm away is kept too. Oracle: the
     // runner's truth (collisions, and the landing against the pad's half diagonal plus the body's radius).
-    let world = World::random(411_001_354);
-    let r = fly(&world);
-    assert_eq!(r.collisions, 0, "{r:?}");
-    for landing in &r.landings {
-        assert!(
-            crate::on_pad_centre_or_clear_of_it(&world, landing.pad, landing),
-            "landed {landing:?}, neither on the pad's centre nor clear of it"
-        );
-    }
+    lands_without_contact_on_a_pads_centre_or_clear_of_it(&World::random(411_001_354));
 }
 
 #[test]

@@ -62,10 +62,12 @@ pub(super) const FLOOR_SPOT_CLEARANCE_M: f32 = 0.22;
 /// Rings of candidate floor spots around the drone, and their spacing, m.
 const FLOOR_SPOT_RINGS: u8 = 9;
 const FLOOR_SPOT_STEP_M: f32 = 0.15;
-/// Candidate floor spots: the drone's own position and sixteen on each further ring (with eight, the one
-/// direction a cluttered corner left open could fall between them: world 157 000 588 with the grid's graze
-/// rule gave up by the north wall and found only spots where the pad could be).
-const FLOOR_SPOT_CANDIDATES: usize = 1 + 16 * (FLOOR_SPOT_RINGS as usize - 1);
+/// Floor spots on each ring but the drone's own position, evenly spaced (with eight, the one direction a
+/// cluttered corner left open could fall between them: world 157 000 588 with the grid's graze rule gave up
+/// by the north wall and found only spots where the pad could be).
+const FLOOR_SPOT_DIRECTIONS: u8 = 16;
+/// Candidate floor spots: the drone's own position and [`FLOOR_SPOT_DIRECTIONS`] on each further ring.
+const FLOOR_SPOT_CANDIDATES: usize = 1 + FLOOR_SPOT_DIRECTIONS as usize * (FLOOR_SPOT_RINGS as usize - 1);
 const REFINE_STAGES: u8 = 8;
 /// A live beam reading closer than this closes the way along it, m: the body's radius (0.06 m), the
 /// reading's age at 10 Hz and the velocity loop's lag (≈ 0.25 s: 8 cm at 0.3 m/s) and 4 cm of ranger
@@ -621,7 +623,7 @@ impl<const CELLS: usize, const QUEUE: usize> Mission<CELLS, QUEUE> {
     }
 
     /// The pad was not found: land where it cannot be, so that the body touches none of its sides. The
-    /// spot nearest the drone (rings [`FLOOR_SPOT_STEP_M`] apart, sixteen points each) that keeps
+    /// spot nearest the drone (rings [`FLOOR_SPOT_STEP_M`] apart, [`FLOOR_SPOT_DIRECTIONS`] points each) that keeps
     /// [`FLOOR_SPOT_CLEARANCE_M`] from what is mapped, is reachable in a straight line, lies at least
     /// [`PAD_REACH_M`] from the pad's nominal point (the pad lies within 0.35 m of it) or, when even that
     /// finds nothing, the spot farthest from where the pad's centre can still be (within 0.35 m of that
@@ -637,8 +639,9 @@ impl<const CELLS: usize, const QUEUE: usize> Mission<CELLS, QUEUE> {
     }
 
     /// The floor spot of [`Self::land_clear_of_pad`]'s rule, skipping the first `skip` that qualify (spots
-    /// refused already), in the rule's order; `None` when none qualifies. At most 2 × 129 candidates, each
-    /// O(edges + glimpses) plus a clearance look-up and a straight-line check on the grid.
+    /// refused already), in the rule's order; `None` when none qualifies. At most 2 ×
+    /// [`FLOOR_SPOT_CANDIDATES`] (129) candidates, each O(edges + glimpses) plus a clearance look-up and a
+    /// straight-line check on the grid.
     pub(super) fn floor_spot_clear_of_pad(&self, here: (f32, f32), skip: usize) -> Option<(f32, f32)> {
         let nominal = self.leg_target();
         let estimate = self.pad.estimate().map(|e| (e.x, e.y));
@@ -648,9 +651,9 @@ impl<const CELLS: usize, const QUEUE: usize> Mission<CELLS, QUEUE> {
         let candidates = || {
             (0..FLOOR_SPOT_RINGS).flat_map(move |ring| {
                 let radius = FLOOR_SPOT_STEP_M * f32::from(ring);
-                let points: u8 = if ring == 0 { 1 } else { 16 };
+                let points = if ring == 0 { 1 } else { FLOOR_SPOT_DIRECTIONS };
                 (0..points).map(move |k| {
-                    let a = core::f32::consts::FRAC_PI_8 * f32::from(k);
+                    let a = core::f32::consts::TAU / f32::from(FLOOR_SPOT_DIRECTIONS) * f32::from(k);
                     (here.0 + radius * libm::cosf(a), here.1 + radius * libm::sinf(a))
                 })
             })
@@ -682,7 +685,8 @@ impl<const CELLS: usize, const QUEUE: usize> Mission<CELLS, QUEUE> {
             }
         }
         self.distance_to_possible_pad_centres(nominal, &mut ranked);
-        // Largest distance first (at most 129: an insertion sort costs less flash than a sort call).
+        // Largest distance first (at most FLOOR_SPOT_CANDIDATES: an insertion sort costs less flash than a
+        // sort call).
         for i in 1..ranked.len() {
             let mut j = i;
             while j > 0 && ranked[j - 1].0 < ranked[j].0 {

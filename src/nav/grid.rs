@@ -344,8 +344,7 @@ impl<const CELLS: usize> OccupancyGrid<CELLS> {
 
     /// A cell's log-odds (0 = unknown, positive = evidence of an obstacle). 0 outside the grid.
     pub fn log_odds(&self, cell: Cell) -> i8 {
-        self.byte(i32::from(cell.x), i32::from(cell.y))
-            .map_or(0, decode_log_odds)
+        self.log_odds_at(i32::from(cell.x), i32::from(cell.y))
     }
 
     /// Whether no evidence lies in a cell: log-odds 0 and not occupied (never crossed nor hit by a beam, or
@@ -443,8 +442,7 @@ impl<const CELLS: usize> OccupancyGrid<CELLS> {
     /// the beam, a wall seen head-on, and the row before it is missed like the rest (without that
     /// exception every beam square to a wall left 0.4 m in front of it unseen, and the corner world of
     /// `sim::pads`, noise seed 2, locked onto its pad 12 cm off the centre). The part of the segment
-    /// outside the grid
-    /// is ignored; if `to` lies outside, no cell gets a hit (the return came from beyond the map). A cell
+    /// outside the grid is ignored; if `to` lies outside, no cell gets a hit (the return came from beyond the map). A cell
     /// the segment only touches at a corner or along an edge may or may not be updated (measure zero); when
     /// the segment passes exactly through a corner the walk steps along x first. Non-finite endpoints, or
     /// endpoints farther than ≈ 3.3 km from the origin, make the call a no-op.
@@ -469,9 +467,7 @@ impl<const CELLS: usize> OccupancyGrid<CELLS> {
             } else {
                 [(hx - 1, hy), (hx + 1, hy)]
             };
-            !across
-                .iter()
-                .all(|&(x, y)| self.byte(x, y).is_some_and(|b| decode_log_odds(b) > 0))
+            !across.iter().all(|&(x, y)| self.log_odds_at(x, y) > 0)
         });
         // The hit goes first: it is the only update in this call that can make a cell occupied, so doing it
         // before the misses means every cell's blocked state flips at most once per call.
@@ -480,6 +476,9 @@ impl<const CELLS: usize> OccupancyGrid<CELLS> {
         }
         let miss = -i16::from(self.config.miss_decrement);
         for (x, y) in walk {
+            if Some((x, y)) == hit_cell {
+                continue;
+            }
             let grazed = graze_end.is_some_and(|(hx, hy)| {
                 if along_x {
                     y == hy && (x - hx).abs() <= GRAZE_CELLS
@@ -487,13 +486,10 @@ impl<const CELLS: usize> OccupancyGrid<CELLS> {
                     x == hx && (y - hy).abs() <= GRAZE_CELLS
                 }
             });
-            if Some((x, y)) == hit_cell {
-                continue;
-            }
             if grazed {
                 // Evidence of an obstacle there is still taken back (it moved, or was an outlier's), but
                 // not beyond "no evidence".
-                let held = self.byte(x, y).map_or(0, decode_log_odds);
+                let held = self.log_odds_at(x, y);
                 if held > 0 {
                     self.add_log_odds(x, y, miss.max(-i16::from(held)), changed);
                 }
@@ -555,6 +551,11 @@ impl<const CELLS: usize> OccupancyGrid<CELLS> {
     }
 
     // ----- internals -----
+
+    /// [`Self::log_odds`] at signed coordinates (0 outside the grid).
+    fn log_odds_at(&self, x: i32, y: i32) -> i8 {
+        self.byte(x, y).map_or(0, decode_log_odds)
+    }
 
     /// Row-major index of signed coordinates, `None` outside the grid.
     #[inline]

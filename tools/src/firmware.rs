@@ -41,11 +41,13 @@ pub struct FirmwareArgs {
     /// Where to write the raw image [default: cf2.bin in the workspace's target directory]
     #[arg(long, value_name = "PATH")]
     pub out: Option<PathBuf>,
-    /// Fail (exit 1) if the image is larger than this many KiB of flash
-    #[arg(long, value_name = "N", default_value_t = 256)]
+    /// Fail (exit 1) if the image is larger than this many KiB of flash [default: the chip's 1008 KiB
+    /// application region]; CI passes a tighter regression budget
+    #[arg(long, value_name = "N", default_value_t = APP_FLASH_SIZE / 1024)]
     pub max_flash_kib: u32,
     /// Fail (exit 1) if static SRAM use (.data, .bss, .uninit, …; not the stack) exceeds this many KiB
-    #[arg(long, value_name = "N", default_value_t = 100)]
+    /// [default: the chip's 128 KiB of SRAM]; CI passes a tighter regression budget
+    #[arg(long, value_name = "N", default_value_t = (SRAM.end - SRAM.start) / 1024)]
     pub max_ram_kib: u32,
 }
 
@@ -709,6 +711,23 @@ mod tests {
             "{report}"
         );
         assert_eq!(report.lines().count(), 3);
+    }
+
+    /// The budgets a user gets without flags are the chip's: 1008 KiB of application flash (memory.x's
+    /// FLASH region) and 128 KiB of SRAM. A tighter regression budget is CI's to ask for.
+    #[test]
+    fn default_budgets_are_the_chips_limits() {
+        use clap::Parser;
+        #[derive(Parser)]
+        struct Cli {
+            #[command(flatten)]
+            firmware: FirmwareArgs,
+        }
+        let args = Cli::try_parse_from(["firmware"]).unwrap().firmware;
+        assert_eq!((args.max_flash_kib, args.max_ram_kib), (1008, 128));
+        let memory_x = include_str!("../../memory.x");
+        assert!(memory_x.contains("FLASH  : ORIGIN = 0x08004000, LENGTH = 1024K - 16K"), "{memory_x}");
+        assert!(memory_x.contains("RAM    : ORIGIN = 0x20000000, LENGTH = 128K"), "{memory_x}");
     }
 
     #[test]

@@ -49,7 +49,7 @@
 //! (reading resets them), so [`FlowSample::dt_s`] is the time since the previous successful read.
 //! `dpixel_x = −Delta_Y`, `dpixel_y = −Delta_X` (saturating, so −32768 maps to 32767): the sensor looks
 //! down through the deck, rotated against the body frame; this is the stock mapping the stock Kalman flow
-//! model (`mm_flow.c`) and this project's estimator and simulator (`tools/src/sim/sensors.rs`
+//! model (`mm_flow.c`) and this project's estimator and simulator (`tools/sim/src/sensors.rs`
 //! `FlowSensor`) expect. `motion_valid` = (motion byte == 0xB0) and not (SQUAL < 0x19 and Shutter_Upper ==
 //! 0x1F).
 //!

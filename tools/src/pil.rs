@@ -15,6 +15,8 @@ use std::ffi::OsString;
 use std::path::{Path, PathBuf};
 use std::process::ExitCode;
 
+use cfnav_sim::report::{Track, TrackPoint};
+
 /// `cfnav pil [ARGS]...`
 #[derive(clap::Args, Debug)]
 pub struct PilArgs {
@@ -68,42 +70,6 @@ pub fn split_plot(args: &[OsString]) -> Result<(Vec<OsString>, Option<PathBuf>),
     Ok((rest, plot))
 }
 
-/// The emulator's `--track` file, as far as the figure needs it.
-#[derive(Debug, serde::Deserialize)]
-pub struct Track {
-    pub world_path: Option<String>,
-    pub world: String,
-    pub seed: u64,
-    pub mode: String,
-    pub outcome: String,
-    pub reason: Option<String>,
-    pub mission_time_s: Option<f64>,
-    pub mission_state: Option<u32>,
-    pub collisions: u32,
-    pub min_clearance_m: Option<f32>,
-    pub landings: Vec<TrackLanding>,
-    pub distance_m: f64,
-    pub virtual_s: f64,
-    pub wall_s: f64,
-    pub points: Vec<TrackPoint>,
-}
-
-#[derive(Debug, serde::Deserialize)]
-pub struct TrackLanding {
-    pub pad: usize,
-    pub error_m: f32,
-    pub on_pad: bool,
-}
-
-#[derive(Debug, serde::Deserialize)]
-pub struct TrackPoint {
-    pub t_s: f64,
-    pub truth: [f32; 3],
-    pub estimate: [f32; 3],
-    pub airborne: bool,
-    pub state: u8,
-}
-
 /// Horizontal estimate error over the airborne points: (max, RMS), m.
 pub fn estimate_error_m(points: &[TrackPoint]) -> (f32, f32) {
     let errors: Vec<f32> = points
@@ -119,23 +85,15 @@ pub fn estimate_error_m(points: &[TrackPoint]) -> (f32, f32) {
 /// Draws `track` to `path` with the simulator's figure.
 pub fn draw_track(track: &Track, path: &Path) -> Result<(), String> {
     use crate::sim::plot::{Labels, draw_labelled};
-    use crate::sim::runner::{Landing, RunReport, RunResult, TracePoint};
-    use crate::sim::world::World;
+    use crate::sim::runner::{RunReport, RunResult, TracePoint};
+    use cfnav_sim::world::World;
 
     let world = match &track.world_path {
         Some(p) => World::load(p).map_err(|e| format!("{p}: {e}"))?,
         None => World::default_world(),
     };
     let (max_err, rms_err) = estimate_error_m(&track.points);
-    let landings: Vec<Landing> = track
-        .landings
-        .iter()
-        .map(|l| Landing {
-            pad: l.pad,
-            error_m: l.error_m,
-            on_pad: l.on_pad,
-        })
-        .collect();
+    let landings = track.landings.clone();
     let outcome = match &track.reason {
         Some(r) => format!("{} ({r})", track.outcome),
         None => track.outcome.clone(),
@@ -362,7 +320,7 @@ mod tests {
 
     #[test]
     fn a_track_is_drawn_with_the_simulators_figure() {
-        let world = crate::sim::world::World::default_world();
+        let world = cfnav_sim::world::World::default_world();
         let s = world.mission.start;
         let g = world.mission.goal;
         let points: Vec<TrackPoint> = (0..=100)
@@ -389,7 +347,7 @@ mod tests {
             mission_state: Some(202),
             collisions: 0,
             min_clearance_m: Some(0.31),
-            landings: vec![TrackLanding {
+            landings: vec![cfnav_sim::report::Landing {
                 pad: 1,
                 error_m: 0.012,
                 on_pad: true,

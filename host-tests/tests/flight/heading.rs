@@ -13,9 +13,9 @@ use cfnav::stack::{FlightConfig, FlightCore};
 use cfnav::types::ImuSample;
 
 use crate::map_fix::airborne_estimator;
-use cfnav_tools::sim::physics::Quadrotor;
+use cfnav_sim::physics::Quadrotor;
+use cfnav_sim::world::World;
 use cfnav_tools::sim::runner::{Faults, SimDrone, mission_params};
-use cfnav_tools::sim::world::World;
 
 /// One mission's errors: (time s, |yaw error| rad, horizontal position error m), every 10 ms airborne.
 struct Run {

@@ -14,8 +14,8 @@ use cfnav::nav::grid::{ChangedCells, OccupancyGrid};
 use cfnav::nav::map::{CELL_SIZE_M, Cell, GridShape};
 use cfnav::stack::{FlightConfig, FlightCore};
 use cfnav::types::MultiRangerSample;
+use cfnav_sim::world::World;
 use cfnav_tools::sim::runner::{Faults, SimDrone, mission_params};
-use cfnav_tools::sim::world::World;
 use proptest::prelude::*;
 
 /// A rectangle of whole cells `[x0, x1) × [y0, y1)` (cell indices).

@@ -303,9 +303,10 @@ proptest! {
 /// `cfnav sim --serve --map-json` writes), cell for cell, with path and pads.
 #[test]
 fn a_flying_mission_map_downloads_equal_to_the_simulators_own_map() {
-    use cfnav_tools::map::decode::{SimMapDump, decode};
+    use cfnav_sim::world::World;
+    use cfnav_tools::map::decode::decode;
+    use cfnav_tools::sim::map_dump::SimMapDump;
     use cfnav_tools::sim::runner::{Faults, SimDrone, mission_params};
-    use cfnav_tools::sim::world::World;
 
     let world = World::default_world();
     let mut drone = SimDrone::new(&world, 3, &Faults::default()).unwrap();

@@ -5,8 +5,8 @@
 //! S in 20–29: worlds S 000 000 + k), some written out as world files, and hand-made variants of the default
 //! world.
 
+use cfnav_sim::world::{BODY_RADIUS_M, World};
 use cfnav_tools::sim::runner::{RunOptions, RunReport, run};
-use cfnav_tools::sim::world::{BODY_RADIUS_M, World};
 
 fn fly(world: &World) -> RunReport {
     run(world, &RunOptions::for_world(world)).expect("runs").report

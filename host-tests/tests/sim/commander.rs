@@ -2,9 +2,9 @@
 //! estimate stays with it), judged on the simulator's truth.
 
 use cfnav::types::Setpoint;
-use cfnav_tools::sim::physics::QuadParams;
+use cfnav_sim::physics::QuadParams;
+use cfnav_sim::world::World;
 use cfnav_tools::sim::runner::{Faults, SimDrone};
-use cfnav_tools::sim::world::World;
 
 /// Hover 0.5 m above the floor beside the home pad, then one stop setpoint (cflib `send_stop_setpoint`) and
 /// nothing more: the motors stay off, the drone falls to the floor, and once it lies there (0.3 s after the

@@ -3,8 +3,8 @@
 //! stack maps and casts its map fixes from the pose the reading was taken at. Judged on the simulator's
 //! truth: while cruising, the estimate's error along the direction of travel.
 
+use cfnav_sim::world::World;
 use cfnav_tools::sim::runner::{RunOptions, run};
-use cfnav_tools::sim::world::World;
 
 /// The mean and the RMS of the estimate's error along the true direction of travel while cruising
 /// (≥ 0.3 m/s, navigation states 11 and 21), m, over one default-world mission.

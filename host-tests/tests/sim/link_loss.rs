@@ -5,8 +5,8 @@
 use cfnav::mission::link_loss::{LinkLossConfig, LinkLossPolicy, LinkWatch};
 use cfnav::mission::{MissionParams, MissionState};
 use cfnav::types::{MotorDuty, Setpoint};
+use cfnav_sim::world::World;
 use cfnav_tools::sim::runner::{Faults, RunOptions, RunResult, SimDrone, mission_params, run};
-use cfnav_tools::sim::world::World;
 
 use crate::{default_world_enters, on_pad_centre_or_clear_of_it};
 

@@ -13,8 +13,9 @@ mod stress;
 mod world;
 
 use cfnav::mission::MissionState;
-use cfnav_tools::sim::runner::{Landing, RunOptions, run};
-use cfnav_tools::sim::world::{BODY_RADIUS_M, World};
+use cfnav_sim::report::Landing;
+use cfnav_sim::world::{BODY_RADIUS_M, World};
+use cfnav_tools::sim::runner::{RunOptions, run};
 
 /// Whether `landing` (on or beside `world.pads[pad]`) came down on that pad within 6 cm of its centre, or
 /// on the floor with the body wholly clear of the pad (farther from its centre than half its diagonal and
@@ -24,7 +25,7 @@ pub fn with_stress(mut world: World, path: &str) -> World {
     let file = std::path::PathBuf::from(env!("CARGO_MANIFEST_DIR"))
         .join("..")
         .join(path);
-    let stress = cfnav_tools::sim::stress::Stress::load(file).unwrap_or_else(|e| panic!("{e}"));
+    let stress = cfnav_sim::stress::Stress::load(file).unwrap_or_else(|e| panic!("{e}"));
     world.stress = world.stress.overlaid(&stress);
     world
 }

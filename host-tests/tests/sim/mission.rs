@@ -4,8 +4,8 @@
 
 use cfnav::mission::{MissionParams, MissionState};
 use cfnav::types::Setpoint;
+use cfnav_sim::world::World;
 use cfnav_tools::sim::runner::{Faults, RunOptions, SimDrone, run};
-use cfnav_tools::sim::world::World;
 
 use crate::{default_world_enters, on_pad_centre_or_clear_of_it};
 
@@ -640,7 +640,7 @@ fn an_abort_anywhere_in_a_pad_search_lands_on_the_pad_or_clear_of_it() {
 fn a_battery_low_in_the_home_search_lands_clear_of_the_home_pad() {
     let mut world = World::random(100_000_475);
     let low_start = "[disturbances]\nbattery_start_v = 3.8938\n";
-    let stress = cfnav_tools::sim::stress::Stress::from_toml_str(low_start, "battery 3.8938 V").expect("parses");
+    let stress = cfnav_sim::stress::Stress::from_toml_str(low_start, "battery 3.8938 V").expect("parses");
     world.stress = world.stress.overlaid(&stress);
     let mut options = RunOptions::for_world(&world);
     options.seed = 100_000_475;
@@ -745,7 +745,7 @@ fn the_flow_scale_is_learnt_from_the_walls() {
         for seed in 1..=3u64 {
             let mut world = World::default_world();
             let text = format!("[sensors]\nflow_scale_error = {truth}\n");
-            let stress = cfnav_tools::sim::stress::Stress::from_toml_str(&text, "scale").expect("parses");
+            let stress = cfnav_sim::stress::Stress::from_toml_str(&text, "scale").expect("parses");
             world.stress = world.stress.overlaid(&stress);
             let params = cfnav_tools::sim::runner::mission_params(&world);
             let mut drone = SimDrone::new(&world, seed, &Faults::default()).unwrap();

@@ -4,8 +4,8 @@
 //! the home pad; the round trip is still the default mode.
 
 use cfnav::mission::{MissionMode, MissionState};
+use cfnav_sim::world::World;
 use cfnav_tools::sim::runner::{RunOptions, mission_params, run};
-use cfnav_tools::sim::world::World;
 
 /// The hover test's bounds, m, on the truth: horizontal distance from the true take-off point during the
 /// hold (the flow-only estimate drifts ≈ 1 cm/√s, plus tracking), height error during the hold, and where

@@ -5,8 +5,8 @@
 //! where each landing came to rest (on a pad's top, or clear of every pad by more than the body's radius),
 //! and the runner's collision count.
 
+use cfnav_sim::world::{BODY_RADIUS_M, World};
 use cfnav_tools::sim::runner::{RunOptions, RunReport, run};
-use cfnav_tools::sim::world::{BODY_RADIUS_M, World};
 
 fn fly(world: &World) -> RunReport {
     run(world, &RunOptions::for_world(world)).expect("runs").report

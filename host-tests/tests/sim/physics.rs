@@ -6,8 +6,8 @@ use std::time::Instant;
 
 use cfnav::math::arena_to_body;
 use cfnav::types::{GRAVITY_M_S2, MotorDuty};
-use cfnav_tools::sim::physics::{Geometry, QuadParams, Quadrotor};
-use cfnav_tools::sim::sensors::{
+use cfnav_sim::physics::{Geometry, QuadParams, Quadrotor};
+use cfnav_sim::sensors::{
     BatterySensor, Beam, FlowParams, FlowSensor, Imu, ImuParams, MultiRanger, MultiRangerParams, SensorFault,
     VL53L1X_HALF_FOV_RAD, ZRanger, ZRangerParams, zranger_noise_std_m,
 };

@@ -4,8 +4,8 @@
 
 use cfnav::mission::MissionState;
 use cfnav::mission::ranger_watch::{RANGER_TIMEOUT_US, RangerWatch};
+use cfnav_sim::world::World;
 use cfnav_tools::sim::runner::{Faults, RunOptions, RunResult, run};
-use cfnav_tools::sim::world::World;
 
 use crate::{default_world_enters, on_pad_centre_or_clear_of_it};
 

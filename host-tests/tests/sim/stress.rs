@@ -1,4 +1,4 @@
-//! The stress tables (`cfnav_tools::sim::stress`, interfaces.md §3 `[sensors]`/`[disturbances]`, §1
+//! The stress tables (`cfnav_sim::stress`, interfaces.md §3 `[sensors]`/`[disturbances]`, §1
 //! `--stress FILE`): every key's range (bad input names the key, in world files, in stress files and at the
 //! command line with exit 2), absent keys = the simulator's defaults (explicit defaults fly the identical
 //! run), `--stress` overrides key by key, and each effect measured on the sensor or physics model against
@@ -7,14 +7,14 @@
 use std::path::PathBuf;
 use std::process::ExitCode;
 
-use cfnav_tools::sim::cli::{SimArgs, run_cli};
-use cfnav_tools::sim::physics::{Geometry, QuadParams, Quadrotor};
-use cfnav_tools::sim::runner::{Faults, RunOptions, SimDrone, run};
-use cfnav_tools::sim::sensors::{
+use cfnav_sim::physics::{Geometry, QuadParams, Quadrotor};
+use cfnav_sim::sensors::{
     FlowParams, FlowSensor, Imu, ImuParams, MultiRanger, MultiRangerParams, ZRanger, ZRangerParams,
 };
-use cfnav_tools::sim::stress::{GUST_PERIOD_S, GUST_TAU_S, Gusts, Stress, state_of_charge_for_ocv};
-use cfnav_tools::sim::world::{Generator, World};
+use cfnav_sim::stress::{GUST_PERIOD_S, GUST_TAU_S, Gusts, Stress, state_of_charge_for_ocv};
+use cfnav_sim::world::{Generator, World};
+use cfnav_tools::sim::cli::{SimArgs, run_cli};
+use cfnav_tools::sim::runner::{Faults, RunOptions, SimDrone, run};
 use rand::SeedableRng;
 use rand::rngs::SmallRng;
 
@@ -598,7 +598,7 @@ fn mass_motor_and_battery_settings_reach_the_vehicle() {
     let table = d.battery.ocv_table_v;
     for v in [3.3f32, 3.5, 3.85, 3.9, 4.0, 4.2] {
         let soc = state_of_charge_for_ocv(&table, v);
-        let mut b = cfnav_tools::sim::physics::Battery::new(d.battery);
+        let mut b = cfnav_sim::physics::Battery::new(d.battery);
         b.set_state_of_charge(soc);
         assert!((b.open_circuit_voltage() - v).abs() < 1e-3, "{v} V -> soc {soc}");
     }

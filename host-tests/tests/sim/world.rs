@@ -1,4 +1,4 @@
-//! The simulator's world (`cfnav_tools::sim::world`): ray casts against a ray-marching oracle, clearance
+//! The simulator's world (`cfnav_sim::world`): ray casts against a ray-marching oracle, clearance
 //! against brute-force sampling, the shipped world files, one-line errors for malformed files (and no panic
 //! on garbage), and random worlds (valid, solvable, deterministic, varied).
 
@@ -7,8 +7,8 @@ use std::path::PathBuf;
 
 use cfnav::nav::dstar::{DStarLite, PlanStatus};
 use cfnav::nav::map::{GridShape, Traversability};
-use cfnav_tools::sim::physics::Geometry;
-use cfnav_tools::sim::world::{
+use cfnav_sim::physics::Geometry;
+use cfnav_sim::world::{
     BODY_RADIUS_M, DEFAULT_CEILING_M, Expect, KEEP_OUT_M, SOLVABILITY_INFLATION_M, World, WorldError,
 };
 use rand::rngs::SmallRng;
@@ -1001,7 +1001,7 @@ fn zig_zag(w: &World) -> bool {
 /// thin cylinders (r 0.08–0.15 m, at least three within 1.1 m of the goal pad), a zig-zag corridor whose turns lie at the side walls.
 #[test]
 fn wide_random_worlds_have_what_real_arenas_have() {
-    use cfnav_tools::sim::world::{
+    use cfnav_sim::world::{
         DEFAULT_FIRMWARE_CELLS, FOREST_RADIUS_M, LARGE_ARENA_CELLS, MAX_PAD_OFFSET_M, START_PAD_GAP_M,
         WIDE_ARENA_MAX_M, WIDE_ARENA_MIN_M,
     };

@@ -100,7 +100,7 @@ impl Script {
     /// The round trip (`--mission`, milestone 4): `mission.mode` = 0, the world's start, goal, height and
     /// speed (as `cfnav sim` gives them, `mission_params`), then `mission.start` = 1. The arena size has no
     /// parameter: the image's default (6 × 3 m, the default world's) is what it flies.
-    pub fn round_trip(world: &crate::sim::world::World) -> Self {
+    pub fn round_trip(world: &cfnav_sim::world::World) -> Self {
         let m = &world.mission;
         let mut s = Self::hover(1.0, m.height);
         let f = |id, v: f32| write_packet(id, &v.to_le_bytes());

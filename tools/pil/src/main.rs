@@ -38,17 +38,6 @@ mod stuck;
 mod track;
 mod udp_bridge;
 
-/// The simulator's own models (`cfnav sim`), compiled in unchanged from `tools/src/sim` (milestone 3): the
-/// rigid body and battery, the sensor noise models, the world files and their stress sections.
-#[path = "../../src/sim"]
-#[allow(dead_code, unused_imports, clippy::wrong_self_convention)]
-mod sim {
-    pub mod physics;
-    pub mod sensors;
-    pub mod stress;
-    pub mod world;
-}
-
 use std::path::PathBuf;
 use std::process::ExitCode;
 use std::time::Instant;
@@ -59,6 +48,7 @@ use serde::Serialize;
 
 use cfnav::radio::syslink::{SyslinkDecoder, encode};
 use cfnav::system::status_led::{BoardStatus, LedFrame};
+use cfnav_sim::report::{Landing, Track};
 
 use crate::board::{Board, FLASH_ACR, GPIOC_ODR, GPIOD_ODR, RCC_CSR};
 use crate::devices::{BusStats, Faults};
@@ -198,7 +188,7 @@ struct SimReport<'a> {
     mission_time_s: Option<f64>,
     collisions: u32,
     min_clearance_m: Option<f32>,
-    landings: &'a [mission::Landing],
+    landings: &'a [Landing],
     replans: Option<u32>,
     distance_m: f64,
     sim_time_s: f64,
@@ -322,7 +312,7 @@ struct Report {
     probes: Vec<probe::Sample>,
     /// `--track`'s file (written apart from the report).
     #[serde(skip)]
-    track: Option<track::TrackFile>,
+    track: Option<Track>,
     /// UDP datagrams received and sent (`--serve`).
     udp_received: u64,
     udp_sent: u64,
@@ -410,8 +400,8 @@ fn run(args: &Args) -> Result<(Report, bool)> {
     }
     let mut physics = if args.world.is_some() || args.hover.is_some() || args.mission {
         let world = match &args.world {
-            Some(p) => sim::world::World::load(p).map_err(|e| anyhow::anyhow!("{}: {e}", p.display()))?,
-            None => sim::world::World::default_world(),
+            Some(p) => cfnav_sim::world::World::load(p).map_err(|e| anyhow::anyhow!("{}: {e}", p.display()))?,
+            None => cfnav_sim::world::World::default_world(),
         };
         Some(physics::Physics::new(world, args.seed))
     } else {
@@ -915,13 +905,13 @@ fn track_file(
     mission: Option<&mission::MissionReport>,
     now_ns: u64,
     wall: Instant,
-) -> track::TrackFile {
-    let landing = |pad: usize, error_m: f32, on_pad: bool| track::TrackLanding { pad, error_m, on_pad };
-    let mut file = track::TrackFile {
+) -> Track {
+    let landing = |pad: usize, error_m: f32, on_pad: bool| Landing { pad, error_m, on_pad };
+    let mut file = Track {
         world_path: args.world.as_ref().map(|w| w.display().to_string()),
         world: p.world.name.clone(),
         seed: args.seed,
-        mode: if mission.is_some() { "round_trip" } else { "hover" },
+        mode: if mission.is_some() { "round_trip" } else { "hover" }.into(),
         outcome: "timeout".into(),
         reason: None,
         mission_time_s: None,
@@ -941,7 +931,7 @@ fn track_file(
         file.mission_state = m.mission_state;
         file.collisions = m.collisions;
         file.min_clearance_m = m.min_clearance_m;
-        file.landings = m.landings.iter().map(|l| landing(l.pad, l.error_m, l.on_pad)).collect();
+        file.landings = m.landings.clone();
         file.distance_m = m.distance_m;
     } else if let Some(h) = hover {
         file.mission_state = h.mission_end_state;
@@ -1146,7 +1136,7 @@ mod sim_report_tests {
             outcome: "completed".into(),
             mission_state: Some(100),
             mission_time_s: Some(53.6),
-            landings: vec![mission::Landing {
+            landings: vec![Landing {
                 pad: 1,
                 error_m: 0.02,
                 on_pad: true,

@@ -15,20 +15,11 @@
 use cfnav::types::MotorDuty;
 use serde::Serialize;
 
-use crate::sim::world::{BODY_RADIUS_M, World};
+use cfnav_sim::report::Landing;
+use cfnav_sim::world::{BODY_RADIUS_M, World};
 
 /// A landing counts once the drone rested with its motors stopped this long (the simulator's 200 ticks).
 pub const REST_S: f64 = 0.2;
-
-/// One landing, as the simulator reports it.
-#[derive(Debug, Clone, Copy, PartialEq, Serialize)]
-pub struct Landing {
-    /// The pad under the drone, else the nearest one (0 = home).
-    pub pad: usize,
-    /// Horizontal distance from that pad's centre, m.
-    pub error_m: f32,
-    pub on_pad: bool,
-}
 
 /// The round trip as the truth saw it (the fields of `cfnav sim --json` that can be compared).
 #[derive(Debug, Clone, Default, Serialize)]

@@ -1,6 +1,6 @@
 //! The simulator's physics behind the emulated sensors (issue 15 milestone 3): the same rigid body, motors,
-//! battery, world geometry and sensor noise models as `cfnav sim` (`tools/src/sim/{physics,sensors,world,
-//! stress}.rs`, compiled into this tool unchanged, see `main.rs`), stepped in the emulator's virtual time.
+//! battery, world geometry and sensor noise models as `cfnav sim` (the `cfnav_sim` crate,
+//! `tools/sim/src/{physics,sensors,world,stress}.rs`), stepped in the emulator's virtual time.
 //!
 //! Job, per host slice: before it, the truth goes out through the device models (BMI088 sample registers
 //! at the gyro's ODR, VL53L1x ranges ray-cast in the world at 40 Hz / 10 Hz, PMW3901 counts at 100 Hz, the
@@ -19,9 +19,9 @@ use rand::rngs::SmallRng;
 use cfnav::types::MotorDuty;
 
 use crate::board::Board;
-use crate::sim::physics::Quadrotor;
-use crate::sim::sensors::{FlowSensor, Imu, MultiRanger, ZRanger};
-use crate::sim::world::World;
+use cfnav_sim::physics::Quadrotor;
+use cfnav_sim::sensors::{FlowSensor, Imu, MultiRanger, ZRanger};
+use cfnav_sim::world::World;
 
 /// TIM2 and TIM4 (RM0090 Table 1).
 const TIM2: u64 = 0x4000_0000;

@@ -10,7 +10,7 @@
 
 use std::collections::VecDeque;
 
-use serde::Serialize;
+use cfnav_sim::report::TrackPoint;
 
 use crate::hover::TraceSample;
 
@@ -18,21 +18,6 @@ use crate::hover::TraceSample;
 const HISTORY_PERIOD_NS: u64 = 10_000_000;
 /// How much truth history is kept, ns (the radio's delay is far shorter).
 const HISTORY_SPAN_NS: u64 = 1_000_000_000;
-
-/// One point of the track.
-#[derive(Debug, Clone, Copy, PartialEq, Serialize)]
-pub struct TrackPoint {
-    /// The image's time stamp, s.
-    pub t_s: f64,
-    /// The true position at that time, arena frame, m.
-    pub truth: [f32; 3],
-    /// The image's position estimate, arena frame, m.
-    pub estimate: [f32; 3],
-    /// The body was off the ground (the truth's contact model).
-    pub airborne: bool,
-    /// `mission.state`.
-    pub state: u8,
-}
 
 /// Collects the track during a run.
 #[derive(Debug, Default)]
@@ -101,36 +86,6 @@ impl TrackRecorder {
         };
         Some(([0, 1, 2].map(|k| p0[k] + (p1[k] - p0[k]) * f), a1))
     }
-}
-
-/// A landing in the track file (as `cfnav sim` reports one).
-#[derive(Debug, Clone, Copy, PartialEq, Serialize)]
-pub struct TrackLanding {
-    pub pad: usize,
-    pub error_m: f32,
-    pub on_pad: bool,
-}
-
-/// The file `--track` writes.
-#[derive(Debug, Serialize)]
-pub struct TrackFile {
-    /// The world file flown, or `None` for the default world.
-    pub world_path: Option<String>,
-    pub world: String,
-    pub seed: u64,
-    /// `round_trip` or `hover`.
-    pub mode: &'static str,
-    pub outcome: String,
-    pub reason: Option<String>,
-    pub mission_time_s: Option<f64>,
-    pub mission_state: Option<u32>,
-    pub collisions: u32,
-    pub min_clearance_m: Option<f32>,
-    pub landings: Vec<TrackLanding>,
-    pub distance_m: f64,
-    pub virtual_s: f64,
-    pub wall_s: f64,
-    pub points: Vec<TrackPoint>,
 }
 
 #[cfg(test)]

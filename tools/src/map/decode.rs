@@ -1,14 +1,12 @@
 //! Decoding the map memory (layout version 1, `cfnav::radio::map_mem`, `docs/map-memory.md`) into a
-//! [`MapSnapshot`], and the simulator's own map in the same JSON form, for comparison cell for cell.
+//! [`MapSnapshot`], to compare cell for cell with the simulator's own map in the same JSON form
+//! (`crate::sim::map_dump`).
 //!
 //! The decoder reads the documented offsets itself (it does not call the firmware's serialiser), so a
 //! download decoded here and the simulator's grid read through `OccupancyGrid`'s queries are two
 //! independent routes to the same cells.
 
 use serde::{Deserialize, Serialize};
-
-use cfnav::mission::Mission;
-use cfnav::nav::map::Cell;
 
 /// Magic at offset 0.
 pub const MAGIC: &[u8; 4] = b"CFNM";
@@ -201,62 +199,6 @@ impl std::fmt::Display for DecodeError {
                 "the map changed during the download (CRC {stored:#010x} in the header, {computed:#010x} read)"
             ),
             DecodeError::Bad(s) => f.write_str(s),
-        }
-    }
-}
-
-/// The simulator's own map, read through the grid's queries (not through the memory's serialiser): what
-/// `cfnav sim --serve --map-json FILE` writes. `crc32` is the memory's CRC of the same moment, so that a
-/// download can be matched with the dump of its snapshot.
-#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
-pub struct SimMapDump {
-    /// Simulated ms since power-on.
-    pub time_ms: u64,
-    /// The memory's CRC field at this moment.
-    pub crc32: u32,
-    /// Columns.
-    pub width: u16,
-    /// Rows.
-    pub height: u16,
-    /// `mission.state` code.
-    pub mission_state: u8,
-    /// Per cell, row-major: occupied (after hysteresis).
-    pub occupied: Vec<bool>,
-    /// Per cell: blocked (inflated layer).
-    pub blocked: Vec<bool>,
-    /// Per cell: no evidence.
-    pub unknown: Vec<bool>,
-    /// The mission's shortened path, cells.
-    pub path: Vec<[u16; 2]>,
-    /// The pad detector's estimate `(x, y, confidence, locked)`.
-    pub pad_estimate: Option<(f32, f32, f32, bool)>,
-    /// The pad locks of the outbound and return legs.
-    pub pad_locks: [Option<(f32, f32)>; 2],
-}
-
-impl SimMapDump {
-    /// The dump of `mission` at `time_ms`; `crc32` from the memory's view of the same moment.
-    pub fn of_mission<const CELLS: usize, const QUEUE: usize>(
-        mission: &Mission<CELLS, QUEUE>,
-        time_ms: u64,
-        crc32: u32,
-    ) -> Self {
-        let grid = mission.grid();
-        let shape = grid.shape();
-        let cells: Vec<Cell> = (0..shape.cells()).map(|i| shape.cell(i)).collect();
-        let detector = mission.pad_detector();
-        Self {
-            time_ms,
-            crc32,
-            width: shape.width,
-            height: shape.height,
-            mission_state: mission.state().code(),
-            occupied: cells.iter().map(|&c| grid.is_occupied(c)).collect(),
-            blocked: cells.iter().map(|&c| grid.is_blocked(c)).collect(),
-            unknown: cells.iter().map(|&c| grid.is_unknown(c)).collect(),
-            path: mission.waypoints().iter().map(|c| [c.x, c.y]).collect(),
-            pad_estimate: detector.estimate().map(|e| (e.x, e.y, e.confidence, detector.locked())),
-            pad_locks: mission.stats().pad_centres,
         }
     }
 }

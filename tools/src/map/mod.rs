@@ -26,9 +26,8 @@ use crate::radio::connect::{ConnectError, connect_uri};
 use crate::radio::toc_cache::DirTocCache;
 use crate::sim::plot::{Labels, draw_labelled};
 use crate::sim::runner::{RunReport, RunResult};
-use crate::sim::world::World;
-use cfnav::mission::Mission;
-use decode::{DecodeError, HEADER_LEN, MapSnapshot, SimMapDump, decode, header_total_len};
+use cfnav_sim::world::World;
+use decode::{DecodeError, HEADER_LEN, MapSnapshot, decode, header_total_len};
 
 /// Exit status: bad input, no connection, no map.
 pub const EXIT_ERROR: u8 = 2;
@@ -57,22 +56,6 @@ pub struct MapArgs {
     /// Download the TOCs on every connection (no TOC cache).
     #[arg(long)]
     pub no_toc_cache: bool,
-}
-
-/// Writes the simulator's own map (`SimMapDump`) to `path` atomically (a temporary file renamed over it).
-pub fn write_sim_dump<const CELLS: usize, const QUEUE: usize>(
-    path: &Path,
-    mission: &Mission<CELLS, QUEUE>,
-    time_ms: u64,
-    crc32: u32,
-) -> Result<(), String> {
-    let dump = SimMapDump::of_mission(mission, time_ms, crc32);
-    let text = serde_json::to_string(&dump).map_err(|e| format!("cannot encode the map: {e}"))?;
-    let mut tmp = path.as_os_str().to_owned();
-    tmp.push(".tmp");
-    let tmp = PathBuf::from(tmp);
-    std::fs::write(&tmp, text).map_err(|e| format!("{}: {e}", tmp.display()))?;
-    std::fs::rename(&tmp, path).map_err(|e| format!("{}: {e}", path.display()))
 }
 
 /// Runs `cfnav map`.

@@ -5,7 +5,7 @@
 use std::time::Duration;
 
 use super::{EXIT_ERROR, StartArgs, parse_start, run_start};
-use crate::sim::world::World;
+use cfnav_sim::world::World;
 
 /// A UDP port nobody uses right now (the system picks it; released at once for the server to bind).
 fn free_udp_port() -> u16 {

@@ -12,8 +12,8 @@ use serde::Serialize;
 use cfnav::mission::link_loss::LinkLossConfig;
 
 use crate::sim::runner::{RunOptions, RunReport, RunResult, run};
-use crate::sim::stress::Stress;
-use crate::sim::world::{Generator, World};
+use cfnav_sim::stress::Stress;
+use cfnav_sim::world::{Generator, World};
 
 /// Arguments of `cfnav sim`.
 #[derive(Args, Debug)]

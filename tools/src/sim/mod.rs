@@ -1,18 +1,16 @@
 //! The software-in-the-loop simulator: a Crazyflie 2.1 in a walled arena, flown by exactly the firmware's
 //! modules at the rates they run on the MCU.
 //!
-//! - [`world`]: world files (shared/spec/interfaces.md §3), the default world, random worlds, ray casting
-//!   and collision geometry.
-//! - [`physics`]: the rigid-body quadrotor, motors, battery, contacts.
-//! - [`sensors`]: the drone's sensors as the drivers deliver them (types in `cfnav::types`).
-//! - [`stress`]: the `[sensors]` and `[disturbances]` tables (world files and `--stress FILE`).
+//! The world, physics, sensor and stress models it flies against are the `cfnav_sim` crate's (`tools/sim`,
+//! shared with the emulator). Here:
+//! - [`runner`]: the lockstep loop and the run report.
+//! - [`cli`]: `cfnav sim`'s command line and batch summary.
+//! - [`plot`]: the run's figure.
 //! - [`serve`]: `cfnav sim --serve`, the drone in real time behind CRTP over UDP.
+//! - [`map_dump`]: the simulator's own map as `cfnav sim --serve --map-json` writes it.
 
 pub mod cli;
-pub mod physics;
+pub mod map_dump;
 pub mod plot;
 pub mod runner;
-pub mod sensors;
 pub mod serve;
-pub mod stress;
-pub mod world;

@@ -14,7 +14,7 @@ use plotters::prelude::*;
 use plotters::style::text_anchor::{HPos, Pos, VPos};
 
 use super::runner::RunResult;
-use super::world::World;
+use cfnav_sim::world::World;
 
 /// Width of the figure, px.
 const WIDTH: u32 = 1600;

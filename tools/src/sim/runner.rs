@@ -19,10 +19,11 @@ use rand::rngs::SmallRng;
 use rand::{Rng, SeedableRng};
 use serde::Serialize;
 
-use super::physics::Quadrotor;
-use super::sensors::{BatterySensor, FlowSensor, Imu, MultiRanger, SensorFault, ZRanger};
-use super::stress::{GUST_PERIOD_S, Gusts};
-use super::world::{BODY_RADIUS_M, World};
+use cfnav_sim::physics::Quadrotor;
+use cfnav_sim::report::Landing;
+use cfnav_sim::sensors::{BatterySensor, FlowSensor, Imu, MultiRanger, SensorFault, ZRanger};
+use cfnav_sim::stress::{GUST_PERIOD_S, Gusts};
+use cfnav_sim::world::{BODY_RADIUS_M, World};
 
 /// Grid capacity the simulator flies with: the largest arena the firmware supports (`large-arena`).
 pub const SIM_CELLS: usize = 128 * 64;
@@ -96,17 +97,6 @@ impl RunOptions {
             link_loss: LinkLossConfig::DEFAULT,
         }
     }
-}
-
-/// One landing: where the drone came to rest.
-#[derive(Clone, Copy, Debug, Serialize, PartialEq)]
-pub struct Landing {
-    /// The pad it landed on, or the nearest pad.
-    pub pad: usize,
-    /// Horizontal distance from where it rests to that pad's centre, m.
-    pub error_m: f32,
-    /// Its centre lies over the pad.
-    pub on_pad: bool,
 }
 
 /// The report of one run (interfaces.md §4), plus a few extra fields.

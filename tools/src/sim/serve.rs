@@ -50,7 +50,7 @@
 //!
 //! Memory (port 4): memory 0 is the drone's map (`cfnav::radio::map_mem`), each read answered at once from
 //! the live map; with `--map-json FILE`, every read of its CRC field (a download starting) and the end of a
-//! mission also write the simulator's own map of that moment to FILE (`crate::map::decode::SimMapDump`).
+//! mission also write the simulator's own map of that moment to FILE ([`super::map_dump::SimMapDump`]).
 
 use std::io::ErrorKind;
 use std::net::{SocketAddr, UdpSocket};
@@ -72,7 +72,7 @@ use cfnav::system::persistent_params::{PersistentParams, REGION_LEN, REGION_STAR
 use cfnav::types::{RangeReading, Setpoint};
 
 use super::runner::{Faults, SIM_CELLS, SimDrone, mission_params};
-use super::world::World;
+use cfnav_sim::world::World;
 
 /// Simulated milliseconds run at most between two polls of the socket.
 pub const CHUNK_TICKS: u64 = 20;
@@ -324,7 +324,7 @@ impl Radio {
     /// Writes the simulator's own map to `--map-json`, if given.
     fn dump_map(&self, drone: &SimDrone, crc32: u32) {
         if let Some(path) = &self.map_json
-            && let Err(e) = crate::map::write_sim_dump(path, drone.core.mission(), drone.tick(), crc32)
+            && let Err(e) = super::map_dump::write_sim_dump(path, drone.core.mission(), drone.tick(), crc32)
         {
             eprintln!("serve: {e}");
         }

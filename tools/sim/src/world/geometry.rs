@@ -1,6 +1,6 @@
 //! Geometry queries on a [`World`]: ray casts (the rangers), horizontal clearance (the body disc), the
 //! surface under a point, pads, and the true occupancy grid. Computed in `f64`, returned in `f32`. Also the
-//! [`crate::sim::physics::Geometry`] the physics and the sensors read.
+//! [`crate::physics::Geometry`] the physics and the sensors read.
 
 use cfnav::nav::map::GridShape;
 
@@ -253,7 +253,7 @@ impl World {
 }
 
 /// The world as the physics and the sensors see it.
-impl crate::sim::physics::Geometry for World {
+impl crate::physics::Geometry for World {
     fn ray_cast(&self, origin: [f32; 3], dir: [f32; 3], max_range_m: f32) -> Option<f32> {
         World::ray_cast(self, origin, dir, max_range_m)
     }

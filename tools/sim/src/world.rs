@@ -69,7 +69,7 @@
 //! the ceiling, every obstacle [`KEEP_OUT_M`] from the pads, the take-off point and the nominal goal.
 //!
 //! Arenas larger than the default firmware build's 120 × 60 cells (about 6 % of the wide worlds) are flown,
-//! like every world, on the `large-arena` build's grid (the simulator's [`crate::sim::runner::SIM_CELLS`]);
+//! like every world, on the `large-arena` build's grid (the simulator's `cfnav_tools::sim::runner::SIM_CELLS`);
 //! their reports say `needs_large_arena`, and the batch summary counts them (`large_arena_runs`). The default
 //! firmware build would refuse them at the start (`StartRefusal::BadArena`), so with that build such a world
 //! cannot be flown at all, never flown on a grid too small.
@@ -98,6 +98,28 @@ pub use random::{
     FOREST_PAD_GAP_M, FOREST_RADIUS_M, Generator, KEEP_OUT_M, NEAR_PAD_GAP_M, SOLVABILITY_INFLATION_M, START_PAD_GAP_M,
     WIDE_ARENA_MAX_M, WIDE_ARENA_MIN_M,
 };
+
+impl Stress {
+    /// Read a `--stress FILE`: either a whole world file (its `[sensors]` and `[disturbances]` are taken) or
+    /// a file with only those tables (and an optional `name`). Errors are one line naming the file, the line
+    /// and the key.
+    pub fn load(path: impl AsRef<Path>) -> Result<Stress, String> {
+        let path = path.as_ref();
+        let file = path.display().to_string();
+        let text = std::fs::read_to_string(path).map_err(|e| format!("{file}: cannot read: {e}"))?;
+        Self::from_toml_str(&text, &file)
+    }
+
+    /// [`Stress::load`] on a text.
+    pub fn from_toml_str(text: &str, file: &str) -> Result<Stress, String> {
+        if Self::is_world_file(text, file)? {
+            return World::from_toml_str(text, file)
+                .map(|w| w.stress)
+                .map_err(|e| e.to_string());
+        }
+        Self::from_tables_toml_str(text, file)
+    }
+}
 
 /// Radius of the drone's body disc: touching an obstacle with it is a collision (interfaces.md §3).
 pub const BODY_RADIUS_M: f32 = 0.06;

@@ -10,7 +10,7 @@ use super::{
     Arena, BoxObstacle, Cylinder, DEFAULT_HEIGHT_M, DEFAULT_SPEED_MPS, DEFAULT_TIME_LIMIT_S, Expect, Mission, Pad,
     SimSettings, World, dist, rect_point_distance, rect_rect_distance,
 };
-use crate::sim::stress::Stress;
+use crate::stress::Stress;
 
 /// Inflation of the true obstacles used to decide that a random world is solvable: the body radius 0.06 m
 /// plus a 0.19 m margin, which leaves room for the firmware's own inflation (about 0.15 m beyond the body)

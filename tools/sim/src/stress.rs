@@ -29,8 +29,6 @@
 //!
 //! Memory: a few dozen bytes per world; host only.
 
-use std::path::Path;
-
 use rand::rngs::SmallRng;
 use rand::{Rng, SeedableRng};
 use rand_distr::StandardNormal;
@@ -281,26 +279,18 @@ impl Stress {
         }
     }
 
-    /// Read a `--stress FILE`: either a whole world file (its `[sensors]` and `[disturbances]` are taken) or
-    /// a file with only those tables (and an optional `name`). Errors are one line naming the file, the line
-    /// and the key.
-    pub fn load(path: impl AsRef<Path>) -> Result<Stress, String> {
-        let path = path.as_ref();
-        let file = path.display().to_string();
-        let text = std::fs::read_to_string(path).map_err(|e| format!("{file}: cannot read: {e}"))?;
-        Self::from_toml_str(&text, &file)
-    }
-
-    /// [`Stress::load`] on a text.
-    pub fn from_toml_str(text: &str, file: &str) -> Result<Stress, String> {
+    /// Whether a `--stress` text is a whole world file (it has `[arena]` or `[mission]`): then its tables are
+    /// read through the world file's reader ([`Stress::from_toml_str`], in `crate::world`). Errors are one
+    /// line naming the file, the line and the key.
+    pub(crate) fn is_world_file(text: &str, file: &str) -> Result<bool, String> {
         let table: toml::Table = text
             .parse()
             .map_err(|e: toml::de::Error| format!("{file}: {}", locate(text, &e)))?;
-        if table.contains_key("arena") || table.contains_key("mission") {
-            return super::world::World::from_toml_str(text, file)
-                .map(|w| w.stress)
-                .map_err(|e| e.to_string());
-        }
+        Ok(table.contains_key("arena") || table.contains_key("mission"))
+    }
+
+    /// A file with only the `[sensors]` and `[disturbances]` tables (and an optional `name`).
+    pub(crate) fn from_tables_toml_str(text: &str, file: &str) -> Result<Stress, String> {
         let raw: RawStressFile = toml::from_str(text).map_err(|e| format!("{file}: {}", locate(text, &e)))?;
         let mut spans: Vec<(String, std::ops::Range<usize>)> = Vec::new();
         let mut sink = |f: &str, r: std::ops::Range<usize>| spans.push((f.to_string(), r));

@@ -1,5 +1,5 @@
 //! The simulator's own map, read through the grid's queries, in the JSON form `cfnav sim --serve --map-json
-//! FILE` writes; a download decoded by `crate::map::decode` compares with it cell for cell. Memory: one
+//! FILE` writes; a download decoded by `cfnav map` compares with it cell for cell. Memory: one
 //! `bool` per cell per layer, host only.
 
 use std::path::{Path, PathBuf};

@@ -109,17 +109,13 @@ fn a_start_refuses_mode_settings_outside_their_ranges() {
 }
 
 #[test]
-fn readme_mode_table_is_the_declaration() {
-    let readme = std::fs::read_to_string(concat!(env!("CARGO_MANIFEST_DIR"), "/../README.md")).unwrap();
-    let begin = "<!-- begin: mode table (generated from src/mission; `cargo test -p host-tests --test radio readme` checks it) -->\n";
-    let end = "<!-- end: mode table -->";
-    let a = readme.find(begin).expect("README has the mode table's begin marker") + begin.len();
-    let b = readme[a..].find(end).expect("README has the mode table's end marker") + a;
+fn generated_mode_table_is_the_declaration() {
+    let page = super::stock::generated_section("docs/mission.md", "mode table", "src/mission");
     let mut table = String::new();
     cfnav::mission::write_mode_table(&mut table).unwrap();
     assert!(
-        readme[a..b] == table,
-        "README's mode table differs from the declaration; paste this between its markers:\n{table}"
+        page == table,
+        "docs/mission.md's mode table differs from the declaration; paste this between its markers:\n{table}"
     );
     // Every mode the parameter's declared range admits has a row, and no other.
     let e = cfnav::radio::registry::PARAM_TABLE

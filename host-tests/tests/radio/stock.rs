@@ -1,7 +1,8 @@
 //! The stock parameter names cfclient and cflib use (issue 13 part 1): every `deck.*` name the stock cfclient
 //! 2026.8.1 reads, `kalman.resetEstimation` (cflib's `MotionCommander`), `stabilizer.controller`
 //! (`PositionHlCommander(controller=PID)`), `commander.enHighLevel`, the default-value request cfclient sends
-//! when a parameter is selected, and the README's tables generated from the declarations.
+//! when a parameter is selected, and the tables of docs/params.md and docs/logs.md generated from the
+//! declarations.
 
 use cfnav::mission::MissionParams;
 use cfnav::radio::crtp::{CrtpPacket, Service};
@@ -264,37 +265,39 @@ fn every_declared_range_is_enforced_on_the_wire() {
     }
 }
 
-/// The text between `<!-- begin: NAME -->` and `<!-- end: NAME -->` in the README.
-fn readme_section(name: &str) -> String {
-    let readme = std::fs::read_to_string(concat!(env!("CARGO_MANIFEST_DIR"), "/../README.md")).unwrap();
+/// The text between `<!-- begin: NAME (generated from SOURCE; ...) -->` and `<!-- end: NAME -->` in the
+/// repository page `page` (a path from the repository's root).
+pub(super) fn generated_section(page: &str, name: &str, source: &str) -> String {
+    let path = format!("{}/../{page}", env!("CARGO_MANIFEST_DIR"));
+    let text = std::fs::read_to_string(&path).unwrap_or_else(|e| panic!("{path}: {e}"));
     let begin = format!(
-        "<!-- begin: {name} (generated from src/radio; `cargo test -p host-tests --test radio readme` checks it) -->\n"
+        "<!-- begin: {name} (generated from {source}; `cargo test -p host-tests --test radio generated` checks it) -->\n"
     );
     let end = format!("<!-- end: {name} -->");
-    let a = readme
+    let a = text
         .find(&begin)
-        .unwrap_or_else(|| panic!("README has no line {begin}"))
+        .unwrap_or_else(|| panic!("{page} has no line {begin}"))
         + begin.len();
-    let b = readme[a..]
+    let b = text[a..]
         .find(&end)
-        .unwrap_or_else(|| panic!("README has no line {end}"))
+        .unwrap_or_else(|| panic!("{page} has no line {end}"))
         + a;
-    readme[a..b].to_string()
+    text[a..b].to_string()
 }
 
 #[test]
-fn readme_parameter_and_log_tables_are_the_declarations() {
+fn generated_parameter_and_log_pages_are_the_declarations() {
     let mut params = String::new();
     write_param_table(&mut params, PARAM_TABLE).unwrap();
     let mut logs = String::new();
     write_log_table(&mut logs, LOG_TABLE).unwrap();
     assert!(
-        readme_section("parameter table") == params,
-        "README's parameter table differs from the declarations; paste this between its markers:\n{params}"
+        generated_section("docs/params.md", "parameter table", "src/radio") == params,
+        "docs/params.md's table differs from the declarations; paste this between its markers:\n{params}"
     );
     assert!(
-        readme_section("log table") == logs,
-        "README's log table differs from the declarations; paste this between its markers:\n{logs}"
+        generated_section("docs/logs.md", "log table", "src/radio") == logs,
+        "docs/logs.md's table differs from the declarations; paste this between its markers:\n{logs}"
     );
 }
 

@@ -566,7 +566,7 @@ impl Radio {
                         params.goal_m.1
                     ),
                     Err(e) => {
-                        let line = format!("mission.start refused by the flight core: {e:?}\n");
+                        let line = format!("mission.start refused: {e}\n");
                         eprintln!("{:8.3} s  {}", seconds(drone), line.trim_end());
                         self.ep.param.store_mut().start = 0;
                         self.ep.param.notify(ID_START);

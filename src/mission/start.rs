@@ -79,8 +79,9 @@ pub fn take_off_point(params: &MissionParams, estimate_xy: (f32, f32)) -> Result
         return Err(PositionRefusal::OutsideArena { at: estimate_xy });
     }
     let home = params.start_m;
-    // `!(d <= tol)`: a NaN distance (a non-finite home, which validation refuses anyway) is off the pad too.
-    if params.mode == MissionMode::RoundTrip && !(libm::hypotf(x - home.0, y - home.1) <= HOME_TOLERANCE_M) {
+    // A NaN distance (a non-finite home, which validation refuses anyway) is off the pad too.
+    let on_pad = libm::hypotf(x - home.0, y - home.1) <= HOME_TOLERANCE_M;
+    if params.mode == MissionMode::RoundTrip && !on_pad {
         return Err(PositionRefusal::OffHomePad { at: estimate_xy, home });
     }
     Ok(estimate_xy)

@@ -780,3 +780,35 @@ fn hover_test_after_manual_flights_lands_where_it_took_off() {
     assert_eq!(b.sim.drone().core.mission_state(), MissionState::Completed);
     b.finish().unwrap();
 }
+
+/// Shrunk from a generated run (`CFNAV_SEQUENCES=3000`): position setpoints lift the drone off the home
+/// pad towards (0.3, 0.3), stop setpoints drop it beside the pad, and a high-level take-off to 0.3 m comes
+/// 20 cm above the floor, before the impact. The estimated height then falls (−0.08 m on the floor, −0.7 m
+/// 0.8 s later) while the body climbs, and the take-off's hold at 0.3 m drives it into the ceiling and the
+/// wall at y = 3 m. The estimator's surface tracker and height gate do not recover from the impact; until
+/// they do this test fails, so it runs only on request (`--ignored`).
+#[test]
+#[ignore = "fails: the estimate's height diverges after a take-off during a fall's impact (see the doc)"]
+fn a_take_off_right_after_a_stop_stays_in_the_arena() {
+    let actions = [
+        Action::Setpoints {
+            kind: 1,
+            fx: 0.0,
+            fy: 0.0,
+            z: 0.3,
+            ms: 500,
+        },
+        Action::Setpoints {
+            kind: 0,
+            fx: 0.0,
+            fy: 0.0,
+            z: 0.3,
+            ms: 240,
+        },
+        Action::HlTakeoff {
+            height: 0.3,
+            duration: 1.0,
+        },
+    ];
+    fly(0, &actions).unwrap_or_else(|e| panic!("{e}"));
+}

@@ -396,7 +396,8 @@ impl Stabilizer {
                 self.commander_time = None;
                 self.high_level.disable();
                 // The drone stands at `start_m`: a mission's take-off point (where its estimate already was,
-                // `mission::start`) or the home pad (`kalman.resetEstimation`).
+                // or the home pad for a round trip: `mission::start`) or the home pad
+                // (`kalman.resetEstimation`).
                 let yaw = self.estimator.state().attitude_rad[2];
                 self.estimator.reset([start_m.0, start_m.1, 0.0], yaw);
             }
@@ -543,8 +544,8 @@ impl<const CELLS: usize, const QUEUE: usize> Navigator<CELLS, QUEUE> {
     /// ([`start::take_off_point`]: a round trip only from the home pad). Refused while flying (per
     /// `status`) or while a mission runs, without both decks, with parameters that make no sense, or from a
     /// position the mode cannot start from; nothing changes then. On success the returned
-    /// [`MissionCommand::Started`] (the take-off point: the estimate's own position) must reach the
-    /// stabilizer before the next mission tick.
+    /// [`MissionCommand::Started`] (the take-off point: the estimate's own position, or for a round trip
+    /// the home pad's) must reach the stabilizer before the next mission tick.
     pub fn start(&mut self, params: MissionParams, status: &FastStatus) -> Result<MissionCommand, StartError> {
         if status.supervisor.flying || self.mission.is_running() {
             return Err(StartError::Flying);

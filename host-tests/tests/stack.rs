@@ -66,21 +66,23 @@ fn a_start_refused_for_flying_or_missing_decks_changes_nothing() {
 }
 
 #[test]
-fn a_start_keeps_the_estimate_and_forgets_the_commander() {
+fn a_round_trip_start_puts_the_estimate_on_the_home_pad_and_forgets_the_commander() {
     let (mut stab, mut nav) = parts();
     stab.commander_setpoint(Setpoint::Stop, 1_000);
     assert_eq!(stab.status().commander_time, Some(1_000));
-    // The home pad 0.1 m from where the estimate stands: within the tolerance, the round trip starts there.
+    // The home pad 0.1 m from where the estimate stands: within the tolerance, the round trip starts on it.
     let home = MissionParams {
         start_m: (0.6, 0.5),
         ..params()
     };
     let command = nav.start(home, &stab.status()).unwrap();
-    assert_eq!(command, MissionCommand::Started { start_m: (0.5, 0.5) });
+    assert_eq!(command, MissionCommand::Started { start_m: (0.6, 0.5) });
     assert!(nav.is_running());
+    // Until the stabilizer gets the message, nothing changed on its side.
+    assert_eq!(stab.estimate().position_m[0], 0.5);
     stab.apply(command);
     let p = stab.estimate().position_m;
-    assert_eq!((p[0], p[1], p[2]), (0.5, 0.5, 0.0));
+    assert_eq!((p[0], p[1], p[2]), (0.6, 0.5, 0.0));
     assert_eq!(stab.status().commander_time, None);
     // A second start while running is refused.
     assert_eq!(nav.start(home, &stab.status()), Err(StartError::Flying));

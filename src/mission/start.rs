@@ -3,14 +3,15 @@
 //! Job: decide, at `mission.start`, the take-off point of the mission, or refuse the start. The position
 //! estimate is continuous from power-on (anchored at `mission.startX/Y`) through whatever the user flew
 //! before (commander setpoints, the high-level commander); only `kalman.resetEstimation` re-anchors it at
-//! `mission.startX/Y` (the drone stands on the home pad, as stock re-anchors at its initial position). A
-//! start never moves the estimate:
-//! - the hover test and the exploration take off from the estimate, wherever in the arena it is (the
-//!   exploration still flies home to the home pad at `mission.startX/Y` at the end);
-//! - the round trip starts from the home pad: a start whose estimate lies farther than
-//!   [`HOME_TOLERANCE_M`] from `mission.startX/Y` is refused, and the refusal says where the drone is
-//!   ([`PositionRefusal`]'s `Display` is the console line). Taking the current estimate as home instead
-//!   would send the drone home to a spot with no pad under it, to search for 85 s and end "pad not found".
+//! `mission.startX/Y` (the drone stands on the home pad, as stock re-anchors at its initial position).
+//! - The hover test and the exploration take off from the estimate, wherever in the arena it is, and the
+//!   start leaves it there (the exploration still flies home to the home pad at `mission.startX/Y`).
+//! - The round trip starts from the home pad: an estimate within [`HOME_TOLERANCE_M`] of
+//!   `mission.startX/Y` says the drone stands on it, and the start puts the estimate on `mission.startX/Y`
+//!   (what `kalman.resetEstimation` does: the flights before left it a few centimetres off); farther, the
+//!   start is refused, and the refusal says where the drone is ([`PositionRefusal`]'s `Display` is the
+//!   console line). Taking the current estimate as home instead would send the drone home to a spot with
+//!   no pad under it, to search for 85 s and end "pad not found".
 //!
 //! Every mode refuses a start whose estimate is not finite or lies outside the arena (0.1 m from its
 //! walls, the rule `mission.startX/Y` itself follows).
@@ -67,7 +68,8 @@ impl core::fmt::Display for PositionRefusal {
 }
 
 /// The take-off point of a mission `params` asks for, with the drone's estimate at `estimate_xy` (arena
-/// frame, m), or why the start is refused (module docs).
+/// frame, m): the estimate itself, or for a round trip `mission.startX/Y`; or why the start is refused
+/// (module docs).
 pub fn take_off_point(params: &MissionParams, estimate_xy: (f32, f32)) -> Result<(f32, f32), PositionRefusal> {
     let (x, y) = estimate_xy;
     if !(x.is_finite() && y.is_finite()) {
@@ -84,5 +86,9 @@ pub fn take_off_point(params: &MissionParams, estimate_xy: (f32, f32)) -> Result
     if params.mode == MissionMode::RoundTrip && !on_pad {
         return Err(PositionRefusal::OffHomePad { at: estimate_xy, home });
     }
-    Ok(estimate_xy)
+    Ok(if params.mode == MissionMode::RoundTrip {
+        home
+    } else {
+        estimate_xy
+    })
 }

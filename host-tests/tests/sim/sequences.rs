@@ -11,7 +11,8 @@
 //! - every request that has a reply gets it in the same uplink's downlink;
 //! - a refused parameter write changes nothing (echo = the value in effect, the store unchanged, no
 //!   mission started, the estimate not moved), and `mission.start` is refused exactly when the rules of
-//!   docs/mission-start.md say (flying, running, a round trip off the home pad);
+//!   docs/mission-start.md say (flying, running, a round trip off the home pad), and an accepted one
+//!   leaves the estimate where that page says (a round trip's on the home pad, the others' unchanged);
 //! - a hover test that completes truly lands within 10 cm of where it truly took off.
 //!
 //! The client is a truthful user: manual targets lie in the free part of the arena around the home pad
@@ -465,12 +466,18 @@ impl Bench {
         if started {
             TALLY.started[usize::from(mode.code())].fetch_add(1, Ordering::Relaxed);
             self.mission = Some((mode, [truth[0], truth[1]]));
-            let moved = {
-                let a = self.estimate_xy();
-                (a[0] - e[0]).hypot(a[1] - e[1])
+            // A round trip starts on the home pad's point; the other modes where the estimate was.
+            let expected = if mode == MissionMode::RoundTrip {
+                [HOME.0, HOME.1]
+            } else {
+                e
             };
+            let a = self.estimate_xy();
+            let moved = (a[0] - expected[0]).hypot(a[1] - expected[1]);
             if moved > 0.01 {
-                return fail(format!("mission.start moved the estimate {moved:.3} m"));
+                return fail(format!(
+                    "mission.start put the estimate at {a:?}, {moved:.3} m from {expected:?}"
+                ));
             }
         }
         Ok(())

@@ -87,6 +87,23 @@ def hl_flight(link, to, relative, name):
     return e
 
 
+def write_start(link):
+    """Writes mission.start = 1; while the supervisor still counts the last landing as flying (its verdict
+    trails the touchdown) the drone refuses with "start while flying": wait and write again, as a user
+    would. Returns the console text the last write produced."""
+    for _ in range(10):
+        before = len(link.console_text())
+        link.set_param("mission.start", 1, settle_s=0.0)
+        link.wait(lambda: link.last()[1].get("mission.state", 0) != 0
+                  or "refused" in link.console_text()[before:], 3.0)
+        time.sleep(0.3)
+        text = link.console_text()[before:]
+        if "start while flying" not in text:
+            return text
+        sim_sleep(1.0)
+    return text
+
+
 def on_pad(truth, pad, tol_z=0.03):
     cx, cy, hx, hy, top = pad
     return abs(truth[0] - cx) <= hx and abs(truth[1] - cy) <= hy and abs(truth[2] - top) <= tol_z
@@ -104,7 +121,7 @@ def case_hover_after_flights(uri, sim, pads, start):
         link.set_param("mission.mode", 1)
         link.set_param("mission.hoverTime", 2.0)
         t_start = link.last()[0] / 1000.0
-        link.set_param("mission.start", 1, settle_s=0.0)
+        write_start(link)
         final = link.wait_final(60.0 / SPEED + 20.0)
         states = set(link.states())
         want = 202 if WRONG else 100
@@ -136,11 +153,8 @@ def case_round_trip_off_pad(uri, sim, pads, start):
         away = hl_flight(link, (1.0, 0.0), True, "HighLevelCommander")
         t_refused = link.last()[0] / 1000.0
         link.set_param("mission.mode", 0)
-        before = len(link.console_text())
-        link.set_param("mission.start", 1, settle_s=0.0)
-        link.wait(lambda: "mission.start refused" in link.console_text()[before:], 3.0)
-        time.sleep(0.5)
-        lines = [ln for ln in link.console_text()[before:].splitlines() if "mission.start refused" in ln]
+        text = write_start(link)
+        lines = [ln for ln in text.splitlines() if "mission.start refused" in ln]
         want = "home pad" if not WRONG else "started"
         check("round-trip-off-pad: refusal console line", bool(lines) and want in lines[0],
               f"{lines[:1]!r}")
@@ -153,7 +167,7 @@ def case_round_trip_off_pad(uri, sim, pads, start):
         print(f"     refused {math.dist(away[:2], start):.2f} m from the home pad; flying back", flush=True)
         hl_flight(link, start, False, "HighLevelCommander back home")
         t_start = link.last()[0] / 1000.0
-        link.set_param("mission.start", 1, settle_s=0.0)
+        write_start(link)
         final = link.wait_final(200.0 / SPEED + 30.0)
         want = 202 if WRONG else 100
         check("round-trip-off-pad: final state after flying home", final == want, f"final {final}, expected {want}")

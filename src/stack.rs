@@ -48,7 +48,8 @@ use crate::flight::supervisor::{
 use crate::mission::link_loss::{LinkLossConfig, LinkWatch};
 use crate::mission::ranger_watch::RangerWatch;
 use crate::mission::{
-    Mission, MissionConfig, MissionInputs, MissionNote, MissionPadDetector, MissionParams, MissionState, StartRefusal,
+    Mission, MissionConfig, MissionInputs, MissionNote, MissionPadDetector, MissionParams, MissionState,
+    PositionRefusal, StartRefusal, start,
 };
 use crate::nav::avoidance::ReactiveAvoidance;
 use crate::nav::map::{CELL_SIZE_M, Cell};
@@ -106,7 +107,7 @@ pub enum HighLevelError {
 }
 
 /// Why a mission start was refused (on top of the mission's own parameter checks).
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[derive(Clone, Copy, Debug, PartialEq)]
 pub enum StartError {
     /// A parameter makes no sense (see [`StartRefusal`]).
     Params(StartRefusal),
@@ -114,6 +115,20 @@ pub enum StartError {
     Flying,
     /// The Flow deck or the Multi-ranger deck is missing or failed.
     DeckMissing,
+    /// Where the drone stands does not allow this mode's start ([`crate::mission::start`]).
+    Position(PositionRefusal),
+}
+
+impl core::fmt::Display for StartError {
+    /// The console line's reason (after `mission.start refused: `).
+    fn fmt(&self, f: &mut core::fmt::Formatter<'_>) -> core::fmt::Result {
+        match self {
+            Self::Params(e) => write!(f, "{e:?}"),
+            Self::Flying => f.write_str("the drone is flying"),
+            Self::DeckMissing => f.write_str("a deck is missing"),
+            Self::Position(e) => write!(f, "{e}"),
+        }
+    }
 }
 
 /// All the tuning of the flight stack.
@@ -155,8 +170,9 @@ pub enum MissionCommand {
         /// When the mission issued it, µs.
         time: Micros,
     },
-    /// A mission started with the drone standing at `start_m` (arena frame, m): anchor the estimator there
-    /// (keeping its heading) and forget the commander.
+    /// A mission started with the drone standing at `start_m` (arena frame, m), or `kalman.resetEstimation`
+    /// put it there: anchor the estimator there (a fresh filter on the ground, heading kept) and forget the
+    /// commander.
     Started {
         /// The take-off point, arena frame, m.
         start_m: (f32, f32),
@@ -379,7 +395,9 @@ impl Stabilizer {
             MissionCommand::Started { start_m } => {
                 self.commander_time = None;
                 self.high_level.disable();
-                // The drone stands where the parameters say: that is the arena frame's anchor for the flight.
+                // The drone stands at `start_m`: a mission's take-off point (where its estimate already was,
+                // or the home pad for a round trip: `mission::start`) or the home pad
+                // (`kalman.resetEstimation`).
                 let yaw = self.estimator.state().attitude_rad[2];
                 self.estimator.reset([start_m.0, start_m.1, 0.0], yaw);
             }
@@ -522,9 +540,12 @@ impl<const CELLS: usize, const QUEUE: usize> Navigator<CELLS, QUEUE> {
         self.decks_ok
     }
 
-    /// Starts the round-trip mission. Refused while flying (per `status`) or while a mission runs, without
-    /// both decks, or with parameters that make no sense; nothing changes then. On success the returned
-    /// [`MissionCommand::Started`] must reach the stabilizer before the next mission tick.
+    /// Starts the mission `params.mode` names, from where the estimate in `status` says the drone stands
+    /// ([`start::take_off_point`]: a round trip only from the home pad). Refused while flying (per
+    /// `status`) or while a mission runs, without both decks, with parameters that make no sense, or from a
+    /// position the mode cannot start from; nothing changes then. On success the returned
+    /// [`MissionCommand::Started`] (the take-off point: the estimate's own position, or for a round trip
+    /// the home pad's) must reach the stabilizer before the next mission tick.
     pub fn start(&mut self, params: MissionParams, status: &FastStatus) -> Result<MissionCommand, StartError> {
         if status.supervisor.flying || self.mission.is_running() {
             return Err(StartError::Flying);
@@ -532,15 +553,16 @@ impl<const CELLS: usize, const QUEUE: usize> Navigator<CELLS, QUEUE> {
         if !self.decks_ok {
             return Err(StartError::DeckMissing);
         }
+        params.validate(CELLS).map_err(StartError::Params)?;
+        let p = status.estimate.position_m;
+        let take_off = start::take_off_point(&params, (p[0], p[1])).map_err(StartError::Position)?;
         if let Some(config) = self.next_config.take() {
             // Validated by the parameter store; an invalid one keeps the configuration in force.
             let _ = self.mission.set_config(config);
         }
         self.mission.start(params).map_err(StartError::Params)?;
         self.landmarks.clear();
-        Ok(MissionCommand::Started {
-            start_m: params.start_m,
-        })
+        Ok(MissionCommand::Started { start_m: take_off })
     }
 
     /// Abort (`mission.start = 0` during a mission): land where the estimate says the drone is.
@@ -699,8 +721,9 @@ impl<const CELLS: usize, const QUEUE: usize> FlightCore<CELLS, QUEUE> {
         self.navigator.set_decks_ok(ok);
     }
 
-    /// Start the round-trip mission (`mission.start = 1`). Refused while flying, without both decks, or
-    /// with parameters that make no sense; nothing changes then.
+    /// Start the mission (`mission.start = 1`) from where the drone stands ([`Navigator::start`]). Refused
+    /// while flying, without both decks, with parameters that make no sense, or (a round trip) off the home
+    /// pad; nothing changes then.
     pub fn start_mission(&mut self, params: MissionParams) -> Result<(), StartError> {
         let command = self.navigator.start(params, &self.stabilizer.status())?;
         self.stabilizer.apply(command);

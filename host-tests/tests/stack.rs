@@ -4,7 +4,7 @@
 //! overwrite a fresh commander setpoint (2 s hold, `crazyflie-hardware.md` §10.1), the commander gating, and
 //! that [`FlightCore`] behaves exactly like the two parts wired by hand with messages delivered at once.
 
-use cfnav::mission::{MissionParams, MissionState};
+use cfnav::mission::{HOME_TOLERANCE_M, MissionMode, MissionParams, MissionState, PositionRefusal};
 use cfnav::nav::dstar::ARENA_QUEUE;
 use cfnav::nav::map::ARENA_CELLS;
 use cfnav::stack::{
@@ -24,6 +24,14 @@ fn params() -> MissionParams {
     MissionParams {
         start_m: (1.0, 1.5),
         ..MissionParams::SEED
+    }
+}
+
+/// The parameters with the home pad where [`parts`] and the cores below stand at power-on.
+fn on_pad() -> MissionParams {
+    MissionParams {
+        start_m: (0.5, 0.5),
+        ..params()
     }
 }
 
@@ -58,21 +66,73 @@ fn a_start_refused_for_flying_or_missing_decks_changes_nothing() {
 }
 
 #[test]
-fn a_start_anchors_the_estimate_and_forgets_the_commander() {
+fn a_round_trip_start_puts_the_estimate_on_the_home_pad_and_forgets_the_commander() {
     let (mut stab, mut nav) = parts();
     stab.commander_setpoint(Setpoint::Stop, 1_000);
     assert_eq!(stab.status().commander_time, Some(1_000));
-    let command = nav.start(params(), &stab.status()).unwrap();
-    assert_eq!(command, MissionCommand::Started { start_m: (1.0, 1.5) });
+    // The home pad 0.1 m from where the estimate stands: within the tolerance, the round trip starts on it.
+    let home = MissionParams {
+        start_m: (0.6, 0.5),
+        ..params()
+    };
+    let command = nav.start(home, &stab.status()).unwrap();
+    assert_eq!(command, MissionCommand::Started { start_m: (0.6, 0.5) });
     assert!(nav.is_running());
     // Until the stabilizer gets the message, nothing changed on its side.
     assert_eq!(stab.estimate().position_m[0], 0.5);
     stab.apply(command);
     let p = stab.estimate().position_m;
-    assert_eq!((p[0], p[1], p[2]), (1.0, 1.5, 0.0));
+    assert_eq!((p[0], p[1], p[2]), (0.6, 0.5, 0.0));
     assert_eq!(stab.status().commander_time, None);
     // A second start while running is refused.
-    assert_eq!(nav.start(params(), &stab.status()), Err(StartError::Flying));
+    assert_eq!(nav.start(home, &stab.status()), Err(StartError::Flying));
+}
+
+#[test]
+fn a_round_trip_off_the_home_pad_is_refused_and_the_other_modes_start_where_the_drone_stands() {
+    let (stab, mut nav) = parts();
+    // The estimate at (0.5, 0.5), the home pad at (1.0, 1.5): 1.12 m away.
+    let refused = nav.start(params(), &stab.status());
+    assert_eq!(
+        refused,
+        Err(StartError::Position(PositionRefusal::OffHomePad {
+            at: (0.5, 0.5),
+            home: (1.0, 1.5)
+        }))
+    );
+    let line = refused.unwrap_err().to_string();
+    assert!(
+        line.contains("(0.50, 0.50), 1.12 m from the home pad (1.00, 1.50)"),
+        "{line}"
+    );
+    assert!(!nav.is_running());
+    assert_eq!(nav.state(), MissionState::Idle);
+    // Just inside and just outside the tolerance.
+    let at = |dx: f32| MissionParams {
+        start_m: (0.5 + dx, 0.5),
+        ..params()
+    };
+    assert!(nav.start(at(HOME_TOLERANCE_M + 0.01), &stab.status()).is_err());
+    assert!(!nav.is_running());
+    for mode in [MissionMode::HoverTest, MissionMode::Explore] {
+        let (stab, mut nav) = parts();
+        let command = nav.start(MissionParams { mode, ..params() }, &stab.status()).unwrap();
+        assert_eq!(command, MissionCommand::Started { start_m: (0.5, 0.5) }, "{mode:?}");
+    }
+    let (stab, mut nav) = parts();
+    assert!(nav.start(at(HOME_TOLERANCE_M - 0.01), &stab.status()).is_ok());
+    // Outside the arena (or within 0.1 m of a wall) no mode starts.
+    let config = FlightConfig::default();
+    let stab = Stabilizer::new(&config, (0.05, 1.0), 0.0).unwrap();
+    let mut nav = Box::new(Nav::new(&config).unwrap());
+    let hover = MissionParams {
+        mode: MissionMode::HoverTest,
+        ..params()
+    };
+    assert_eq!(
+        nav.start(hover, &stab.status()),
+        Err(StartError::Position(PositionRefusal::OutsideArena { at: (0.05, 1.0) }))
+    );
 }
 
 #[test]
@@ -103,7 +163,7 @@ fn the_idle_mission_holds_off_while_the_commander_speaks() {
 #[test]
 fn the_core_refuses_commander_setpoints_during_a_mission() {
     let mut core = Box::new(Core::new(&FlightConfig::default(), (0.5, 0.5), 0.0).unwrap());
-    core.start_mission(params()).unwrap();
+    core.start_mission(on_pad()).unwrap();
     core.mission_tick(0);
     let before = core.setpoint();
     core.commander_setpoint(
@@ -124,8 +184,8 @@ fn the_core_is_the_two_parts_with_messages_delivered_at_once() {
     let config = FlightConfig::default();
     let mut core = Box::new(Core::new(&config, (0.5, 0.5), 0.0).unwrap());
     let (mut stab, mut nav) = parts();
-    core.start_mission(params()).unwrap();
-    let cmd = nav.start(params(), &stab.status()).unwrap();
+    core.start_mission(on_pad()).unwrap();
+    let cmd = nav.start(on_pad(), &stab.status()).unwrap();
     stab.apply(cmd);
     // Two seconds on the ground at 1 kHz with a 50 Hz mission tick and a few height readings.
     for tick in 0u64..2000 {

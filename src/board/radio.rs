@@ -361,8 +361,8 @@ impl Crtp {
             && self.start.on_outcome(outcome.is_ok())
             && let Err(e) = outcome
         {
-            let mut line: String<64> = String::new();
-            let _ = writeln!(line, "mission.start refused by the flight core: {e:?}");
+            let mut line: String<192> = String::new();
+            let _ = writeln!(line, "mission.start refused: {e}");
             self.revert_start(&line);
         }
         if self

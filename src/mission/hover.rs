@@ -1,5 +1,6 @@
-//! The hover test (`mission.mode = 1`): take off from the home pad to `mission.height`, hold position over
-//! the take-off point for `mission.hoverTime` s, land there and end with [`MissionState::Completed`]. While
+//! The hover test (`mission.mode = 1`): take off from where the drone stands (the home pad or anywhere in
+//! the arena, `super::start`) to `mission.height`, hold position over the take-off point for
+//! `mission.hoverTime` s, land there and end with [`MissionState::Completed`]. While
 //! holding, the worst horizontal distance of the estimate from the take-off point and the worst
 //! |estimated height − `mission.height`| are kept ([`super::MissionStats::hover_dev_xy_m`], `hover_dev_z_m`;
 //! logged as `mission.hoverDevXY`, `mission.hoverDevZ`).

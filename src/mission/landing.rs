@@ -336,7 +336,12 @@ impl<const CELLS: usize, const QUEUE: usize> Mission<CELLS, QUEUE> {
                     Setpoint::Stop
                 }
                 Leg::Hover => {
-                    self.phase = Phase::Ended(MissionState::Completed);
+                    let end = if self.link_lost_home {
+                        MissionState::LinkLostHome
+                    } else {
+                        MissionState::Completed
+                    };
+                    self.phase = Phase::Ended(end);
                     Setpoint::Stop
                 }
                 // The exploration always ends on the return leg; a landing in it is the home landing.
@@ -355,8 +360,11 @@ impl<const CELLS: usize, const QUEUE: usize> Mission<CELLS, QUEUE> {
         }
         // The floor under a pad landing while still above the pad's height: the drone is beside the pad
         // (drift during the descent, or a wrong lock); climb back and refine instead of touching its side.
+        // The hover test lands on its take-off point, whatever lies under it (it took off from the floor
+        // or from a pad): it has no pad to refine, and a search is not its mode's (`mode_states`).
         let above_floor = state.position_m[2];
-        if self.touchdown.target == Target::PadTop
+        if self.leg != Leg::Hover
+            && self.touchdown.target == Target::PadTop
             && self.touchdown.votes.floor_run() >= 2 * gate::DECIDING_READINGS
             && above_floor > self.pad_height() + 0.08
         {

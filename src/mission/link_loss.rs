@@ -10,7 +10,9 @@
 //!   [`super::MissionState::LinkLost`] (207).
 //! - [`LinkLossPolicy::ReturnHome`] (2): on the outbound leg, turn back at once and fly the return leg (plan,
 //!   search the home pad, land on it), ending with [`super::MissionState::LinkLostHome`] (208); on the
-//!   return leg, or paused on the goal pad, the mission is already going home and goes on as normal.
+//!   return leg, or paused on the goal pad, the mission is already going home and goes on as normal. The
+//!   hover test's home is its take-off point: it lands there (state 51) and ends with 208; the
+//!   exploration ends and flies home as when its coverage is reached.
 //!
 //! Decisions (README "Safety behaviour"):
 //! - The decision is latched for the mission: a link that comes back does not undo a landing or a return

@@ -97,16 +97,19 @@ mod explore;
 mod hover;
 mod landing;
 pub mod link_loss;
+pub mod mode_states;
 mod navigate;
 pub mod ranger_watch;
 pub mod reserve;
 mod search;
+pub mod start;
 
 pub use config::{
     COVERAGE_RANGE, HOVER_TIME_RANGE_S, MAX_HEIGHT_M, MAX_SPEED_M_S, MIN_HEIGHT_M, MissionConfig, MissionConfigError,
     MissionInputs, MissionMode, MissionParams, StartRefusal, write_mode_table,
 };
 pub use explore::{ExploreEnd, MissionNote};
+pub use start::{HOME_TOLERANCE_M, PositionRefusal};
 
 use crate::landing::pad::{EdgeKind, PadDetector};
 use crate::landing::sweep::LawnmowerSweep;
@@ -716,6 +719,14 @@ impl<const CELLS: usize, const QUEUE: usize> Mission<CELLS, QUEUE> {
             // On the goal pad, or on the way home already: the mission goes home anyway.
             (LinkLossPolicy::ReturnHome, Phase::OnPad { .. }) => {}
             (LinkLossPolicy::ReturnHome, _) if self.leg == Leg::Return => {}
+            // The hover test's home is its take-off point: land there (it never searches a pad).
+            (LinkLossPolicy::ReturnHome, _) if self.leg == Leg::Hover => {
+                self.link_lost_home = true;
+                match self.phase {
+                    Phase::TakeOff { x, y, .. } | Phase::HoverHold { x, y, .. } => self.phase = Phase::Land { x, y },
+                    _ => {}
+                }
+            }
             (LinkLossPolicy::ReturnHome, _) => {
                 // Turn back where it is: the return leg climbs to the cruise height if it was lower (over the
                 // goal pad), plans home on the map built so far, searches the home pad and lands on it.
@@ -912,8 +923,20 @@ impl<const CELLS: usize, const QUEUE: usize> Mission<CELLS, QUEUE> {
         }
     }
 
-    /// One mission step (20–50 Hz): returns the setpoint to fly.
+    /// One mission step (20–50 Hz): returns the setpoint to fly. In debug builds it checks that the state
+    /// reached is one of the mode's ([`mode_states`]).
     pub fn tick(&mut self, now: Micros, state: &StateEstimate, inputs: &MissionInputs) -> Setpoint {
+        let setpoint = self.step(now, state, inputs);
+        debug_assert!(
+            mode_states::may_reach(self.params.mode, self.state()),
+            "mode {:?} reached state {:?}",
+            self.params.mode,
+            self.state()
+        );
+        setpoint
+    }
+
+    fn step(&mut self, now: Micros, state: &StateEstimate, inputs: &MissionInputs) -> Setpoint {
         let dt_s = match self.last_tick {
             Some(t) if now > t => ((now - t) as f32 * 1e-6).min(0.2),
             _ => 0.02,

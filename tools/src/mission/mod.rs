@@ -58,6 +58,7 @@ const LOG_STATE: &str = "mission.state";
 const LOG_POSITION: [&str; 3] = ["stateEstimate.x", "stateEstimate.y", "stateEstimate.z"];
 const LOG_VBAT: &str = "pm.vbat";
 const PARAM_START: &str = "mission.start";
+const PARAM_RESET_ESTIMATION: &str = "kalman.resetEstimation";
 
 /// Arguments of `cfnav mission`.
 #[derive(Args, Debug)]
@@ -83,7 +84,8 @@ pub struct StartArgs {
     /// Nominal goal, arena frame, m (mission.goalX/goalY); without it the drone's value stays.
     #[arg(long, value_name = "X,Y", value_parser = parse_xy, allow_hyphen_values = true)]
     pub goal: Option<(f32, f32)>,
-    /// Where the drone stands, arena frame, m (mission.startX/startY).
+    /// Where the drone stands, arena frame, m (mission.startX/startY, then kalman.resetEstimation = 1: the
+    /// estimate is re-anchored there).
     #[arg(long, value_name = "X,Y", value_parser = parse_xy, allow_hyphen_values = true)]
     pub start: Option<(f32, f32)>,
     /// Cruise height, m (mission.height).
@@ -497,6 +499,21 @@ async fn connect_and_prepare(args: &StartArgs, printer: &Printer) -> Result<Sess
             Err(_) => {
                 return Err(Failure(format!(
                     "no echo for {name} = {value} within {} s",
+                    ECHO_TIMEOUT.as_secs()
+                )));
+            }
+        }
+    }
+
+    // `--start` says where the drone stands: re-anchor the estimate there (docs/mission-start.md), or a
+    // round trip is refused once the estimate is elsewhere.
+    if args.start.is_some() && params.iter().any(|p| p == PARAM_RESET_ESTIMATION) {
+        match tokio::time::timeout(ECHO_TIMEOUT, cf.param.set(PARAM_RESET_ESTIMATION, Value::U8(1))).await {
+            Ok(Ok(())) => printer.line("set kalman.resetEstimation = 1: the estimate re-anchored at the start"),
+            Ok(Err(e)) => return Err(Failure(format!("writing {PARAM_RESET_ESTIMATION} = 1: {e}"))),
+            Err(_) => {
+                return Err(Failure(format!(
+                    "no echo for {PARAM_RESET_ESTIMATION} = 1 within {} s",
                     ECHO_TIMEOUT.as_secs()
                 )));
             }

@@ -57,6 +57,7 @@ use std::net::{SocketAddr, UdpSocket};
 use std::path::{Path, PathBuf};
 use std::time::{Duration, Instant};
 
+use cfnav::mission::MissionState;
 use cfnav::radio::commander::{Command, SetpointFollower};
 use cfnav::radio::crtp::{CrtpPacket, NULL_HEADER, is_null_header};
 use cfnav::radio::endpoint::Endpoint;
@@ -171,9 +172,16 @@ fn estimate_and_truth(drone: &SimDrone) -> String {
     )
 }
 
+/// Where the radio's downlink datagrams go: the UDP socket, or a list the caller takes them from
+/// ([`InProcess`]).
+enum Downlink {
+    Udp(UdpSocket),
+    Memory(Vec<(SocketAddr, Vec<u8>)>),
+}
+
 /// The radio side: the CRTP services and the client's address.
 struct Radio {
-    socket: UdpSocket,
+    downlink: Downlink,
     client: Option<SocketAddr>,
     last_uplink: Instant,
     ep: Endpoint<MissionParamState, FlightLogState, CONSOLE_QUEUE, ROUTER_QUEUE>,
@@ -188,6 +196,26 @@ struct Radio {
     tuning_applied: u32,
     /// `--map-json`: where the simulator's own map is written.
     map_json: Option<PathBuf>,
+}
+
+/// What [`Radio::after_step`] compares with to print the truth lines of changes.
+struct Watch {
+    last_state: MissionState,
+    link_fired: Option<u64>,
+    last_flying: bool,
+}
+
+impl Watch {
+    /// The drone as it is now (prints its state line).
+    fn new(drone: &SimDrone) -> Self {
+        let last_state = drone.core.mission_state();
+        eprintln!("{:8.3} s  state {:3} {last_state:?}", seconds(drone), last_state.code());
+        Self {
+            last_state,
+            link_fired: None,
+            last_flying: drone.core.supervisor().flying,
+        }
+    }
 }
 
 /// Bytes of the Crazyflie's EEPROM (24AA64, `crazyflie-hardware.md` §1.5).
@@ -220,8 +248,8 @@ fn write_eeprom(path: &Path, bytes: &[u8]) -> std::io::Result<()> {
 }
 
 impl Radio {
-    /// The radio of a drone flying `world`, answering on `socket`.
-    fn new(socket: UdpSocket, world: &World, eeprom_file: Option<&Path>) -> Result<Self, String> {
+    /// The radio of a drone flying `world`, answering through `downlink`.
+    fn new(downlink: Downlink, world: &World, eeprom_file: Option<&Path>) -> Result<Self, String> {
         let eeprom = match eeprom_file {
             Some(path) => read_eeprom(path)?,
             None => vec![0xFF; EEPROM_LEN],
@@ -239,7 +267,7 @@ impl Radio {
         );
         ep.mem = MemService::with_map(SIM_CELLS);
         Ok(Self {
-            socket,
+            downlink,
             client: None,
             last_uplink: Instant::now(),
             ep,
@@ -331,7 +359,14 @@ impl Radio {
     }
 
     fn send_to(&mut self, bytes: &[u8], to: SocketAddr) {
-        if let Err(e) = self.socket.send_to(bytes, to) {
+        let socket = match &mut self.downlink {
+            Downlink::Udp(socket) => socket,
+            Downlink::Memory(out) => {
+                out.push((to, bytes.to_vec()));
+                return;
+            }
+        };
+        if let Err(e) = socket.send_to(bytes, to) {
             self.send_errors += 1;
             if self.send_errors.is_power_of_two() {
                 eprintln!(
@@ -488,6 +523,60 @@ impl Radio {
         self.flush_console();
     }
 
+    /// What the server does after every simulated millisecond: the mission's console notes, the
+    /// supervisor port's watchdog, due log packets, and the truth lines of state and flying changes (module
+    /// docs, Truth); a final state writes `mission.start` back to 0.
+    fn after_step(&mut self, drone: &mut SimDrone, watch: &mut Watch) {
+        // The mission's decisions the user should hear about (explore's battery reserve).
+        if let Some(note) = drone.core.take_mission_note() {
+            self.console(&format!("{note}\n"));
+        }
+        if self.ep.supervisor.poll(now_us(drone)) {
+            self.apply_supervisor(drone);
+        }
+        self.ep.supervisor.set_status(supervisor_status(drone));
+        let log_state = log_state(drone, self.ep.supervisor.bitfield());
+        let now_ms = drone.tick() as u32;
+        while let Some(p) = self.ep.log.tick(now_ms, &log_state) {
+            self.send(&p);
+        }
+        let fired = drone.core.navigator().link_watch().fired_at();
+        if fired != watch.link_fired && fired.is_some() {
+            let policy = drone.core.navigator().link_watch().config().policy;
+            eprintln!(
+                "{:8.3} s  link lost: no packet for mission.linkTimeout, policy {policy:?}  {}",
+                seconds(drone),
+                estimate_and_truth(drone)
+            );
+        }
+        watch.link_fired = fired;
+        let state = drone.core.mission_state();
+        let flying = drone.core.supervisor().flying;
+        if flying != watch.last_flying {
+            let what = if flying { "flying" } else { "landed" };
+            eprintln!("{:8.3} s  {what}  {}", seconds(drone), estimate_and_truth(drone));
+            watch.last_flying = flying;
+        }
+        if state != watch.last_state {
+            eprintln!(
+                "{:8.3} s  state {:3} {state:?}  {}",
+                seconds(drone),
+                state.code(),
+                estimate_and_truth(drone)
+            );
+            if state.is_final() {
+                let crc = MapView::of_mission(drone.core.mission()).crc32();
+                self.dump_map(drone, crc);
+            }
+            if state.is_final() && self.ep.param.store().start != 0 {
+                self.ep.param.store_mut().start = 0;
+                self.ep.param.notify(ID_START);
+                self.flush_param_events();
+            }
+            watch.last_state = state;
+        }
+    }
+
     /// One datagram from `from`.
     fn on_datagram(&mut self, bytes: &[u8], from: SocketAddr, drone: &mut SimDrone) {
         let Some(&header) = bytes.first() else {
@@ -566,7 +655,7 @@ impl Radio {
                         params.goal_m.1
                     ),
                     Err(e) => {
-                        let line = format!("mission.start refused by the flight core: {e:?}\n");
+                        let line = format!("mission.start refused: {e}\n");
                         eprintln!("{:8.3} s  {}", seconds(drone), line.trim_end());
                         self.ep.param.store_mut().start = 0;
                         self.ep.param.notify(ID_START);
@@ -602,27 +691,23 @@ pub fn serve(
         .set_nonblocking(true)
         .map_err(|e| format!("cannot make the UDP socket non-blocking: {e}"))?;
     let mut drone = SimDrone::new(world, world.sim.seed, &Faults::default())?;
-    let mut radio = Radio::new(socket, world, param_store)?;
+    let downlink = socket
+        .try_clone()
+        .map_err(|e| format!("cannot share the UDP socket: {e}"))?;
+    let mut radio = Radio::new(Downlink::Udp(downlink), world, param_store)?;
     radio.map_json = map_json.map(Path::to_path_buf);
     radio.load_persistent(&mut drone);
     eprintln!(
         "serving CRTP on udp://127.0.0.1:{port} ({} at {speed}× real time); write mission.start = 1 to fly",
         world.name
     );
-    let mut last_state = drone.core.mission_state();
-    eprintln!(
-        "{:8.3} s  state {:3} {last_state:?}",
-        seconds(&drone),
-        last_state.code()
-    );
+    let mut watch = Watch::new(&drone);
     let mut buf = [0u8; 64];
     let wall = Instant::now();
-    let mut link_fired = None;
-    let mut last_flying = drone.core.supervisor().flying;
     loop {
         // The network: every datagram waiting.
         loop {
-            match radio.socket.recv_from(&mut buf) {
+            match socket.recv_from(&mut buf) {
                 Ok((n, from)) => {
                     let n = n.min(buf.len());
                     radio.on_datagram(&buf[..n], from, &mut drone);
@@ -651,58 +736,77 @@ pub fn serve(
         let end = target.min(drone.tick() + CHUNK_TICKS);
         while drone.tick() < end {
             drone.step(world);
-            // The mission's decisions the user should hear about (explore's battery reserve).
-            if let Some(note) = drone.core.take_mission_note() {
-                radio.console(&format!("{note}\n"));
-            }
-            if radio.ep.supervisor.poll(now_us(&drone)) {
-                radio.apply_supervisor(&mut drone);
-            }
-            radio.ep.supervisor.set_status(supervisor_status(&drone));
-            let log_state = log_state(&drone, radio.ep.supervisor.bitfield());
-            let now_ms = drone.tick() as u32;
-            while let Some(p) = radio.ep.log.tick(now_ms, &log_state) {
-                radio.send(&p);
-            }
-            let fired = drone.core.navigator().link_watch().fired_at();
-            if fired != link_fired && fired.is_some() {
-                let policy = drone.core.navigator().link_watch().config().policy;
-                eprintln!(
-                    "{:8.3} s  link lost: no packet for mission.linkTimeout, policy {policy:?}  {}",
-                    seconds(&drone),
-                    estimate_and_truth(&drone)
-                );
-            }
-            link_fired = fired;
-            let state = drone.core.mission_state();
-            let flying = drone.core.supervisor().flying;
-            if flying != last_flying {
-                let what = if flying { "flying" } else { "landed" };
-                eprintln!("{:8.3} s  {what}  {}", seconds(&drone), estimate_and_truth(&drone));
-                last_flying = flying;
-            }
-            if state != last_state {
-                eprintln!(
-                    "{:8.3} s  state {:3} {state:?}  {}",
-                    seconds(&drone),
-                    state.code(),
-                    estimate_and_truth(&drone)
-                );
-                if state.is_final() {
-                    let crc = MapView::of_mission(drone.core.mission()).crc32();
-                    radio.dump_map(&drone, crc);
-                }
-                if state.is_final() && radio.ep.param.store().start != 0 {
-                    radio.ep.param.store_mut().start = 0;
-                    radio.ep.param.notify(ID_START);
-                    radio.flush_param_events();
-                }
-                last_state = state;
-            }
+            radio.after_step(&mut drone, &mut watch);
         }
         if drone.tick() >= target {
             std::thread::sleep(Duration::from_micros(500));
         }
+    }
+}
+
+/// `cfnav sim --serve` without its socket and clock: the same radio services and simulated drone, fed
+/// datagrams and stepped by the caller, the downlink kept for the caller to read (the radio-level tests
+/// fly client sequences through it). Not modelled: the wall-clock pacing and the client timeout that stops
+/// log blocks after [`CLIENT_TIMEOUT`] of wall time; the EEPROM lives in memory.
+pub struct InProcess {
+    world: World,
+    drone: SimDrone,
+    radio: Radio,
+    watch: Watch,
+}
+
+impl InProcess {
+    /// A drone at power-on in `world` with noise seed `seed`, the persistent records (none) applied.
+    pub fn new(world: &World, seed: u64) -> Result<Self, String> {
+        let mut drone = SimDrone::new(world, seed, &Faults::default())?;
+        let mut radio = Radio::new(Downlink::Memory(Vec::new()), world, None)?;
+        radio.load_persistent(&mut drone);
+        let watch = Watch::new(&drone);
+        Ok(Self {
+            world: world.clone(),
+            drone,
+            radio,
+            watch,
+        })
+    }
+
+    /// One datagram from `from`, handled as the server handles it (its replies go to the downlink).
+    pub fn datagram(&mut self, bytes: &[u8], from: SocketAddr) {
+        self.radio.on_datagram(bytes, from, &mut self.drone);
+    }
+
+    /// One simulated millisecond and what the server does after it.
+    pub fn step(&mut self) {
+        self.drone.step(&self.world);
+        self.radio.after_step(&mut self.drone, &mut self.watch);
+    }
+
+    /// Every datagram sent since the last call, with its destination, in order.
+    pub fn take_downlink(&mut self) -> Vec<(SocketAddr, Vec<u8>)> {
+        match &mut self.radio.downlink {
+            Downlink::Memory(out) => std::mem::take(out),
+            Downlink::Udp(_) => Vec::new(),
+        }
+    }
+
+    /// The simulated drone (flight core and body).
+    pub fn drone(&self) -> &SimDrone {
+        &self.drone
+    }
+
+    /// The world it flies in.
+    pub fn world(&self) -> &World {
+        &self.world
+    }
+
+    /// The parameters in effect.
+    pub fn params(&self) -> &MissionParamState {
+        self.radio.ep.param.store()
+    }
+
+    /// The client (the latest sender of a non-null datagram).
+    pub fn client(&self) -> Option<SocketAddr> {
+        self.radio.client
     }
 }
 
@@ -726,7 +830,7 @@ mod tests {
             let world = World::default_world();
             let drone = SimDrone::new(&world, 7, &Faults::default()).unwrap();
             let socket = UdpSocket::bind("127.0.0.1:0").unwrap();
-            let radio = Radio::new(socket, &world, None).unwrap();
+            let radio = Radio::new(Downlink::Udp(socket), &world, None).unwrap();
             let client = UdpSocket::bind("127.0.0.1:0").unwrap();
             client.set_read_timeout(Some(Duration::from_millis(200))).unwrap();
             let from = client.local_addr().unwrap();

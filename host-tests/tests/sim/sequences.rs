@@ -33,7 +33,7 @@ use cfnav::radio::registry::{
     MissionParamState, PARAM_TABLE, param_id,
 };
 use cfnav_tools::sim::serve::InProcess;
-use cfnav_tools::sim::world::{BODY_RADIUS_M, World};
+use cfnav_sim::world::{BODY_RADIUS_M, World};
 use proptest::prelude::*;
 use proptest::test_runner::{Config, RngAlgorithm, TestCaseError, TestRng, TestRunner};
 

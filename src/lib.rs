@@ -11,9 +11,10 @@
 #![warn(missing_docs)]
 
 // The folders follow the README's module table. Dependencies point one way: `nav`, `landing`, `flight` and
-// `drivers` need only `types` and `math` (the shared vectors, rotations and quaternions); `mission` composes
-// `nav` and `landing`; `stack` wires `flight` to `mission`; `radio` and `system` speak for all of them. Each
-// folder's `mod.rs` states its own rule.
+// `drivers` need only `types` and `math` (the shared vectors, rotations and quaternions), `crc` (the CRC-32
+// several formats share) nothing; `mission` composes `nav` and `landing`; `stack` wires `flight` to
+// `mission`; `radio` and `system` speak for all of them. Each folder's `mod.rs` states its own rule.
+pub mod crc;
 pub mod drivers;
 pub mod flight;
 pub mod landing;

@@ -56,8 +56,8 @@ mod fw {
     use static_cell::StaticCell;
 
     use crate::board::{
-        self, BOOTED, DECK_FLOW2, DECK_MULTIRANGER, DECKS_OK, IO_PRIORITY, control, leds, mission, motors, radio,
-        sensors, system,
+        self, BOOTED, DECK_FLOW2, DECK_MULTIRANGER, DECKS_OK, IO_PRIORITY, control, i2c_bus, leds, mission, motors,
+        radio, sensors, system,
     };
 
     bind_interrupts!(struct Irqs {
@@ -194,7 +194,7 @@ mod fw {
         let mut i2c_config = i2c::Config::default();
         i2c_config.frequency = Hertz(400_000);
         let deck_bus = I2c::new(p.I2C1, p.PB6, p.PB7, p.DMA1_CH6, p.DMA1_CH0, Irqs, i2c_config);
-        let mut deck_i2c = sensors::guard(deck_bus, sensors::I2cRecoveryPins::deck(), sensors::DECK_GUARD);
+        let mut deck_i2c = i2c_bus::guard(deck_bus, i2c_bus::I2cRecoveryPins::deck(), i2c_bus::DECK_GUARD);
         let settings = sensors::read_radio_settings(&mut deck_i2c).await;
         let stored_params = board::eeprom::read_persistent(&mut deck_i2c).await;
 
@@ -260,7 +260,7 @@ mod fw {
         // The IMU, at the stock start-up time after power-on.
         Timer::at(Instant::from_millis(SENSORS_STARTUP_MS)).await;
         let sensor_bus = I2c::new(p.I2C3, p.PA8, p.PC9, p.DMA1_CH4, p.DMA1_CH2, Irqs, i2c_config);
-        let sensor_i2c = sensors::guard(sensor_bus, sensors::I2cRecoveryPins::sensors(), sensors::IMU_GUARD);
+        let sensor_i2c = i2c_bus::guard(sensor_bus, i2c_bus::I2cRecoveryPins::sensors(), i2c_bus::IMU_GUARD);
         let mut imu = Bmi088::new(sensor_i2c);
         let imu_ok = match imu.init(&mut Delay).await {
             Ok(()) => true,

@@ -58,7 +58,7 @@ fn UART4() {
 }
 
 /// The IMU on the sensor bus.
-pub type Imu = Bmi088<super::sensors::GuardedBus>;
+pub type Imu = Bmi088<super::i2c_bus::GuardedBus>;
 
 /// The inputs whose estimator update is costly (flow ≈ 14 k, Multi-ranger with wall anchors ≈ 20 k
 /// instructions, a sweep's map fixes about as much; BENCHMARKS.md §6).

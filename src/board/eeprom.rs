@@ -25,7 +25,7 @@ use embassy_sync::signal::Signal;
 use embassy_time::{Duration, Timer, with_timeout};
 use embedded_hal_async::i2c::I2c as _;
 
-use super::sensors::DeckI2c;
+use super::i2c_bus::DeckI2c;
 
 /// A persistent store or clear for the deck task to write.
 pub static EEPROM_JOB: Signal<CriticalSectionRawMutex, PendingWrite> = Signal::new();

@@ -30,6 +30,7 @@
 
 pub mod control;
 pub mod eeprom;
+pub mod i2c_bus;
 pub mod leds;
 pub mod mission;
 pub mod motors;

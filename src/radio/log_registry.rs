@@ -45,8 +45,9 @@
 use crate::flight::control::ControlOutput;
 use crate::types::{Setpoint, StateEstimate};
 
-use super::registry::{Value, assert_toc_name, crc32_toc_entry, crc32_update, str_eq};
+use super::registry::{Value, assert_toc_name, crc32_toc_entry, str_eq};
 pub use super::wire_type::WireType;
+use crate::crc::crc32_update;
 
 /// Bytes before `group\0name\0` in a TOC item reply: command, id u16, type (§4.6).
 pub const TOC_ITEM_HEADER: usize = 4;

@@ -361,7 +361,7 @@ impl<'a, const CELLS: usize> MapView<'a, CELLS> {
 }
 
 /// CRC-32 (polynomial 0xEDB88320 reflected, initial and final XOR 0xFFFFFFFF) fed a byte at a time, over
-/// [`super::registry::crc32_update`]: no table, 4 bytes of state.
+/// [`crate::crc::crc32_update`]: no table, 4 bytes of state.
 #[derive(Clone, Copy, Debug)]
 pub struct Crc32(u32);
 
@@ -374,7 +374,7 @@ impl Crc32 {
     /// Folds one byte in.
     pub fn update(&mut self, byte: u8) {
         // The one CRC-32 register of the crate (the TOC and persistent-parameter CRCs use it too).
-        self.0 = super::registry::crc32_update(self.0, &[byte]);
+        self.0 = crate::crc::crc32_update(self.0, &[byte]);
     }
 
     /// The CRC of the bytes folded in.

@@ -45,6 +45,7 @@
 //! Memory: the table is `'static`; [`MissionParamState`] is about 2 KB (two [`Tuning`]s, the values in
 //! effect and the power-on defaults, and the stored records' 640-byte slot image).
 
+use crate::crc::crc32_update;
 use crate::flight::control::ControllerConfig;
 use crate::flight::estimator::EstimatorConfig;
 use crate::mission::link_loss::{LinkLossConfig, LinkLossPolicy, MAX_LINK_TIMEOUT_S, MIN_LINK_TIMEOUT_S};
@@ -358,31 +359,6 @@ impl ParamEntry {
         }
         Ok(())
     }
-}
-
-/// Feeds `bytes` into a running CRC-32 register (reflected poly 0xEDB88320). Start with `0xFFFF_FFFF` and
-/// XOR the result with `0xFFFF_FFFF` at the end (§4.5, check value of "123456789" is 0xCBF43926).
-pub const fn crc32_update(mut crc: u32, bytes: &[u8]) -> u32 {
-    let mut i = 0;
-    while i < bytes.len() {
-        crc ^= bytes[i] as u32;
-        let mut k = 0;
-        while k < 8 {
-            crc = if crc & 1 != 0 {
-                (crc >> 1) ^ 0xEDB8_8320
-            } else {
-                crc >> 1
-            };
-            k += 1;
-        }
-        i += 1;
-    }
-    crc
-}
-
-/// CRC-32 of `bytes` (init and xorout 0xFFFFFFFF).
-pub const fn crc32(bytes: &[u8]) -> u32 {
-    crc32_update(0xFFFF_FFFF, bytes) ^ 0xFFFF_FFFF
 }
 
 /// Feeds one TOC entry, `type, group, 0, name, 0`, into a running CRC-32 (the param and log TOC CRCs both

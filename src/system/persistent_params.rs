@@ -44,7 +44,7 @@
 //!
 //! Memory: [`PersistentParams`] is one slot image (640 bytes) and a few words; a [`PendingWrite`] another.
 
-use crate::radio::registry::crc32;
+use crate::crc::crc32;
 
 /// EEPROM offset of the first slot (stock's KVE partition start, 1024).
 pub const REGION_START: u16 = 0x0400;
@@ -76,7 +76,7 @@ const CRC_AT: usize = SLOT_LEN - 4;
 /// `prm/` prefix, hashed to fit a fixed record). Keys, not ids, so a stored value survives a firmware whose
 /// table has other ids; the host tests check that no two parameters share a key.
 pub const fn param_key(group: &str, name: &str) -> u32 {
-    use crate::radio::registry::crc32_update;
+    use crate::crc::crc32_update;
     let crc = crc32_update(0xFFFF_FFFF, group.as_bytes());
     let crc = crc32_update(crc, b".");
     crc32_update(crc, name.as_bytes()) ^ 0xFFFF_FFFF

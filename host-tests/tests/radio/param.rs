@@ -4,13 +4,13 @@
 //! CRC, and a seeded random-bytes loop.
 
 use super::{hex, send, wire};
+use cfnav::crc::{crc32, crc32_update};
 use cfnav::mission::MissionParams;
 use cfnav::radio::crtp::{CrtpPacket, PlatformService, Router, Service};
 use cfnav::radio::param::{EACCES, EINVAL, ENOENT, ParamService, RefusalNote};
 use cfnav::radio::registry::{
     FLAG_EXTENDED, FLAG_READ_ONLY, ID_GOAL_X, ID_GOAL_Y, ID_HEIGHT, ID_SPEED, ID_START, ID_START_X, ID_START_Y,
-    MissionParamState, PARAM_CRC_SEED, PARAM_TABLE, ParamEntry, ParamStore, ParamType, Refusal, Value, crc32,
-    crc32_update, toc_crc,
+    MissionParamState, PARAM_CRC_SEED, PARAM_TABLE, ParamEntry, ParamStore, ParamType, Refusal, Value, toc_crc,
 };
 use rand::rngs::SmallRng;
 use rand::{Rng, SeedableRng};

@@ -44,7 +44,7 @@ use cfnav::radio::endpoint::Endpoint;
 use cfnav::radio::log_registry::FirmwareLogState;
 use cfnav::radio::mem::MemService;
 use cfnav::radio::param::ParamService;
-use cfnav::radio::registry::{ID_RESET_ESTIMATION, ID_START, MissionParamState, Tuning};
+use cfnav::radio::param_table::{ID_RESET_ESTIMATION, ID_START, MissionParamState, Tuning};
 use cfnav::radio::supervisor_port::{SupervisorPortConfig, SupervisorStatus};
 use cfnav::radio::syslink::{BatteryState, DecodeError, SyslinkDecoder, SyslinkPacket, kind};
 use cfnav::radio::syslink_tx::{BootSettings, FlowTx, TxStep, nrf_version, nrf_version_request};

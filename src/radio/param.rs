@@ -50,7 +50,7 @@ use core::fmt::Write as _;
 use heapless::{Deque, String, Vec};
 
 use super::crtp::{CrtpPacket, MAX_DATA, Service};
-use super::registry::{FLAG_EXTENDED, ParamEntry, ParamStore, ParamType, Refusal, Value, toc_crc, toc_item};
+use super::param_table::{FLAG_EXTENDED, ParamEntry, ParamStore, ParamType, Refusal, Value, toc_crc, toc_item};
 use crate::system::persistent_params::{PendingWrite, PersistentParams};
 
 /// Parameter port (§4.2).
@@ -273,7 +273,7 @@ impl<S: ParamStore> ParamService<S> {
 
     /// The console line for a refusal: `param group.name refused: reason\n`; a value outside the declared
     /// range names the range, `param group.name refused: not in [0, 1]` (truncated to 64 bytes; every line
-    /// of [`super::registry::PARAM_TABLE`] fits).
+    /// of [`super::param_table::PARAM_TABLE`] fits).
     pub fn console_line(note: &RefusalNote) -> String<64> {
         let mut out = String::new();
         let _ = match (Self::entry(note.id), note.refusal) {

@@ -8,7 +8,7 @@ use cfnav::crc::{crc32, crc32_update};
 use cfnav::mission::MissionParams;
 use cfnav::radio::crtp::{CrtpPacket, PlatformService, Router, Service};
 use cfnav::radio::param::{EACCES, EINVAL, ENOENT, ParamService, RefusalNote};
-use cfnav::radio::registry::{
+use cfnav::radio::param_table::{
     FLAG_EXTENDED, FLAG_READ_ONLY, ID_GOAL_X, ID_GOAL_Y, ID_HEIGHT, ID_SPEED, ID_START, ID_START_X, ID_START_Y,
     MissionParamState, PARAM_CRC_SEED, PARAM_TABLE, ParamEntry, ParamStore, ParamType, Refusal, Value, toc_crc,
 };
@@ -406,7 +406,7 @@ fn height_below_0_2_and_negative_speed_are_refused() {
 #[test]
 fn link_loss_parameters_are_bounded() {
     use cfnav::mission::link_loss::LinkLossPolicy;
-    use cfnav::radio::registry::{ID_LINK_LOSS, ID_LINK_TIMEOUT};
+    use cfnav::radio::param_table::{ID_LINK_LOSS, ID_LINK_TIMEOUT};
     let mut m = service();
     assert_eq!(m.store().read(ID_LINK_LOSS), Some(Value::U8(0)), "default: go on");
     assert_eq!(m.store().read(ID_LINK_TIMEOUT), Some(Value::F32(2.0)), "default: 2 s");

@@ -8,7 +8,7 @@ use cfnav::flight::control::{Controller, ControllerConfig};
 use cfnav::mission::MissionParams;
 use cfnav::nav::avoidance::AvoidanceMethod;
 use cfnav::radio::param::{EBUSY, EIO, ENOENT, ENOSPC, ParamService};
-use cfnav::radio::registry::{
+use cfnav::radio::param_table::{
     ID_GOAL_X, MissionParamState, PARAM_TABLE, ParamStore, ParamType, Refusal, Tuning, Value, tune_field,
 };
 use cfnav::system::persistent_params::{MAX_RECORDS, PersistentParams, SLOT_LEN, param_key};

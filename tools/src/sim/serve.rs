@@ -64,7 +64,7 @@ use cfnav::radio::log_registry::FlightLogState;
 use cfnav::radio::map_mem::{CRC_OFFSET, MapView};
 use cfnav::radio::mem::MemService;
 use cfnav::radio::param::ParamService;
-use cfnav::radio::registry::{ID_RESET_ESTIMATION, ID_START, MissionParamState, Tuning};
+use cfnav::radio::param_table::{ID_RESET_ESTIMATION, ID_START, MissionParamState, Tuning};
 use cfnav::radio::supervisor_port::{SupervisorPortConfig, SupervisorStatus};
 use cfnav::stack::FlightConfig;
 use cfnav::stack::HighLevelError;
@@ -847,7 +847,7 @@ mod tests {
             data.extend_from_slice(value);
             b.uplink(2, 2, &data);
         };
-        use cfnav::radio::registry::{ID_START_X, ID_START_Y};
+        use cfnav::radio::param_table::{ID_START_X, ID_START_Y};
         write(&mut b, ID_START_X, &1.5f32.to_le_bytes());
         write(&mut b, ID_START_Y, &2.0f32.to_le_bytes());
         let before = b.drone.core.estimate().position_m;
@@ -880,7 +880,7 @@ mod tests {
     #[test]
     fn a_silent_client_triggers_the_link_loss_policy_and_keep_alives_count() {
         use cfnav::mission::MissionState;
-        use cfnav::radio::registry::ID_LINK_LOSS;
+        use cfnav::radio::param_table::ID_LINK_LOSS;
         let mut b = Bench::new();
         b.step_ms(1500);
         let write_u8 = |b: &mut Bench, id: u16, v: u8| {

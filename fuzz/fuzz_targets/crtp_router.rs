@@ -13,7 +13,7 @@ use cfnav::radio::crtp::{CrtpPacket, MAX_DATA};
 use cfnav::radio::endpoint::Endpoint;
 use cfnav::radio::log_registry::FlightLogState;
 use cfnav::radio::param::ParamService;
-use cfnav::radio::param_table::MissionParamState;
+use cfnav::radio::param_state::MissionParamState;
 use cfnav::radio::supervisor_port::SupervisorPortConfig;
 use cfnav::types::StateEstimate;
 use libfuzzer_sys::fuzz_target;

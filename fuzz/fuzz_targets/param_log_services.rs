@@ -11,7 +11,7 @@ use cfnav::radio::crtp::{CrtpPacket, MAX_DATA, Service};
 use cfnav::radio::log::LogService;
 use cfnav::radio::log_registry::FlightLogState;
 use cfnav::radio::param::ParamService;
-use cfnav::radio::param_table::MissionParamState;
+use cfnav::radio::param_state::MissionParamState;
 use libfuzzer_sys::fuzz_target;
 
 fn valid(p: &CrtpPacket) {

@@ -49,7 +49,7 @@ use cfnav::mission::{MissionNote, MissionParams};
 use cfnav::radio::crtp::CrtpPacket;
 use cfnav::radio::log_registry::FirmwareLogState;
 use cfnav::radio::mem::MapRead;
-use cfnav::radio::param_table::Tuning;
+use cfnav::radio::tuning::Tuning;
 use cfnav::stack::{FastStatus, MissionCommand, StartError};
 use cfnav::system::cpu_load::LoadMeter;
 use cfnav::system::status_led::{BoardStatus, StatusInputs};

@@ -18,7 +18,7 @@ use super::log::LogService;
 use super::log_registry::LogSource;
 use super::mem::MemService;
 use super::param::ParamService;
-use super::param_table::ParamStore;
+use super::param_decl::ParamStore;
 use super::supervisor_port::{SupervisorPortConfig, SupervisorPortService};
 use crate::types::Micros;
 

@@ -38,7 +38,7 @@ use heapless::Vec;
 
 use super::crtp::{CrtpPacket, MAX_DATA, Service};
 use super::log_registry::{LogEntry, LogSource, LogType, log_toc_crc};
-use super::param_table::toc_item;
+use super::toc::toc_item;
 
 /// Log port (§4.2).
 pub const PORT_LOG: u8 = 5;

@@ -45,7 +45,7 @@
 use crate::flight::control::ControlOutput;
 use crate::types::{Setpoint, StateEstimate};
 
-use super::param_table::{Value, assert_toc_name, crc32_toc_entry, str_eq};
+use super::toc::{Value, assert_toc_name, crc32_toc_entry, str_eq};
 pub use super::wire_type::WireType;
 use crate::crc::crc32_update;
 

@@ -5,7 +5,7 @@
 //!
 //! Non-goals: no UART, DMA, flow-control pin or UDP socket (the caller moves bytes), no clock (the caller
 //! passes `now_ms`). Services plug into [`crtp::Router`] through [`crtp::Service`]: the parameter protocol is
-//! [`param::ParamService`] (port 2) over a [`param_table::ParamStore`], the log protocol [`log::LogService`]
+//! [`param::ParamService`] (port 2) over a [`param_decl::ParamStore`], the log protocol [`log::LogService`]
 //! (port 5) over a [`log_registry::LogSource`], the memory service [`mem::MemService`] (port 4: the count, and the map of [`map_mem`] where the owner serves it), the commander
 //! ports 3 and 7 through [`commander::CommanderService::ports`] (decoded setpoint commands with the RPYT
 //! thrust lock; [`commander::SetpointFollower`] maps them to [`crate::types::Setpoint`]), the high-level
@@ -33,8 +33,12 @@ pub mod log_registry;
 pub mod map_mem;
 pub mod mem;
 pub mod param;
+pub mod param_decl;
+pub mod param_state;
 pub mod param_table;
 pub mod supervisor_port;
 pub mod syslink;
 pub mod syslink_tx;
+pub mod toc;
+pub mod tuning;
 pub mod wire_type;

@@ -50,7 +50,8 @@ use core::fmt::Write as _;
 use heapless::{Deque, String, Vec};
 
 use super::crtp::{CrtpPacket, MAX_DATA, Service};
-use super::param_table::{FLAG_EXTENDED, ParamEntry, ParamStore, ParamType, Refusal, Value, toc_crc, toc_item};
+use super::param_decl::{FLAG_EXTENDED, ParamEntry, ParamStore, ParamType, Refusal, toc_crc};
+use super::toc::{Value, toc_item};
 use crate::system::persistent_params::{PendingWrite, PersistentParams};
 
 /// Parameter port (§4.2).

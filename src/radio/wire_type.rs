@@ -2,8 +2,8 @@
 //! name and its two wire codes (the parameter type byte's low nibble and the log type code).
 //!
 //! Job: say once what a `uint16` or a `float` is on the wire, for both TOCs. The parameter registry
-//! ([`super::param_table::ParamType`]) and the log registry ([`super::log_registry::LogType`]) are this type under
-//! their protocol's name; the values themselves are [`super::param_table::Value`] (encode `to_le`, decode
+//! ([`super::param_decl::ParamType`]) and the log registry ([`super::log_registry::LogType`]) are this type under
+//! their protocol's name; the values themselves are [`super::toc::Value`] (encode `to_le`, decode
 //! `from_le`, log conversion `convert`).
 //!
 //! Non-goals: no 64-bit types, no FP16 parameters (FP16 is a log *fetch* type only: no value is stored as

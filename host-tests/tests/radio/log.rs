@@ -14,7 +14,10 @@ use cfnav::radio::log_registry::{
     LOG_TABLE, LogEntry, LogSource, LogType, LogValue, log_toc_crc, single_to_half,
 };
 use cfnav::radio::param::ParamService;
-use cfnav::radio::param_table::{MissionParamState, PARAM_CRC_SEED, PARAM_TABLE, ParamType, Value, toc_crc};
+use cfnav::radio::param_decl::{PARAM_CRC_SEED, ParamType, toc_crc};
+use cfnav::radio::param_state::MissionParamState;
+use cfnav::radio::param_table::PARAM_TABLE;
+use cfnav::radio::toc::Value;
 use rand::rngs::SmallRng;
 use rand::{Rng, SeedableRng};
 

@@ -6,7 +6,9 @@
 use super::param::{assert_refused, service, write_f32};
 use super::send;
 use cfnav::mission::{MissionMode, MissionParams};
-use cfnav::radio::param_table::{ID_COVERAGE, ID_HOVER_TIME, ID_MODE, ID_START, ParamStore, Refusal, Value};
+use cfnav::radio::param_decl::{ParamStore, Refusal};
+use cfnav::radio::param_table::{ID_COVERAGE, ID_HOVER_TIME, ID_MODE, ID_START};
+use cfnav::radio::toc::Value;
 
 fn write_u8(id: u16, v: u8) -> Vec<u8> {
     let mut out = vec![0x2E];

@@ -8,10 +8,14 @@ use cfnav::crc::{crc32, crc32_update};
 use cfnav::mission::MissionParams;
 use cfnav::radio::crtp::{CrtpPacket, PlatformService, Router, Service};
 use cfnav::radio::param::{EACCES, EINVAL, ENOENT, ParamService, RefusalNote};
-use cfnav::radio::param_table::{
-    FLAG_EXTENDED, FLAG_READ_ONLY, ID_GOAL_X, ID_GOAL_Y, ID_HEIGHT, ID_SPEED, ID_START, ID_START_X, ID_START_Y,
-    MissionParamState, PARAM_CRC_SEED, PARAM_TABLE, ParamEntry, ParamStore, ParamType, Refusal, Value, toc_crc,
+use cfnav::radio::param_decl::{
+    FLAG_EXTENDED, FLAG_READ_ONLY, PARAM_CRC_SEED, ParamEntry, ParamStore, ParamType, Refusal, toc_crc,
 };
+use cfnav::radio::param_state::MissionParamState;
+use cfnav::radio::param_table::{
+    ID_GOAL_X, ID_GOAL_Y, ID_HEIGHT, ID_SPEED, ID_START, ID_START_X, ID_START_Y, PARAM_TABLE,
+};
+use cfnav::radio::toc::Value;
 use rand::rngs::SmallRng;
 use rand::{Rng, SeedableRng};
 

@@ -4,7 +4,7 @@
 //!
 //! Script: once the image has sent RADIO_READY and [`SCRIPT_DELAY_NS`] more have passed (the boot's last
 //! tasks settle), one CRTP param write (port 2, channel 2: `[id u16 LE, value]`, the ids are the firmware's
-//! own `cfnav::radio::param_table` constants) per [`SCRIPT_GAP_NS`]: `mission.mode` = 1 (hover test),
+//! own `cfnav::radio::registry` constants) per [`SCRIPT_GAP_NS`]: `mission.mode` = 1 (hover test),
 //! `mission.hoverTime`, `mission.height`, then `mission.start` = 1. The nRF keeps polling (null packets,
 //! as cflib's radio driver does when idle) so the image's answers leave it.
 //!
@@ -20,9 +20,7 @@ use cfnav::radio::crtp::CrtpPacket;
 use cfnav::radio::log::{CH_DATA, CH_SETTINGS, CMD_CREATE_BLOCK_V2, CMD_START_BLOCK_V2, PORT_LOG};
 use cfnav::radio::log_registry::{ID_MISSION_STATE, ID_RANGE_ZRANGE, ID_X, ID_Y, ID_Z, LOG_TABLE, log_id};
 use cfnav::radio::param::{CH_WRITE, PORT_PARAM};
-use cfnav::radio::param_table::{
-    ID_GOAL_X, ID_GOAL_Y, ID_HEIGHT, ID_HOVER_TIME, ID_MODE, ID_SPEED, ID_START, ID_START_X, ID_START_Y,
-};
+use cfnav::radio::param_table::{ID_GOAL_X, ID_GOAL_Y, ID_HEIGHT, ID_HOVER_TIME, ID_MODE, ID_SPEED, ID_START, ID_START_X, ID_START_Y};
 use cfnav::types::MotorDuty;
 use serde::Serialize;
 

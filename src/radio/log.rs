@@ -37,8 +37,8 @@ use core::marker::PhantomData;
 use heapless::Vec;
 
 use super::crtp::{CrtpPacket, MAX_DATA, Service};
-use super::log_registry::{LogEntry, LogSource, LogType, log_toc_crc};
 use super::toc::toc_item;
+use crate::radio::log_decl::{LogEntry, LogSource, LogType, log_toc_crc};
 
 /// Log port (§4.2).
 pub const PORT_LOG: u8 = 5;

@@ -274,7 +274,7 @@ impl<S: ParamStore> ParamService<S> {
 
     /// The console line for a refusal: `param group.name refused: reason\n`; a value outside the declared
     /// range names the range, `param group.name refused: not in [0, 1]` (truncated to 64 bytes; every line
-    /// of [`super::param_table::PARAM_TABLE`] fits).
+    /// of [`crate::radio_binding::param_table::PARAM_TABLE`] fits).
     pub fn console_line(note: &RefusalNote) -> String<64> {
         let mut out = String::new();
         let _ = match (Self::entry(note.id), note.refusal) {

@@ -4,7 +4,7 @@
 //! ([`write_param_table`]) and the [`ParamStore`] trait the parameter service ([`super::param`]) reads and
 //! writes through.
 //!
-//! Non-goals: which parameters cfnav has (see `crate::radio::param_table`), the wire protocol (see
+//! Non-goals: which parameters cfnav has (see `crate::radio_binding::param_table`), the wire protocol (see
 //! [`super::param`]), the EEPROM layout (see [`crate::system::persistent_params`]), 64-bit or FP16 types.
 //!
 //! Sources: `docs/hardware.md` §4 (type byte: bits 1..0 size, bit 2 float, bit 3 unsigned, 0x10 EXTENDED,

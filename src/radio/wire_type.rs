@@ -2,7 +2,7 @@
 //! name and its two wire codes (the parameter type byte's low nibble and the log type code).
 //!
 //! Job: say once what a `uint16` or a `float` is on the wire, for both TOCs. The parameter registry
-//! ([`super::param_decl::ParamType`]) and the log registry ([`super::log_registry::LogType`]) are this type under
+//! ([`super::param_decl::ParamType`]) and the log registry ([`crate::radio::log_decl::LogType`]) are this type under
 //! their protocol's name; the values themselves are [`super::toc::Value`] (encode `to_le`, decode
 //! `from_le`, log conversion `convert`).
 //!

@@ -5,12 +5,13 @@
 
 use cfnav::mission::MissionParams;
 use cfnav::radio::crtp::{CrtpPacket, Service};
-use cfnav::radio::log_registry::{LOG_TABLE, write_log_table};
+use cfnav::radio::log_decl::write_log_table;
 use cfnav::radio::param::ParamService;
 use cfnav::radio::param_decl::{FLAG_READ_ONLY, ParamStore, ParamType, Refusal, write_param_table};
-use cfnav::radio::param_state::MissionParamState;
-use cfnav::radio::param_table::{ID_RESET_ESTIMATION, PARAM_TABLE};
 use cfnav::radio::toc::Value;
+use cfnav::radio_binding::log_table::LOG_TABLE;
+use cfnav::radio_binding::param_state::MissionParamState;
+use cfnav::radio_binding::param_table::{ID_RESET_ESTIMATION, PARAM_TABLE};
 
 type Params = ParamService<MissionParamState>;
 

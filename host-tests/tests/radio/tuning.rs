@@ -9,10 +9,10 @@ use cfnav::mission::MissionParams;
 use cfnav::nav::avoidance::AvoidanceMethod;
 use cfnav::radio::param::{EBUSY, EIO, ENOENT, ENOSPC, ParamService};
 use cfnav::radio::param_decl::{ParamStore, ParamType, Refusal};
-use cfnav::radio::param_state::MissionParamState;
-use cfnav::radio::param_table::{ID_GOAL_X, PARAM_TABLE};
 use cfnav::radio::toc::Value;
-use cfnav::radio::tuning::{Tuning, tune_field};
+use cfnav::radio_binding::param_state::MissionParamState;
+use cfnav::radio_binding::param_table::{ID_GOAL_X, PARAM_TABLE};
+use cfnav::radio_binding::tuning::{Tuning, tune_field};
 use cfnav::system::persistent_params::{MAX_RECORDS, PersistentParams, SLOT_LEN, param_key};
 
 type Svc = ParamService<MissionParamState>;

@@ -1,4 +1,4 @@
-//! Decoding the map memory (layout version 1, `cfnav::radio::map_mem`, `docs/map-memory.md`) into a
+//! Decoding the map memory (layout version 1, `cfnav::radio_binding::map_mem`, `docs/map-memory.md`) into a
 //! [`MapSnapshot`], and the simulator's own map in the same JSON form, for comparison cell for cell.
 //!
 //! The decoder reads the documented offsets itself (it does not call the firmware's serialiser), so a

@@ -6,7 +6,7 @@
 //! the whole tuning against itself ([`Tuning::consistent`]: the controller's validation, the avoidance's,
 //! narrow inflation ≤ inflation, low landing speed ≤ high). `posCtlPid.x*`/`y*` and `velCtlPid.vx*`/`vy*`
 //! name one horizontal gain each (cfnav's loops are symmetric): [`field_addr`] finds the field two names
-//! share, for [`super::param_decl::ParamStore::aliases`].
+//! share, for [`crate::radio::param_decl::ParamStore::aliases`].
 //!
 //! Non-goals: the parameter store (see [`super::param_state`]), the configurations' own validation (see
 //! [`crate::flight::control`] and [`crate::nav::avoidance`]).
@@ -17,9 +17,8 @@ use crate::flight::control::ControllerConfig;
 use crate::flight::estimator::EstimatorConfig;
 use crate::mission::MissionConfig;
 use crate::nav::avoidance::{AvoidanceMethod, SpeedClamp};
-
-use super::param_decl::{ParamEntry, Refusal};
-use super::toc::Value;
+use crate::radio::param_decl::{ParamEntry, Refusal};
+use crate::radio::toc::Value;
 
 /// The tuning parameters' values: the parts of the flight configuration users tune without reflashing
 /// (issue 13 part 4). The endpoint hands them to the flight stack (`FlightCore::set_tuning`) whenever

@@ -11,7 +11,7 @@
 //! `mission.startX/startY` (refused while flying), and the endpoint writes it back to 0 when done, as stock
 //! clears it.
 //!
-//! Non-goals: no wire protocol (that is [`super::param`]), no EEPROM layout (that is
+//! Non-goals: no wire protocol (that is [`crate::radio::param`]), no EEPROM layout (that is
 //! [`crate::system::persistent_params`]; the store only keeps the records and prepares writes).
 //!
 //! Memory: [`MissionParamState`] is about 2 KB (two [`super::tuning::Tuning`]s, the values in effect and
@@ -19,16 +19,16 @@
 
 use crate::mission::link_loss::{LinkLossConfig, LinkLossPolicy};
 use crate::mission::{MissionMode, MissionParams, StartRefusal};
+use crate::radio::param_decl::{ParamEntry, ParamStore, Refusal};
+use crate::radio::toc::Value;
 use crate::system::persistent_params::{PendingWrite, PersistentParams, param_key};
 use crate::system::version;
 
-use super::param_decl::{ParamEntry, ParamStore, Refusal};
 use super::param_table::{
     ID_CONTROLLER, ID_COVERAGE, ID_DECK_FLOW2, ID_DECK_MULTIRANGER, ID_EN_HIGH_LEVEL, ID_FW_MODIFIED, ID_FW_REVISION0,
     ID_FW_REVISION1, ID_GOAL_X, ID_GOAL_Y, ID_HEIGHT, ID_HOVER_TIME, ID_LINK_LOSS, ID_LINK_TIMEOUT, ID_MODE,
     ID_RESET_ESTIMATION, ID_SPEED, ID_START, ID_START_X, ID_START_Y, PARAM_TABLE,
 };
-use super::toc::Value;
 use super::tuning::{Tuning, field_addr, tune_read, tune_write};
 
 /// The parameters' values in effect plus what validation needs.

@@ -7,7 +7,7 @@
 //! what a declaration cannot say. Ids are the table's indices, and the `ID_*` constants are looked up in the
 //! table at compile time ([`param_id`]), so they cannot drift from it.
 //!
-//! Non-goals: the declaration type and its checks (see [`super::param_decl`]), the values in effect (see
+//! Non-goals: the declaration type and its checks (see [`crate::radio::param_decl`]), the values in effect (see
 //! [`super::param_state`]).
 //!
 //! Sources: `docs/radio.md` (the `mission.*` parameters and the refusal rule). Stock names, types and
@@ -29,8 +29,7 @@
 
 use crate::mission::link_loss::{MAX_LINK_TIMEOUT_S, MIN_LINK_TIMEOUT_S};
 use crate::mission::{COVERAGE_RANGE, HOVER_TIME_RANGE_S, MAX_HEIGHT_M, MAX_SPEED_M_S, MIN_HEIGHT_M};
-
-use super::param_decl::{FLAG_READ_ONLY, ParamEntry, ParamType, Range, Refusal, param_id};
+use crate::radio::param_decl::{FLAG_READ_ONLY, ParamEntry, ParamType, Range, Refusal, param_id};
 
 /// Read-only flag, shortened for the declarations below.
 const RO: u8 = FLAG_READ_ONLY;

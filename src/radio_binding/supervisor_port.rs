@@ -54,8 +54,8 @@
 //!
 //! Memory: 56 bytes (measured on the 64-bit host).
 
-use super::crtp::{CrtpPacket, Service};
 use crate::flight::supervisor::{Reason, SupervisorFlags, SupervisorOutput, SupervisorState};
+use crate::radio::crtp::{CrtpPacket, Service};
 use crate::types::Micros;
 
 /// Supervisor port (§4.2).

@@ -78,8 +78,8 @@ mod fw {
         EXTI15_10 => exti::InterruptHandler<interrupt::typelevel::EXTI15_10>;
     });
 
-    /// HSE 8 MHz (crazyflie-hardware.md §2) → PLL: /4 = 2 MHz VCO input, ×168 = 336 MHz VCO, /2 = 168 MHz SYSCLK,
-    /// /7 = 48 MHz PLL-Q. AHB /1 = 168 MHz, APB1 /4 = 42 MHz, APB2 /2 = 84 MHz (toolchain.md §3.4).
+    /// HSE 8 MHz (`docs/hardware.md` §1) → PLL: /4 = 2 MHz VCO input, ×168 = 336 MHz VCO, /2 = 168 MHz SYSCLK,
+    /// /7 = 48 MHz PLL-Q. AHB /1 = 168 MHz, APB1 /4 = 42 MHz, APB2 /2 = 84 MHz (`docs/hardware.md` §1).
     fn clock_config() -> embassy_stm32::Config {
         use embassy_stm32::rcc::{
             AHBPrescaler, APBPrescaler, Hse, HseMode, Pll, PllMul, PllPDiv, PllPreDiv, PllQDiv, PllSource, Sysclk,
@@ -176,7 +176,7 @@ mod fw {
         let wdg = IndependentWatchdog::new(p.IWDG, system::WATCHDOG_TIMEOUT_US);
 
         // The navigator first, while the stack is shallow (today the compiler builds it in place in CCM; the
-        // largest stack frame of the image is 13 KB, see BENCHMARKS.md §6).
+        // largest stack frame of the image is 13 KB, see BENCHMARKS.md).
         let config = FlightConfig::default();
         let Some(navigator) = mission::take_navigator(&config) else {
             board::fault("navigator: invalid configuration");

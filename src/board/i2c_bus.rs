@@ -39,7 +39,7 @@ pub struct I2cRecoveryPins {
 }
 
 impl I2cRecoveryPins {
-    /// Deck bus I2C1: SCL PB6, SDA PB7 (`crazyflie-hardware.md` §5).
+    /// Deck bus I2C1: SCL PB6, SDA PB7 (`docs/hardware.md` §2).
     pub fn deck() -> Self {
         Self::new(pac::I2C1, (pac::GPIOB, 6), (pac::GPIOB, 7), "I2C1 (deck)")
     }

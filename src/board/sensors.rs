@@ -2,7 +2,7 @@
 //! flight stack.
 //!
 //! * Flow deck v2: PMW3901 on SPI1 (SCK PA5, MISO PA6, MOSI PA7; mode 0, ~1.3 MHz as stock) with its chip
-//!   select on deck IO3 = PB4 (`crazyflie-hardware.md` §5.4), read at 100 Hz → [`FastInput::Flow`]. Its
+//!   select on deck IO3 = PB4 (`docs/hardware.md` §2), read at 100 Hz → [`FastInput::Flow`]. Its
 //!   VL53L1x height ranger (deck I2C1, moved to 0x6A) → [`FastInput::ZRange`] at 40 Hz.
 //! * Multi-ranger: PCA95x4 expander at 0x20 on I2C1 and five VL53L1x (0x6B..0x6F) →
 //!   [`super::NavInput::MultiRanger`] at 10 Hz, with the latest estimate, and [`FastInput::MultiRanger`]
@@ -241,7 +241,7 @@ pub const BEAM_PERIOD_MS: u32 = RangingConfig::MULTI_RANGER.inter_measurement_ms
 /// The deck bus: the height ranger (40 Hz) → control task, the Multi-ranger's sweeps (10 Hz) → control
 /// and mission tasks; both into the log variables. Never waits on a sensor: `cfnav`'s [`DeckReader`]
 /// polls each sensor's data-ready only from shortly before its next reading is due and reads it at once,
-/// so the beams' drifting clocks cannot starve the height reading (issue 12 item 5); the task sleeps until
+/// so the beams' drifting clocks cannot starve the height reading; the task sleeps until
 /// the next sensor is due.
 #[embassy_executor::task]
 pub async fn deck_task(mut i2c: DeckI2c, rangers: DeckRangers) {

@@ -33,12 +33,12 @@ use crate::crc::crc32_update;
 use super::toc::{Value, assert_toc_name, crc32_toc_entry, str_eq};
 pub use super::wire_type::WireType;
 
-/// Bytes before `group\0name\0` in a TOC item reply: command, id u16, type (§4.6).
+/// Bytes before `group\0name\0` in a TOC item reply: command, id u16, type.
 pub const TOC_ITEM_HEADER: usize = 4;
 /// Bytes the log CRC starts with, so that it differs from the param TOC CRC.
 pub const LOG_CRC_SEED: &[u8] = b"cfnav/log-toc/v1";
 
-/// A log type: the shared [`WireType`] (log code [`WireType::log_code`], §4.6), the storage type of a
+/// A log type: the shared [`WireType`] (log code [`WireType::log_code`]), the storage type of a
 /// variable or the fetch type of a block op.
 pub type LogType = WireType;
 

@@ -18,13 +18,13 @@
 //! (`get_mems(type)` finds it, `mem.read` reads it); crazyflie-lib 0.8.2 lists it as `MemoryType::UNKNOWN` and
 //! reads it through `RawMemory`.
 //!
-//! Sources also: `crazyflie-hardware.md` §4.7, `crtp-over-udp.md` §2 step 6.
+//! Sources also: `docs/hardware.md` §4, `docs/radio.md` (the memory count cflib asks for while connecting).
 //!
 //! Memory: a flag and the held read (8 bytes).
 
 use super::crtp::{CrtpPacket, Service};
 
-/// Memory port (§4.2).
+/// Memory port.
 pub const PORT_MEM: u8 = 4;
 /// Info channel.
 pub const CH_INFO: u8 = 0;

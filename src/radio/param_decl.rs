@@ -23,16 +23,16 @@ use crate::system::persistent_params::{PendingWrite, PersistentParams};
 use super::toc::{Value, assert_toc_name, crc32_toc_entry, str_eq};
 pub use super::wire_type::WireType;
 
-/// Type byte flag: the entry has an extended type (cflib then asks misc command 7), §4.5.
+/// Type byte flag: the entry has an extended type (cflib then asks misc command 7), `docs/hardware.md` §4.
 pub const FLAG_EXTENDED: u8 = 0x10;
-/// Type byte flag: read-only, §4.5.
+/// Type byte flag: read-only, `docs/hardware.md` §4.
 pub const FLAG_READ_ONLY: u8 = 0x40;
-/// Bytes before `group\0name\0` in a TOC item reply: command, id u16, type (§4.5).
+/// Bytes before `group\0name\0` in a TOC item reply: command, id u16, type.
 pub const TOC_ITEM_HEADER: usize = 4;
 /// Bytes the parameter CRC starts with, so that it differs from a log TOC CRC over the same entries.
 pub const PARAM_CRC_SEED: &[u8] = b"cfnav/param-toc/v1";
 
-/// A parameter's value type: the shared [`WireType`] (param code [`WireType::param_code`], §4.5); never
+/// A parameter's value type: the shared [`WireType`] (param code [`WireType::param_code`]); never
 /// [`WireType::Fp16`] ([`ParamEntry::new`] refuses it).
 pub type ParamType = WireType;
 

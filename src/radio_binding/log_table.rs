@@ -201,7 +201,7 @@ pub const LOG_TABLE: &[LogEntry] = &[
     ),
     LogEntry::declare("posCtl", "targetY", F, "m", "position target y"),
     LogEntry::declare("posCtl", "targetZ", F, "m", "position target z"),
-    // Mission modes (issue 13 part 3)
+    // Mission modes
     LogEntry::declare(
         "mission",
         "hoverDevXY",
@@ -311,7 +311,7 @@ fn deg(rad: f32) -> f32 {
 /// What the firmware or the simulator publishes for logging; fill it every control cycle (or at the log rate).
 #[derive(Debug, Clone, Copy, PartialEq, Default)]
 pub struct FlightLogState {
-    /// `mission.state` (interfaces.md §5 codes).
+    /// `mission.state` (codes in `docs/radio.md`).
     pub mission_state: u8,
     /// `stateEstimate.x/.y/.z`, arena frame, m.
     pub position_m: [f32; 3],

@@ -37,7 +37,7 @@ const RO: u8 = FLAG_READ_ONLY;
 const SWITCH: Range = Range::Closed(0.0, 1.0);
 
 /// Every parameter cfnav serves, in id order: one declaration each (see the module docs). The `mission.*`
-/// ids 0–6 are interfaces.md §5's.
+/// ids 0–6 are those `docs/radio.md` lists.
 pub const PARAM_TABLE: &[ParamEntry] = &[
     ParamEntry::declare(
         "mission",
@@ -232,7 +232,7 @@ pub const PARAM_TABLE: &[ParamEntry] = &[
         "",
         "stock's high-level-commander switch, kept for clients that write it",
     ),
-    // Mission modes (issue 13 part 3)
+    // Mission modes
     ParamEntry::declare(
         "mission",
         "mode",
@@ -260,7 +260,7 @@ pub const PARAM_TABLE: &[ParamEntry] = &[
         "",
         "explore: fly home once this fraction of the arena's cells is known; refused while a mission runs",
     ),
-    // Tuning parameters (issue 13 part 4): stock names and types where stock has the parameter
+    // Tuning parameters: stock names and types where stock has the parameter
     // (`attitude_pid_controller.c`, `position_controller_pid.c`, `flowdeck_v1v2.c`), cfnav's own groups
     // `avoid`, `plan` and `mission` otherwise. Each is persistent and maps to one field of [`Tuning`]
     // ([`tune_field`]). Bounds are sanity limits (no negative gain, no NaN), not a stability guarantee.
@@ -324,7 +324,7 @@ pub const PARAM_TABLE: &[ParamEntry] = &[
     ParamEntry::declare("mission", "padPause", ParamType::F32, 0, Range::Closed(0.0, 30.0), "s", "pause on the goal pad, motors off").persistent(),
     ParamEntry::declare("mission", "sweepSpacing", ParamType::F32, 0, Range::Closed(0.05, 0.5), "m", "spacing of the pad search's sweep lines").persistent(),
     ParamEntry::declare("mission", "batReserve", ParamType::F32, 0, Range::Closed(1.0, 5.0), "", "explore turns home once the battery, at the discharge rate measured in flight, no longer lasts this many times the flight home (planned path at cruise speed + 15 s for the pad search and landing)").persistent(),
-    // Link loss (issue 13 part 5)
+    // Link loss
     ParamEntry::declare(
         "mission",
         "linkLoss",

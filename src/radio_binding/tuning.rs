@@ -20,8 +20,8 @@ use crate::nav::avoidance::{AvoidanceMethod, SpeedClamp};
 use crate::radio::param_decl::{ParamEntry, Refusal};
 use crate::radio::toc::Value;
 
-/// The tuning parameters' values: the parts of the flight configuration users tune without reflashing
-/// (issue 13 part 4). The endpoint hands them to the flight stack (`FlightCore::set_tuning`) whenever
+/// The tuning parameters' values: the parts of the flight configuration users tune without reflashing.
+/// The endpoint hands them to the flight stack (`FlightCore::set_tuning`) whenever
 /// [`MissionParamState::tuning_generation`] changes: controller gains and the flow std from the next step
 /// (in flight too, as stock), the mission's tuning from the next mission start.
 #[derive(Clone, Copy, Debug, PartialEq)]

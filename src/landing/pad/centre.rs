@@ -7,8 +7,8 @@ use super::{Crossing, PadDetector, PadEstimate};
 
 /// A half crossing whose entry lies within this of a pad side parallel to its travel (by the fit of the
 /// others) is set aside, m: about the downward ranger's footprint over the pad's top (7.5° half-angle at
-/// 0.4 m, 5 cm) less the position noise between the crossings. Measured: world 163 000 537 entered 1 cm
-/// beyond such a side on a line 17° off the axis and put the centre 15 cm off along the travel.
+/// 0.4 m, 5 cm) less the position noise between the crossings: an entry 1 cm beyond such a side, on a line
+/// 17° off the axis, would otherwise put the centre 15 cm off along the travel.
 const HALF_CROSSING_SIDE_MARGIN_M: f32 = 0.04;
 /// ... when the full crossings' directions weigh at least this much across the half crossing's travel
 /// (about one crossing along it): otherwise nothing says where the sides are.

@@ -53,7 +53,7 @@ fn main() {
     fs::copy("memory.x", out.join("memory.x")).expect("memory.x is next to build.rs");
     println!("cargo:rustc-link-search={}", out.display());
     // Without --nmagic rust-lld emits a LOAD segment holding the ELF headers at 0x08000000, inside the
-    // bootloader's sector, because FLASH starts at 0x08004000 (see shared/reference/toolchain.md).
+    // bootloader's sector, because FLASH starts at 0x08004000 (see `docs/hardware.md` §1).
     println!("cargo:rustc-link-arg-bins=--nmagic");
     println!("cargo:rustc-link-arg-bins=-Tlink.x");
     println!("cargo:rustc-link-arg-bins=-Tdefmt.x");

@@ -11,9 +11,12 @@
 #![warn(missing_docs)]
 
 // The folders follow the README's module table. Dependencies point one way: `nav`, `landing`, `flight` and
-// `drivers` need only `types` and `math` (the shared vectors, rotations and quaternions); `mission` composes
-// `nav` and `landing`; `stack` wires `flight` to `mission`; `radio` and `system` speak for all of them. Each
-// folder's `mod.rs` states its own rule.
+// `drivers` need only `types` and `math` (the shared vectors, rotations and quaternions), `crc` (the CRC-32
+// several formats share) nothing; `mission` composes `nav` and `landing`; `stack` wires `flight` to
+// `mission`; `radio` (the protocol layer) needs none of `mission`, `flight` or `nav`, and `radio_binding` binds
+// their parameters, logs, map and commands to it; `system` serves all of them. Each folder's `mod.rs` states
+// its own rule.
+pub mod crc;
 pub mod drivers;
 pub mod flight;
 pub mod landing;
@@ -21,6 +24,7 @@ pub mod math;
 pub mod mission;
 pub mod nav;
 pub mod radio;
+pub mod radio_binding;
 pub mod stack;
 pub mod system;
 pub mod types;

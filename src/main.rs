@@ -56,8 +56,8 @@ mod fw {
     use static_cell::StaticCell;
 
     use crate::board::{
-        self, BOOTED, DECK_FLOW2, DECK_MULTIRANGER, DECKS_OK, IO_PRIORITY, control, leds, mission, motors, radio,
-        sensors, system,
+        self, BOOTED, DECK_FLOW2, DECK_MULTIRANGER, DECKS_OK, IO_PRIORITY, control, i2c_bus, leds, mission, motors,
+        radio, sensors, system,
     };
 
     bind_interrupts!(struct Irqs {
@@ -78,8 +78,8 @@ mod fw {
         EXTI15_10 => exti::InterruptHandler<interrupt::typelevel::EXTI15_10>;
     });
 
-    /// HSE 8 MHz (crazyflie-hardware.md §2) → PLL: /4 = 2 MHz VCO input, ×168 = 336 MHz VCO, /2 = 168 MHz SYSCLK,
-    /// /7 = 48 MHz PLL-Q. AHB /1 = 168 MHz, APB1 /4 = 42 MHz, APB2 /2 = 84 MHz (toolchain.md §3.4).
+    /// HSE 8 MHz (`docs/hardware.md` §1) → PLL: /4 = 2 MHz VCO input, ×168 = 336 MHz VCO, /2 = 168 MHz SYSCLK,
+    /// /7 = 48 MHz PLL-Q. AHB /1 = 168 MHz, APB1 /4 = 42 MHz, APB2 /2 = 84 MHz (`docs/hardware.md` §1).
     fn clock_config() -> embassy_stm32::Config {
         use embassy_stm32::rcc::{
             AHBPrescaler, APBPrescaler, Hse, HseMode, Pll, PllMul, PllPDiv, PllPreDiv, PllQDiv, PllSource, Sysclk,
@@ -176,7 +176,7 @@ mod fw {
         let wdg = IndependentWatchdog::new(p.IWDG, system::WATCHDOG_TIMEOUT_US);
 
         // The navigator first, while the stack is shallow (today the compiler builds it in place in CCM; the
-        // largest stack frame of the image is 13 KB, see BENCHMARKS.md §6).
+        // largest stack frame of the image is 13 KB, see BENCHMARKS.md).
         let config = FlightConfig::default();
         let Some(navigator) = mission::take_navigator(&config) else {
             board::fault("navigator: invalid configuration");
@@ -194,7 +194,7 @@ mod fw {
         let mut i2c_config = i2c::Config::default();
         i2c_config.frequency = Hertz(400_000);
         let deck_bus = I2c::new(p.I2C1, p.PB6, p.PB7, p.DMA1_CH6, p.DMA1_CH0, Irqs, i2c_config);
-        let mut deck_i2c = sensors::guard(deck_bus, sensors::I2cRecoveryPins::deck(), sensors::DECK_GUARD);
+        let mut deck_i2c = i2c_bus::guard(deck_bus, i2c_bus::I2cRecoveryPins::deck(), i2c_bus::DECK_GUARD);
         let settings = sensors::read_radio_settings(&mut deck_i2c).await;
         let stored_params = board::eeprom::read_persistent(&mut deck_i2c).await;
 
@@ -260,7 +260,7 @@ mod fw {
         // The IMU, at the stock start-up time after power-on.
         Timer::at(Instant::from_millis(SENSORS_STARTUP_MS)).await;
         let sensor_bus = I2c::new(p.I2C3, p.PA8, p.PC9, p.DMA1_CH4, p.DMA1_CH2, Irqs, i2c_config);
-        let sensor_i2c = sensors::guard(sensor_bus, sensors::I2cRecoveryPins::sensors(), sensors::IMU_GUARD);
+        let sensor_i2c = i2c_bus::guard(sensor_bus, i2c_bus::I2cRecoveryPins::sensors(), i2c_bus::IMU_GUARD);
         let mut imu = Bmi088::new(sensor_i2c);
         let imu_ok = match imu.init(&mut Delay).await {
             Ok(()) => true,

@@ -62,7 +62,7 @@ use crate::types::{
 const HOLD_MAX_CLIMB_M_S: f32 = 0.15;
 
 /// How long commander setpoints keep the idle mission from writing its own (the supervisor's 2 s shutdown
-/// timeout, `crazyflie-hardware.md` §10.1), µs.
+/// timeout, stock `commander.h` `COMMANDER_WDT_TIMEOUT_SHUTDOWN`), µs.
 pub const COMMANDER_HOLD_US: Micros = 2_000_000;
 
 /// How long after the last good IMU sample [`Stabilizer::on_imu_missed`] keeps the motors level before
@@ -342,7 +342,7 @@ impl Stabilizer {
     /// in flight, not climbing or descending) the estimator ties the position to the walls the beams saw
     /// when the hold began (module `estimator::wall_hold`): hovering, the flow-only estimate would wander
     /// ≈ 1 cm/√s. The mission's holds (over a pad before landing) last a second or two, and its landings
-    /// measured no better with the anchors (BENCHMARKS.md §5), so a running mission does not use them.
+    /// measured no better with the anchors in simulation, so a running mission does not use them.
     pub fn on_multiranger(&mut self, sample: &MultiRangerSample) {
         let vz = self.estimator.state().velocity_m_s[2];
         let hold = self.last_supervisor.flying
@@ -453,7 +453,7 @@ pub struct Navigator<const CELLS: usize, const QUEUE: usize> {
     decks_ok: bool,
     /// The obstacle surfaces the map fixes measure against (module `estimator::map_fix`), per mission.
     landmarks: Landmarks,
-    /// Mission tuning written by the radio (issue 13 part 4), in force from the next start.
+    /// Mission tuning written by the radio, in force from the next start.
     next_config: Option<MissionConfig>,
     /// The link-loss watch (`mission.linkLoss`, `mission.linkTimeout`).
     link: LinkWatch,
@@ -738,7 +738,7 @@ impl<const CELLS: usize, const QUEUE: usize> FlightCore<CELLS, QUEUE> {
         }
     }
 
-    /// The tuning parameters (issue 13 part 4): controller gains and the flow std from the next step (in
+    /// The tuning parameters: controller gains and the flow std from the next step (in
     /// flight too, as stock), the mission's tuning from the next start. An invalid controller configuration
     /// is refused and changes nothing.
     pub fn set_tuning(

@@ -29,9 +29,9 @@ pub struct ImuSample {
 }
 
 /// One optical-flow reading (PMW3901 motion burst, 100 Hz), already mapped to the body axes the way the
-/// stock Flow-deck driver does (`dpixel_x = −deltaY`, `dpixel_y = −deltaX`; crazyflie-hardware.md §5.4).
+/// stock Flow-deck driver does (`dpixel_x = −deltaY`, `dpixel_y = −deltaX`; `docs/hardware.md` §2).
 ///
-/// Measurement model (stock `mm_flow.c`, crazyflie-hardware.md §9): with `N = 0.1 · dpixel`,
+/// Measurement model (stock `mm_flow.c`): with `N = 0.1 · dpixel`,
 /// `N_x ≈ dt·(35/0.71674)·(v_bx·R22/z − ω_y)` and `N_y ≈ dt·(35/0.71674)·(v_by·R22/z + ω_x)`, where
 /// `v_b` is the body-frame velocity, `ω` the body rates, `R22` the cosine of the tilt and `z` the height of
 /// the camera above the surface below it.
@@ -211,6 +211,6 @@ impl Setpoint {
 }
 
 /// The four motor duties as the firmware writes them to TIM2/TIM4 (8-bit, 0..=255), in the stock motor
-/// numbering: M1 front-right, M2 back-right, M3 back-left, M4 front-left (crazyflie-hardware.md §6).
+/// numbering: M1 front-right, M2 back-right, M3 back-left, M4 front-left (`docs/hardware.md` §3).
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
 pub struct MotorDuty(pub [u8; 4]);

@@ -10,11 +10,11 @@
 use cfnav::mission::MissionParams;
 use cfnav::radio::commander::SetpointFollower;
 use cfnav::radio::crtp::{CrtpPacket, MAX_DATA};
-use cfnav::radio::endpoint::Endpoint;
-use cfnav::radio::log_registry::FlightLogState;
 use cfnav::radio::param::ParamService;
-use cfnav::radio::registry::MissionParamState;
-use cfnav::radio::supervisor_port::SupervisorPortConfig;
+use cfnav::radio_binding::endpoint::Endpoint;
+use cfnav::radio_binding::log_table::FlightLogState;
+use cfnav::radio_binding::param_state::MissionParamState;
+use cfnav::radio_binding::supervisor_port::SupervisorPortConfig;
 use cfnav::types::StateEstimate;
 use libfuzzer_sys::fuzz_target;
 

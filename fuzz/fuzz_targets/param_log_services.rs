@@ -9,9 +9,9 @@
 use cfnav::mission::MissionParams;
 use cfnav::radio::crtp::{CrtpPacket, MAX_DATA, Service};
 use cfnav::radio::log::LogService;
-use cfnav::radio::log_registry::FlightLogState;
 use cfnav::radio::param::ParamService;
-use cfnav::radio::registry::MissionParamState;
+use cfnav::radio_binding::log_table::FlightLogState;
+use cfnav::radio_binding::param_state::MissionParamState;
 use libfuzzer_sys::fuzz_target;
 
 fn valid(p: &CrtpPacket) {

@@ -1,5 +1,5 @@
 //! Estimation and control: the [`Stabilizer`] in an interrupt-priority executor, one step per gyro
-//! data-ready edge (BMI088 INT3 → PC14, EXTI14 rising: `crazyflie-hardware.md` §8.1), reading the IMU on
+//! data-ready edge (BMI088 INT3 → PC14, EXTI14 rising: `docs/hardware.md` §2), reading the IMU on
 //! I2C3 and writing the motors.
 //!
 //! Each step: wait for the edge, read gyro + accelerometer (async I2C, ~0.5 ms of bus time during which
@@ -44,7 +44,7 @@ pub const MAX_IMU_ERRORS: u32 = 50;
 const LOG_DECIMATION: u32 = 10;
 
 /// The control executor, on the otherwise unused UART4 vector (the Crazyflie 2.1's UARTs are USART2/3 on
-/// the deck and USART6 for syslink: `crazyflie-hardware.md` §5).
+/// the deck and USART6 for syslink: `docs/hardware.md` §2).
 pub static EXECUTOR: InterruptExecutor = InterruptExecutor::new();
 
 /// The loop-timing window of the last second, handed to the statistics task.
@@ -58,10 +58,10 @@ fn UART4() {
 }
 
 /// The IMU on the sensor bus.
-pub type Imu = Bmi088<super::sensors::GuardedBus>;
+pub type Imu = Bmi088<super::i2c_bus::GuardedBus>;
 
 /// The inputs whose estimator update is costly (flow ≈ 14 k, Multi-ranger with wall anchors ≈ 20 k
-/// instructions, a sweep's map fixes about as much; BENCHMARKS.md §6).
+/// instructions, a sweep's map fixes about as much; QEMU counts in BENCHMARKS.md).
 fn is_heavy(input: &FastInput) -> bool {
     matches!(
         input,

@@ -1,11 +1,11 @@
 //! The persistent parameters' EEPROM I/O: the 24AA64 at 0x50 on the deck bus I2C1
-//! (`crazyflie-hardware.md` §1.5, §5.6), driven for `cfnav::system::persistent_params`.
+//! (`docs/hardware.md` §1, §2), driven for `cfnav::system::persistent_params`.
 //!
 //! * Boot: [`read_persistent`] reads the two slots ([`REGION_LEN`] bytes from [`REGION_START`]) with
 //!   sequential reads of at most `READ_CHUNK_LEN` bytes each (a 16-bit memory address, then the array
 //!   auto-increments: 24AA64 datasheet DS21189 §8.3 "Sequential Read"), before the deck task owns the bus.
 //!   Chunked because the deck bus guard bounds every transfer to 10 ms and the whole region takes ≈ 29 ms
-//!   at 400 kHz: one read of it always timed out (found by the emulator, issue 15).
+//!   at 400 kHz: one read of it always timed out (the emulator, `docs/pil.md`, shows it).
 //! * Runtime: the radio task hands a prepared write to [`EEPROM_JOB`]; the deck task, which owns I2C1,
 //!   calls [`service`] once per tick, writes the slot page by page (≤ 32 bytes, never across a page
 //!   boundary: DS21189 §6.2 "Page Write"), waits the write cycle after each page (`TWC` ≤ 5 ms, DS21189
@@ -25,7 +25,7 @@ use embassy_sync::signal::Signal;
 use embassy_time::{Duration, Timer, with_timeout};
 use embedded_hal_async::i2c::I2c as _;
 
-use super::sensors::DeckI2c;
+use super::i2c_bus::DeckI2c;
 
 /// A persistent store or clear for the deck task to write.
 pub static EEPROM_JOB: Signal<CriticalSectionRawMutex, PendingWrite> = Signal::new();

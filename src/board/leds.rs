@@ -1,4 +1,4 @@
-//! The five STM32-driven LEDs (`crazyflie-hardware.md` §7, from bitcraze crazyflie-firmware
+//! The five STM32-driven LEDs (from bitcraze crazyflie-firmware
 //! `src/drivers/interface/led.h`): BLUE_L on PD2 is active high; GREEN_L PC1, RED_L PC0, GREEN_R PC2 and
 //! RED_R PC3 are active low. The patterns are `cfnav::system::status_led`'s; this task samples them at 40 Hz.
 

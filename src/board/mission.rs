@@ -19,7 +19,7 @@ use core::sync::atomic::{AtomicBool, Ordering};
 use cfnav::mission::Mission;
 use cfnav::nav::dstar::ARENA_QUEUE;
 use cfnav::nav::map::ARENA_CELLS;
-use cfnav::radio::map_mem::MapView;
+use cfnav::radio_binding::map_mem::MapView;
 use cfnav::stack::{FlightConfig, MissionCommand, Navigator};
 use cfnav::system::cpu_load::Level;
 use defmt::{info, warn};

@@ -30,6 +30,7 @@
 
 pub mod control;
 pub mod eeprom;
+pub mod i2c_bus;
 pub mod leds;
 pub mod mission;
 pub mod motors;
@@ -46,9 +47,9 @@ use cfnav::flight::high_level::HlCommand;
 use cfnav::mission::link_loss::LinkLossConfig;
 use cfnav::mission::{MissionNote, MissionParams};
 use cfnav::radio::crtp::CrtpPacket;
-use cfnav::radio::log_registry::FirmwareLogState;
 use cfnav::radio::mem::MapRead;
-use cfnav::radio::registry::Tuning;
+use cfnav::radio_binding::log_table::FirmwareLogState;
+use cfnav::radio_binding::tuning::Tuning;
 use cfnav::stack::{FastStatus, MissionCommand, StartError};
 use cfnav::system::cpu_load::LoadMeter;
 use cfnav::system::status_led::{BoardStatus, StatusInputs};
@@ -115,7 +116,7 @@ pub static FAST_STATUS: Mutex<CriticalSectionRawMutex, Cell<Option<FastStatus>>>
 pub static NAV_INPUTS: Channel<CriticalSectionRawMutex, NavInput, 8> = Channel::new();
 /// Radio → mission task.
 pub static MISSION_REQUESTS: Channel<CriticalSectionRawMutex, MissionRequest, 2> = Channel::new();
-/// Radio → mission task: a read of the map memory (CRTP port 4, `cfnav::radio::map_mem`); the map lives in
+/// Radio → mission task: a read of the map memory (CRTP port 4, `cfnav::radio_binding::map_mem`); the map lives in
 /// the mission task, which answers it between ticks. cflib keeps one read in flight at a time.
 pub static MAP_READS: Channel<CriticalSectionRawMutex, MapRead, 2> = Channel::new();
 /// Mission task → radio: the answers to [`MAP_READS`], ready to send.

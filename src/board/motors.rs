@@ -1,6 +1,6 @@
 //! The four brushed motors: M1 PA1 TIM2_CH2, M2 PB11 TIM2_CH4, M3 PA15 TIM2_CH1, M4 PB9 TIM4_CH4, PWM1
 //! active high at the stock 328.125 kHz with 8-bit resolution (84 MHz timer clock, prescaler 0, ARR 255),
-//! so a [`MotorDuty`] byte is the compare value as is (`crazyflie-hardware.md` §6; bitcraze
+//! so a [`MotorDuty`] byte is the compare value as is (`docs/hardware.md` §3; bitcraze
 //! crazyflie-firmware `src/drivers/interface/motors.h`, `motors_def.c`).
 //!
 //! Safety: the outputs are low from construction; [`Motors::stop`] is what every fault path calls, and

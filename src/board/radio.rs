@@ -1,6 +1,6 @@
 //! Syslink to the nRF51 on USART6 (TX PC6, RX PC7, 1 Mbaud 8N1, DMA both ways) with the PA4 flow-control
 //! input (high = the nRF's buffer is full: pause sending), and the CRTP services answering over it
-//! (`crazyflie-hardware.md` §3, §4).
+//! (`docs/hardware.md` §4).
 //!
 //! Flow control at byte granularity: every frame goes out through [`FlowTx`] in chunks of
 //! [`cfnav::radio::syslink_tx::CHUNK`] bytes, PA4 read before each and each chunk awaited to the USART's
@@ -8,12 +8,12 @@
 //! see `cfnav::radio::syslink_tx`). A frame not gone within [`FRAME_TX_TIMEOUT`] (PA4 held high, or a TX
 //! DMA transfer or TC flag that never completes) drops the rest of the frame. The RX DMA ring is started in `main` before anything is sent, so the nRF's echoes are kept.
 //!
-//! Boot order (§3.4): RADIO_CHANNEL, RADIO_DATARATE, RADIO_ADDRESS from the EEPROM config block (or the
+//! Boot order (`docs/hardware.md` §4): RADIO_CHANNEL, RADIO_DATARATE, RADIO_ADDRESS from the EEPROM config block (or the
 //! defaults), each resent until the nRF echoes it ([`BootSettings`]), PM_BATTERY_AUTOUPDATE, SYS_NRF_VERSION
 //! (the reply is logged), then RADIO_READY once the firmware has finished booting (the nRF keeps its
 //! receiver off until then, or 3 s after its boot).
 //!
-//! Pacing (§3.3): one downlink RADIO_RAW per uplink RADIO_RAW, at most; log data, parameter updates and
+//! Pacing (`docs/hardware.md` §4): one downlink RADIO_RAW per uplink RADIO_RAW, at most; log data, parameter updates and
 //! console lines wait in the router's queue for the next uplink (cfclient and cflib poll continuously).
 //!
 //! Commander (ports 3 and 7): each accepted setpoint is mapped by [`SetpointFollower`] and handed to the
@@ -31,7 +31,7 @@
 //!
 //! `mission.start` writes become [`MissionRequest`]s for the mission task; a refusal by the flight core
 //! comes back on [`START_OUTCOME`] and is reverted (`mission.start` back to 0, VALUE_UPDATED, console line),
-//! and the end of a mission sets it back to 0 the same way (interfaces.md §5).
+//! and the end of a mission sets it back to 0 the same way (`docs/radio.md`).
 
 use core::fmt::Write as _;
 use core::sync::atomic::Ordering;
@@ -40,14 +40,16 @@ use cfnav::mission::MissionParams;
 use cfnav::nav::map::ARENA_CELLS;
 use cfnav::radio::commander::SetpointFollower;
 use cfnav::radio::crtp::CrtpPacket;
-use cfnav::radio::endpoint::Endpoint;
-use cfnav::radio::log_registry::FirmwareLogState;
 use cfnav::radio::mem::MemService;
 use cfnav::radio::param::ParamService;
-use cfnav::radio::registry::{ID_RESET_ESTIMATION, ID_START, MissionParamState, Tuning};
-use cfnav::radio::supervisor_port::{SupervisorPortConfig, SupervisorStatus};
 use cfnav::radio::syslink::{BatteryState, DecodeError, SyslinkDecoder, SyslinkPacket, kind};
 use cfnav::radio::syslink_tx::{BootSettings, FlowTx, TxStep, nrf_version, nrf_version_request};
+use cfnav::radio_binding::endpoint::Endpoint;
+use cfnav::radio_binding::log_table::FirmwareLogState;
+use cfnav::radio_binding::param_state::MissionParamState;
+use cfnav::radio_binding::param_table::{ID_RESET_ESTIMATION, ID_START};
+use cfnav::radio_binding::supervisor_port::{SupervisorPortConfig, SupervisorStatus};
+use cfnav::radio_binding::tuning::Tuning;
 use cfnav::stack::{FlightConfig, MissionCommand};
 use cfnav::system::config_block::RadioSettings;
 use cfnav::system::cpu_load::Level;
@@ -369,7 +371,7 @@ impl Crtp {
             .start
             .must_clear(self.ep.param.store().start, MISSION_RUNNING.load(Ordering::Acquire))
         {
-            // The mission ended (or never ran): interfaces.md §5 wants mission.start back at 0.
+            // The mission ended (or never ran): `docs/radio.md` wants mission.start back at 0.
             self.ep.param.store_mut().start = 0;
             self.ep.param.notify(ID_START);
         }

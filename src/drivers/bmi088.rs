@@ -13,7 +13,7 @@
 //!
 //! Register addresses and values: Bosch BMI088 datasheet BST-BMI088-DS001 §5 (register map) and the Bosch
 //! BMI08x Sensor API `bmi08_defs.h` (boschsensortec/BMI08x_SensorAPI); stock values from bitcraze
-//! crazyflie-firmware `src/hal/src/sensors_bmi088_bmp3xx.c` `sensorsDeviceInit` (crazyflie-hardware.md §8.1).
+//! crazyflie-firmware `src/hal/src/sensors_bmi088_bmp3xx.c` `sensorsDeviceInit` (`docs/hardware.md` §2).
 //!
 //! | half | I2C address | chip id (reg 0x00) | range | rate / filter | other |
 //! |------|-------------|--------------------|-------|---------------|-------|

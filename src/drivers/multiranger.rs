@@ -7,7 +7,7 @@
 //! (which one and why, [`BringUpReport`]), put back into reset so it cannot shadow the next sensor at 0x29,
 //! and the others continue. Non-goals: filtering.
 //!
-//! Reading both decks on one bus ([`DeckReader`], issue 12 item 5): the five beams (10 Hz) and the Flow
+//! Reading both decks on one bus ([`DeckReader`]): the five beams (10 Hz) and the Flow
 //! deck's z-ranger (40 Hz) range on their own oscillators, which drift against each other and against the
 //! MCU (a few %). A loop that *waits* for each beam's data-ready in turn ([`MultiRanger::read_all`]) blocks
 //! the bus for up to a whole beam period and starves the z-ranger (measured on the drifting-clock model in
@@ -19,7 +19,7 @@
 //! restart) so it ranges in step with its reader again. Sweeps of the five beams are assembled from the
 //! beams' own readings ([`DeckEvents::sweep`]), each reading used once.
 //!
-//! Facts (crazyflie-hardware.md §5.5, from the stock `multiranger.c`): expander at 0x20; XSHUT on expander
+//! Facts (`docs/hardware.md` §2, from the stock `multiranger.c`): expander at 0x20; XSHUT on expander
 //! pins P0 = up, P1 = back, P2 = right, P4 = front, P6 = left; stock bring-up order front, back, up, left,
 //! right with a 2 ms boot wait after each release; stock addresses from the pool 0x6A..=0x6F, which with a
 //! Flow deck present gives z-ranger 0x6A, then front 0x6B, back 0x6C, up 0x6D, left 0x6E, right 0x6F. This
@@ -45,7 +45,7 @@ use crate::drivers::pca95x4::Pca95x4;
 use crate::drivers::vl53l1x::{self, RangingConfig, Vl53l1x};
 use crate::types::{Micros, MultiRangerSample, RangeReading};
 
-/// Where the Flow deck's z-ranger goes when the Multi-ranger is fitted too (stock layout, §5.5).
+/// Where the Flow deck's z-ranger goes when the Multi-ranger is fitted too (stock layout, `docs/hardware.md` §2).
 pub const FLOW_DECK_Z_ADDRESS: u8 = 0x6A;
 
 /// Address of the first sensor brought up (front); the others follow in [`Direction::BRING_UP_ORDER`].
@@ -305,7 +305,7 @@ impl MultiRanger {
     }
 }
 
-// ---- The deck loop: reading the z-ranger and the five beams without waiting (issue 12 item 5) ----
+// ---- The deck loop: reading the z-ranger and the five beams without waiting ----
 
 /// The Flow deck's z-ranger's slot in a [`ReadSchedule`] / [`DeckReader`]; beam `d` is at `1 + d.index()`.
 pub const Z_SLOT: usize = 0;

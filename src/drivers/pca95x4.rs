@@ -5,11 +5,11 @@
 //! interrupts, polarity inversion, reading inputs beyond a plain input-port read.
 //!
 //! Register map (NXP PCA9534/PCA9554 datasheets §"Register descriptions"; the same in the Crazyflie's
-//! `src/hal/interface/pca95x4.h`, crazyflie-hardware.md §5.5): command byte 0 = input port, 1 = output
+//! `src/hal/interface/pca95x4.h`, `docs/hardware.md` §2): command byte 0 = input port, 1 = output
 //! port, 2 = polarity inversion, 3 = configuration (bit = 1: input, 0: output). Power-on: output 0xFF,
 //! polarity 0x00, configuration 0xFF (all inputs). A register write is `[command, value]`, a read is a
 //! write of the command byte followed by one data byte. Address 0x20 = `0100 A2 A1 A0` with A2..A0 = 0
-//! (PCA9534/PCA9554; the "A" variants would be at 0x38 — not the Multi-ranger's, §5.6).
+//! (PCA9534/PCA9554; the "A" variants would be at 0x38 — not the Multi-ranger's, `docs/hardware.md` §2).
 //!
 //! Glitch-free start: because the output register powers up at 0xFF, this driver writes the output levels
 //! *before* switching the pins to outputs (the stock `mrInit` does it the other way round, which can pulse
@@ -23,7 +23,7 @@ use embedded_hal_async::i2c::I2c;
 
 use crate::drivers::DriverError;
 
-/// The Multi-ranger's expander address (A2..A0 tied low; crazyflie-hardware.md §5.6).
+/// The Multi-ranger's expander address (A2..A0 tied low; `docs/hardware.md` §2).
 pub const DEFAULT_ADDRESS: u8 = 0x20;
 
 /// Command bytes (register indices) of the PCA95x4.

@@ -1,5 +1,5 @@
 //! PMW3901 optical-flow sensor on the Flow deck v2 (deck SPI1, chip select IO3 = PB4, SPI mode 0 at
-//! ~1.3 MHz as stock; crazyflie-hardware.md §5.4).
+//! ~1.3 MHz as stock; `docs/hardware.md` §2).
 //!
 //! Job: power the sensor up with the vendor sequence, then read one motion burst per call (stock: every
 //! 10 ms, 100 Hz) and turn it into a [`FlowSample`] in the body frame with the stock Flow-deck axis mapping

@@ -13,7 +13,7 @@
 //! the public ports `rneurink/VL53L1X_ULD` (`src/core/VL53L1X_api.cpp`, `.h`) and `stm32duino/VL53L1X`
 //! (`src/vl53l1x_class.cpp`, ST's own Arduino port); both carry the same bytes. The model id 0xEACC is the
 //! value ST's datasheet gives for IDENTIFICATION__MODEL_ID (also checked by Pololu's `vl53l1x-arduino`).
-//! Crazyflie facts (addresses, rates, 2V8 pads): crazyflie-hardware.md §5.4–§5.6.
+//! Crazyflie facts (addresses, rates, 2V8 pads): `docs/hardware.md` §2.
 //!
 //! Bus format: every register index is 16 bits, sent big-endian before the data; multi-byte registers are
 //! big-endian too. A write is one I2C write `[index_hi, index_lo, data...]`; a read is a write-read of the
@@ -49,7 +49,7 @@ use crate::drivers::DriverError;
 use crate::types::RangeReading;
 
 /// The 7-bit I2C address every VL53L1x answers at after power-up or XSHUT release (ST ULD
-/// `VL51L1X_NVM_CONFIGURATION` byte 0x01; crazyflie-hardware.md §5.6).
+/// `VL51L1X_NVM_CONFIGURATION` byte 0x01; `docs/hardware.md` §2).
 pub const DEFAULT_ADDRESS: u8 = 0x29;
 
 /// IDENTIFICATION__MODEL_ID of a VL53L1x (ST datasheet; ULD `VL53L1X_GetSensorId`).
@@ -262,7 +262,7 @@ pub struct RangingConfig {
     /// Period between the starts of two ranges in continuous mode, ms; must be ≥ the timing budget.
     pub inter_measurement_ms: u32,
     /// Reference the I2C pads to AVDD (2V8) instead of 1V8: sets bit 0 of register 0x002E in the default
-    /// configuration write, as the stock Crazyflie firmware does (`USE_I2C_2V8`, crazyflie-hardware.md §5.5).
+    /// configuration write, as the stock Crazyflie firmware does (`USE_I2C_2V8`, `docs/hardware.md` §2).
     pub io_2v8: bool,
 }
 

@@ -3,11 +3,11 @@
 //! Job: once per tick take the time, the accelerometer, the estimate, the controller's last motor
 //! commands, the current setpoint and its age, the battery voltage and an arm request; return whether the
 //! motors may run, whether the drone is flying, and flags and a reason for the logs. It follows the stock
-//! rules of crazyflie-hardware.md §10 (setpoint watchdog, tumble detection, battery thresholds,
+//! rules of stock `supervisor.c` and `commander.h` (setpoint watchdog, tumble detection, battery thresholds,
 //! auto-arming), adapted to cfnav's setpoints.
 //!
 //! Non-goals: it never lands the drone or chooses a setpoint by itself: the mission does (a low battery or
-//! a stale setpoint is *reported*); [`Supervisor::guard_setpoint`] is a helper the firmware applies
+//! a stale setpoint is *reported*); [`Supervisor::guard_setpoint`] is a filter the firmware applies
 //! between the mission and the controller. No radio commands, no LEDs.
 //!
 //! # States
@@ -81,7 +81,7 @@
 use super::flags::Flags;
 use crate::types::{GRAVITY_M_S2, Micros, Setpoint, StateEstimate};
 
-/// Tunable thresholds. [`Default`] is stock (§10) where stock has a value.
+/// Tunable thresholds. [`Default`] is stock (`supervisor.c`, `commander.h`) where stock has a value.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct SupervisorConfig {
     /// Arm automatically when the checks pass (CF2.1 stock).

@@ -131,7 +131,7 @@ pub struct MissionParams {
     pub coverage_target: f32,
 }
 
-/// Minimum height in flight phases (interfaces.md §5, the supervisor's floor too).
+/// Minimum height in flight phases (`docs/radio.md`, the supervisor's floor too).
 pub const MIN_HEIGHT_M: f32 = 0.2;
 /// Highest cruise height accepted, m.
 pub const MAX_HEIGHT_M: f32 = 2.0;
@@ -264,7 +264,7 @@ impl Default for MissionConfig {
             // Three inlier crossings (6 edges) covering both directions lock: the first crossing and the two
             // lines across it. Waiting for a second crossing along (8 edges) cost ~2 s per pad and landed no
             // more accurately: the flow-only estimate drifts ≈ 1 cm/√s, so the longer search loses what the
-            // extra crossing gains (600 worlds: median 2.53 cm, p95 5.49 cm either way, BENCHMARKS.md §5).
+            // extra crossing gains (600 simulated worlds: median 2.53 cm, p95 5.49 cm either way).
             pad: PadConfig {
                 min_edges: 6,
                 min_crossings_per_direction: 1,

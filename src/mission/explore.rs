@@ -33,8 +33,8 @@
 //! latch: the last resort), the estimator and supervisor checks, the abort; the way home has the round
 //! trip's no-path handling.
 //!
-//! Non-goals: no information-gain or path-length ranking of frontiers (straight-line nearest, as the brief
-//! of issue 13 asks), no revisiting of dropped frontiers, no 3-D exploration.
+//! Non-goals: no information-gain or path-length ranking of frontiers (straight-line nearest, as
+//! `docs/mission.md` specifies), no revisiting of dropped frontiers, no 3-D exploration.
 //!
 //! Units: arena frame, metres, seconds; cells of [`CELL_SIZE_M`].
 //!

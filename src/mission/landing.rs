@@ -80,8 +80,8 @@ impl Touchdown {
     /// The detector's estimate after a new reading: an estimate that moved more than
     /// [`GLIMPSE_SPACING_M`] from the previous one is a different hypothesis (a crossing that refit it
     /// elsewhere), and the previous one is kept as a glimpse, so a landing clear of the pad keeps clear of
-    /// both (measured: world 411 001 354, an estimate over the pad refit 29 cm away, off it, then
-    /// a floor spot 35 cm from the new one on that pad's rim, touched).
+    /// both (an estimate over the pad can refit 29 cm away, off it, and a floor spot 35 cm from the new
+    /// one can then lie on the real pad's rim).
     pub(super) fn note_estimate(&mut self, centre: (f32, f32)) {
         if let Some(previous) = self.latest
             && libm::hypotf(previous.0 - centre.0, previous.1 - centre.1) > GLIMPSE_SPACING_M

@@ -1,4 +1,4 @@
-//! The link-loss policy (issue 13 part 5): what an autonomous mission does when the radio goes silent.
+//! The link-loss policy: what an autonomous mission does when the radio goes silent.
 //!
 //! Job: a sans-IO watch. The radio side reports the time of every packet it received
 //! ([`LinkWatch::on_packet`]); once per mission tick [`LinkWatch::check`] says whether a running mission has

@@ -120,7 +120,7 @@ use crate::nav::grid::{ChangedCells, OccupancyGrid};
 use crate::nav::map::{Cell, GridShape};
 use crate::types::{Micros, MultiRangerSample, RangeReading, Setpoint, StateEstimate};
 
-/// The `mission.state` codes (interfaces.md §5): 0 idle, 1..99 phases, 100 completed, ≥ 200 ended without
+/// The `mission.state` codes (`docs/radio.md`): 0 idle, 1..99 phases, 100 completed, ≥ 200 ended without
 /// completing (the value says why).
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 #[repr(u8)]
@@ -296,7 +296,7 @@ const TAKEOFF_HANDOVER_MARGIN_M: f32 = 0.1;
 /// centre lands on that centre, m: the pads of the worlds are up to 0.3 × 0.3 m, plus the body's radius
 /// (0.06 m) and margin.
 const PAD_SNAP_M: f32 = 0.3;
-/// The drone's body radius (interfaces.md §3: the disc whose contact is a collision), m.
+/// The drone's body radius (`docs/formats.md`, world files: the disc whose contact is a collision), m.
 const BODY_RADIUS_M: f32 = 0.06;
 /// Kept between the body and the square an unlocked pad estimate may cover, m: the estimate's error
 /// after one or two crossings (a few cm) and the landing's own drift.
@@ -627,8 +627,8 @@ impl<const CELLS: usize, const QUEUE: usize> Mission<CELLS, QUEUE> {
     /// search recorded in the old frame (the detector's edges and estimate, the refinement's centre, the
     /// approach and landing points) with the estimate. Smaller changes are left alone: they are the fixes'
     /// steady pull against the flow's drift, which the records should keep (moving them with every fix
-    /// undid that pull: landings 1.77 / 3.96 → 2.72 / 5.79 cm median / p95 on stressed seeds 140–149,
-    /// BENCHMARKS.md §5).
+    /// undid that pull: landings 1.77 / 3.96 → 2.72 / 5.79 cm median / p95 on stressed seeds 140–149
+    /// in simulation).
     pub fn on_map_fix_shift(&mut self, shift_m: [f32; 2]) {
         let previous = self.last_map_fix_shift_m.replace(shift_m);
         let Some(previous) = previous else { return };

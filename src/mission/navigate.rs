@@ -15,24 +15,21 @@ use crate::types::{Micros, MultiRangerSample, Setpoint, StateEstimate};
 const CORNER_MIN_SPEED_M_S: f32 = 0.15;
 /// Speed allowed per metre of distance before a waypoint, on top of its corner speed, 1/s. (1.5 rounded a
 /// wall end in the `slalom` world at 0.4 m/s with 20 cm of drift and grazed it; 1.2 did not, in 20 noise
-/// seeds, and cost nothing measurable elsewhere: BENCHMARKS.md §5.)
+/// seeds, and cost nothing measurable elsewhere in simulator batches.)
 const CORNER_APPROACH_GAIN: f32 = 1.2;
 /// Look this far along the path for regions no beam has looked into, m.
 const UNOBSERVED_LOOKAHEAD_M: f32 = 0.6;
 /// A path point counts as next to an unobserved region when such a cell lies within this distance, m: the
 /// drone's radius (0.06 m) plus the estimate's drift and tracking error, and a cell of the map's own error at
 /// a surface. (0.15 m missed the unseen end of a wall 0.17 m beside the path, whose face row beams passing a
-/// centimetre off had marked free; the drone, 6 cm inside the path's corner, touched it: BENCHMARKS.md §5,
-/// session 18.)
+/// centimetre off had marked free; the drone, 6 cm inside the path's corner, touched it in simulation.)
 const UNOBSERVED_CLEARANCE_M: f32 = 0.22;
 /// Within this distance of the path ahead (the body's radius, 0.06 m, and as much again of tracking and
 /// estimate error: the width the drone sweeps), a cell not seen free needs only
 /// [`CORRIDOR_MIN_NEIGHBOURS`] such neighbours to count as unobserved, m. The region test's five is meant
 /// for the one-cell gaps four beams leave between their traces in open space; a post of 2 × 2 cells whose
-/// surroundings the beams have already swept has only three, so it passed as a gap: world 314 001 008's
-/// search line turned south at 0.5 m/s onto an unseen post (about 10 cm across) by the west wall (−45 mm), and stressed
-/// world 334 001 007's return leg flew at one at 0.47 m/s (−0.8 mm), both with every beam pointing
-/// elsewhere (BENCHMARKS.md §5, session 26).
+/// surroundings the beams have already swept has only three, so it would pass as a gap, and a drone turning
+/// at 0.5 m/s onto such a post (about 10 cm across) with every beam pointing elsewhere would meet it.
 const CORRIDOR_M: f32 = 0.12;
 /// See [`CORRIDOR_M`]: a gap between beam traces has at most two unseen neighbours along it.
 const CORRIDOR_MIN_NEIGHBOURS: u8 = 3;
@@ -42,10 +39,9 @@ const UNOBSERVED_MIN_NEIGHBOURS: u8 = 5;
 /// A cell counts as seen free at this log-odds or below: its misses (−3 each) outweigh its hits (+8 each),
 /// so one miss alone, or three after a hit. A cell a beam hit once and then missed (8 − 3 = 5), below the
 /// occupied threshold, is evidence of something, not free space: to
-/// [`OccupancyGrid::is_unobserved_region`] it was "seen". Stressed world 158 000 608 rounded a wall's end
-/// whose cells the map held as such (and unknown) 5 mm from contact; 167 000 577 flew at a 12 cm cylinder
-/// mapped as two sub-threshold cells. (−6, two misses net, slowed the median mission by 2.5 s on 4 000 runs
-/// for no fewer contacts: BENCHMARKS.md §5, session 21.)
+/// [`OccupancyGrid::is_unobserved_region`] it would be "seen": a wall's end or a thin cylinder the map holds
+/// as such sub-threshold cells would be flown at. (−6, two misses net, slowed the median mission by 2.5 s on
+/// 4 000 simulated runs for no fewer contacts.)
 const SEEN_FREE_LOG_ODDS: i8 = -1;
 /// Next to a contested cell (a hit and a miss), a cell counts as seen free only at this log-odds or below
 /// (two net misses): see [`OccupancyGrid::is_doubtful_region`].
@@ -60,7 +56,7 @@ const LOOK_MAX_OFFSET_RAD: f32 = 0.8;
 /// A beam keeps looking at an unobserved region while its turn is within this much of the least turn any
 /// beam needs, rad. (With the least turn alone, a cell about 45° off the travel direction made the front
 /// and side beams trade places every few ticks: the heading flipped by 90°, reached neither, and the box's
-/// end between them was never seen: world 119 000 413, BENCHMARKS.md §5, session 19.)
+/// end between them was never seen.)
 const LOOK_CHOICE_HYSTERESIS_RAD: f32 = 0.35;
 /// See [`UNOBSERVED_MIN_SPEED_M_S`] and [`UNOBSERVED_APPROACH_GAIN`]: the search lines use the same rule.
 pub(super) const SEARCH_UNOBSERVED_MIN_SPEED_M_S: f32 = UNOBSERVED_MIN_SPEED_M_S;
@@ -68,7 +64,7 @@ pub(super) const SEARCH_UNOBSERVED_APPROACH_GAIN: f32 = UNOBSERVED_APPROACH_GAIN
 /// The live beams' stop distance while navigating, m: the body's radius (0.06 m), 5 cm of the velocity
 /// loop's lag at the 0.2 m/s the drone flies near what the map does not hold, 2 cm of ranger noise. Less
 /// than a search line's [`LIVE_BEAM_STOP_M`](super::search::LIVE_BEAM_STOP_M): the legs thread gaps the
-/// search lines keep out of (0.2 m closed the 0.4 m gaps of worlds 201 000 701 and 203 000 628).
+/// search lines keep out of (0.2 m would close a 0.4 m gap).
 const NAVIGATION_LIVE_BEAM_STOP_M: f32 = 0.13;
 /// Heading sweep while navigating: amplitude, rad, and period, s.
 const SCAN_AMPLITUDE_RAD: f32 = 0.6;
@@ -441,7 +437,7 @@ impl<const CELLS: usize, const QUEUE: usize> Mission<CELLS, QUEUE> {
                         // Unless the beam that would look returns nothing: with no return a beam maps
                         // nothing, so the region would stay unobserved however long it looked (open space
                         // beyond the ranger's 4 m straight ahead: a box's corner 4 cm beside the path was
-                        // met by the drone still looking along it, world 306 000 918). The sweep then
+                        // met by the drone still looking along it). The sweep then
                         // turns the beams onto what they can return from, beside the path.
                         Some(cell) => {
                             let look = Self::look_at_heading(travel, self.heading, (x, y), cell);
@@ -477,7 +473,7 @@ impl<const CELLS: usize, const QUEUE: usize> Mission<CELLS, QUEUE> {
             .avoidance
             .step(&self.last_ranges, state.attitude_rad[2], dvx, dvy, dt_s);
         // The avoidance smooths its command over 0.2 s, and at its least speed still moves towards a return:
-        // a post the map missed, read 17 cm ahead, was met 0.2 s later (world 188 000 679). The live beams
+        // a post the map missed, read 17 cm ahead, is met 0.2 s later. The live beams
         // bound the command itself, as on a search line.
         let ((vx, vy), _) = self.live_beam_guard_at(state, (cmd.vx, cmd.vy), NAVIGATION_LIVE_BEAM_STOP_M);
         Setpoint::Velocity {
@@ -519,9 +515,9 @@ impl<const CELLS: usize, const QUEUE: usize> Mission<CELLS, QUEUE> {
     /// [`Self::observed_ahead_m`] along the straight line `here → target` only (`follow_path` false: a
     /// search line), or on along the planned path's later waypoints (`follow_path` true).
     /// Along a path, a cell next to a contested one (a hit and a miss) needs two net misses to count as seen
-    /// ([`CONTESTED_SEEN_FREE_LOG_ODDS`]): stressed worlds 217 000 740 and 224 000 694 rounded wall ends
-    /// that grazing beams had left as single misses around a hit, at 0.3–0.45 m/s, and touched them
-    /// (BENCHMARKS.md §5, session 23). A search line keeps the plain test (not measured there).
+    /// ([`CONTESTED_SEEN_FREE_LOG_ODDS`]): grazing beams leave a wall's end as single misses around a hit,
+    /// and a drone rounding it at 0.3–0.45 m/s on the plain test touches it. A search line keeps the plain
+    /// test (not measured there).
     pub(super) fn observed_along(
         &self,
         here: (f32, f32),

@@ -1,4 +1,4 @@
-//! The exploration's battery reserve (issue 13): how long the battery still lasts, from the discharge the
+//! The exploration's battery reserve: how long the battery still lasts, from the discharge the
 //! drone measures in flight, against how long the flight home takes.
 //!
 //! Job: a sans-IO watch of the supervisor's filtered battery voltage (the only battery figure the firmware

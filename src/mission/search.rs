@@ -50,7 +50,7 @@ pub(super) const PAD_REACH_M: f32 = 0.67;
 const PAD_ESTIMATE_REACH_M: f32 = 0.33;
 /// ... and this far from each pad edge seen (the body and drift), m.
 pub(super) const PAD_EDGE_REACH_M: f32 = 0.14;
-/// How far the goal pad's centre may lie from its nominal point (interfaces.md §3), m.
+/// How far the goal pad's centre may lie from its nominal point (`docs/formats.md`, world files), m.
 const PAD_OFFSET_M: f32 = 0.35;
 /// Spacing of the pad centres [`Mission::distance_to_possible_pad_centres`] tries, m.
 const PAD_CENTRE_LATTICE_M: f32 = 0.03;
@@ -63,8 +63,8 @@ pub(super) const FLOOR_SPOT_CLEARANCE_M: f32 = 0.22;
 const FLOOR_SPOT_RINGS: u8 = 9;
 const FLOOR_SPOT_STEP_M: f32 = 0.15;
 /// Floor spots on each ring but the drone's own position, evenly spaced (with eight, the one direction a
-/// cluttered corner left open could fall between them: world 157 000 588 with the grid's graze rule gave up
-/// by the north wall and found only spots where the pad could be).
+/// cluttered corner leaves open can fall between them, and a search that gives up there finds only spots
+/// where the pad could be).
 const FLOOR_SPOT_DIRECTIONS: u8 = 16;
 /// Candidate floor spots: the drone's own position and [`FLOOR_SPOT_DIRECTIONS`] on each further ring.
 const FLOOR_SPOT_CANDIDATES: usize = 1 + FLOOR_SPOT_DIRECTIONS as usize * (FLOOR_SPOT_RINGS as usize - 1);
@@ -454,8 +454,8 @@ impl<const CELLS: usize, const QUEUE: usize> Mission<CELLS, QUEUE> {
                     // minute apart disagree by more than the pad detection error.
                     self.pad.flush();
                     // The flush can close the crossing that locks: land on it rather than start afresh
-                    // (measured: world 440 001 438 under stress, a lock four crossings deep thrown away by
-                    // the restart below, five rounds without another, then a landing against the pad).
+                    // (otherwise a lock several crossings deep is thrown away by the restart below, and the
+                    // rounds after it may not lock again before the landing).
                     if let Some(sp) = self.approach_if_locked() {
                         return sp;
                     }
@@ -669,10 +669,9 @@ impl<const CELLS: usize, const QUEUE: usize> Mission<CELLS, QUEUE> {
             skip -= 1;
         }
         // No such spot (or all refused): spots clear of what the detector saw, farthest first from every
-        // place the pad's centre can still have (the nearest to the drone put the body against the corner
-        // of a pad the search never crossed, world 157 000 588, BENCHMARKS.md §5, session 20; farthest
-        // from the nominal point alone put it against the corner of a pad whose two edges the search had
-        // seen on the far side, world 347 001 180, session 28).
+        // place the pad's centre can still have (the nearest to the drone can put the body against the
+        // corner of a pad the search never crossed; farthest from the nominal point alone, against the
+        // corner of a pad whose two edges the search saw on the far side).
         let mut ranked: heapless::Vec<(f32, (f32, f32)), FLOOR_SPOT_CANDIDATES> = heapless::Vec::new();
         for p in candidates() {
             let clear_of_pad = estimate.is_none_or(|e| far(p, e, PAD_ESTIMATE_REACH_M))

@@ -7,7 +7,7 @@
 //!
 //! Non-goals: building the map (see [`crate::nav::grid`]), path shortening and smoothing (see [`crate::nav::path`]).
 //!
-//! Rules (those of `shared/spec/interfaces.md` §2): moves go to the 8 neighbours; a straight move costs 10,
+//! Rules (those of the planner map format, `docs/formats.md`): moves go to the 8 neighbours; a straight move costs 10,
 //! a diagonal one 14; a diagonal move is allowed only when both cells it passes between are free (no corner
 //! cutting); blocked cells and cells outside the grid cannot be entered. Leaving a blocked cell is allowed,
 //! so a drone whose own cell was inflated into an obstacle can still plan its way out. The heuristic is the

@@ -435,9 +435,9 @@ impl<const CELLS: usize> OccupancyGrid<CELLS> {
     /// log-odds 0 (a hit there is taken back, but the cell is not seen free by this beam): a beam
     /// nearly parallel to a face, a few millimetres off it, crosses the cells of the face's own row (which
     /// the face fills only partly or, with a millimetre of estimate error, wholly) and ends on that face
-    /// far along. Marked free, those cells hid a box's end from the tests of unseen space (world
-    /// 438 001 497: an 11 cm slab seen end-on, beams grazing both long faces, its middle row alone left
-    /// unseen, taken for a gap between beam traces; the drone touched its corner). A return whose end
+    /// far along. Marked free, those cells would hide a box's end from the tests of unseen space (an 11 cm
+    /// slab seen end-on, beams grazing both long faces, leaves its middle row alone unseen, which reads as
+    /// a gap between beam traces). A return whose end
     /// cell's two neighbours across the beam already hold evidence (log-odds > 0) comes from a face across
     /// the beam, a wall seen head-on, and the row before it is missed like the rest (without that
     /// exception every beam square to a wall left 0.4 m in front of it unseen, and the corner world of

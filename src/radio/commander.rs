@@ -10,8 +10,8 @@
 //!
 //! # Wire formats (all little-endian, packed)
 //! * Port 3 ch0 RPYT, 14 bytes: roll f32 deg, pitch f32 deg, yaw f32 deg/s, thrust u16
-//!   (`crazyflie-hardware.md` §4.8; cflib `commander.py` `send_setpoint` packs `<fffH` with **−pitch**).
-//! * Port 7 ch0 generic, `[type u8, payload]` (§4.8; firmware `crtp_commander_generic.c` `enum packet_type`
+//!   (`docs/hardware.md` §4; cflib `commander.py` `send_setpoint` packs `<fffH` with **−pitch**).
+//! * Port 7 ch0 generic, `[type u8, payload]` (`docs/hardware.md` §4; firmware `crtp_commander_generic.c` `enum packet_type`
 //!   and the packed decoder structs; cflib `commander.py`):
 //!
 //!   | type | name | payload | bytes |
@@ -32,7 +32,7 @@
 //!   cflib negates the user's pitch in `send_setpoint` and `send_setpoint_manual`: the decoded pitch is the
 //!   **negated wire pitch** for RPYT, manual and z-distance packets (so for RPYT/manual it equals the pitch
 //!   the cflib user passed).
-//! * Yaw rate: the firmware negates the RPYT yaw rate ("legacy rate input is inverted", §4.8) and the yaw rate
+//! * Yaw rate: the firmware negates the RPYT yaw rate ("legacy rate input is inverted", `docs/hardware.md` §4) and the yaw rate
 //!   of generic types 1, 2 and 5 (`legacyVelocityDecoder`, `legacyZDistanceDecoder`, `legacyHoverDecoder`);
 //!   types 8, 9, 10 and 11 take it as sent. The stock yaw rate is counter-clockwise positive, like cfnav's.
 //! * RPYT thrust (firmware `crtp_commander_rpyt.c`): below `MIN_THRUST` 1000 → 0, above `MAX_THRUST` 60000 →
@@ -70,9 +70,9 @@ use super::crtp::{CrtpPacket, Service};
 use crate::math::wrap_angle;
 use crate::types::{Micros, Setpoint, StateEstimate};
 
-/// RPYT commander port (§4.2).
+/// RPYT commander port.
 pub const PORT_RPYT: u8 = 3;
-/// Generic commander port (§4.2).
+/// Generic commander port.
 pub const PORT_GENERIC: u8 = 7;
 /// Generic port channel carrying setpoints.
 pub const CH_SETPOINT: u8 = 0;
@@ -106,7 +106,7 @@ pub const TYPE_MANUAL: u8 = 11;
 /// Meta command "notify setpoint stop" (port 7 channel 1).
 pub const META_NOTIFY_SETPOINT_STOP: u8 = 0;
 
-/// RPYT payload length: `<fffH` (§4.8).
+/// RPYT payload length: `<fffH`.
 pub const RPYT_LEN: usize = 14;
 /// Payload length (after the type byte) of the four-float generic setpoints (packed `struct { float ×4 }`).
 pub const FOUR_FLOAT_LEN: usize = 16;

@@ -9,7 +9,7 @@
 //! encoding checks (bytes are sent as given; a multi-byte UTF-8 character may straddle two packets, cflib
 //! reassembles the text per packet, as with stock).
 //!
-//! Format (`crazyflie-hardware.md` §4.2: "ch0: text chunks ≤ 30 bytes, no terminator"; firmware
+//! Format (`docs/hardware.md` §4: "ch0: text chunks ≤ 30 bytes, no terminator"; firmware
 //! `src/modules/src/console.c` `consolePutchar`): bytes accumulate in the current packet, which is sent when
 //! it holds 30 bytes or right after a `'\n'` (the newline is part of the packet).
 //!
@@ -29,7 +29,7 @@ use heapless::{Deque, Vec};
 
 use super::crtp::{CrtpPacket, MAX_DATA, Service};
 
-/// Console port (§4.2).
+/// Console port.
 pub const PORT_CONSOLE: u8 = 0;
 /// Console channel.
 pub const CH_CONSOLE: u8 = 0;

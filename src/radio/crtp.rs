@@ -7,45 +7,45 @@
 //! supervisor protocol (plug them in through [`Service`]), no continuous-wave test mode.
 //!
 //! Sources:
-//! * `crazyflie-hardware.md` §4.1 header: port bits 7..4, link-layer bits 3..2 (cflib sets both, `0x0C`),
+//! * `docs/hardware.md` §4, header: port bits 7..4, link-layer bits 3..2 (cflib sets both, `0x0C`),
 //!   channel bits 1..0; max 30 data bytes; null packet `header & 0xF3 == 0xF3`; protocol version 12.
-//! * §3.3 / §3.4 the nRF may send one RADIO_RAW only after receiving one ("one downlink per uplink"), host
+//! * `docs/hardware.md` §4: the nRF may send one RADIO_RAW only after receiving one ("one downlink per uplink"), host
 //!   null packets are forwarded so the STM32 can answer on every poll; the STM32 may ignore bits 2–3.
-//! * §4.3 link port 15: ch0 echo unchanged, ch1 source = 30 bytes "Bitcraze Crazyflie" + 12 zeros, ch2 sink
+//! * `docs/hardware.md` §4, link port 15: ch0 echo unchanged, ch1 source = 30 bytes "Bitcraze Crazyflie" + 12 zeros, ch2 sink
 //!   (no reply), ch3 null (drop).
-//! * §4.4 platform port 13, ch1: `[0]` → `[0, version i32 LE]` (5 bytes), `[1]` → `[1, ASCII tag]`,
+//! * `docs/hardware.md` §4, platform port 13, ch1: `[0]` → `[0, version i32 LE]` (5 bytes), `[1]` → `[1, ASCII tag]`,
 //!   `[2]` → `[2, ASCII device type name]` (stock "Crazyflie 2.1").
-//! * `crtp-over-udp.md` §1 (header bits, `(h & 0xF3) == 0xF3`), §2 steps 1–2 and the probe trace
-//!   (`FD [00]` → 15/1 "Bitcraze Crazyflie"+12×00; `DD [00]` → 13/1 `[00 0C 00 00 00]`).
-//! * `/work/shared/spec/interfaces.md` §5: report protocol version 12.
+//! * `docs/radio.md` (header bits, `(h & 0xF3) == 0xF3`; the first connection steps and their trace:
+//!   `FD [00]` → 15/1 "Bitcraze Crazyflie"+12×00; `DD [00]` → 13/1 `[00 0C 00 00 00]`).
+//! * `docs/radio.md`: report protocol version 12.
 //!
 //! Design choices not fixed by the references: requests this module does not know (other ports without a
 //! registered service, platform channels 0 and 2, unknown version commands, empty version requests) get no
-//! reply; downlink headers carry bits 2–3 set (`0x0C`, as cflib builds its packets, §4.1) — cflib ORs them in
+//! reply; downlink headers carry bits 2–3 set (`0x0C`, as cflib builds its packets, `docs/hardware.md` §4) — cflib ORs them in
 //! on receipt anyway and crazyflie-lib masks them off.
 //!
 //! Memory: a packet is 33 bytes; the router holds a `Q`-deep reply queue of packets plus counters.
 
 use heapless::{Deque, Vec};
 
-/// Largest CRTP payload (`CRTP_MAX_DATA_SIZE`, §4.1).
+/// Largest CRTP payload (`CRTP_MAX_DATA_SIZE`).
 pub const MAX_DATA: usize = 30;
 /// Largest packet on the wire: header + payload.
 pub const MAX_PACKET: usize = MAX_DATA + 1;
-/// The link-layer bits 3..2 this firmware sets on every downlink header (§4.1).
+/// The link-layer bits 3..2 this firmware sets on every downlink header.
 pub const LINK_BITS: u8 = 0x0C;
 /// The host's bare null packet (port 15, channel 3, bits 2–3 set); a UDP transport answers it so that cflib's
-/// scan finds the drone (`crtp-over-udp.md` §5 item 1).
+/// scan finds the drone (`docs/radio.md`).
 pub const NULL_HEADER: u8 = 0xFF;
-/// `CRTP_PROTOCOL_VERSION` (§4.1; interfaces.md §5).
+/// `CRTP_PROTOCOL_VERSION` (§4.1; `docs/radio.md`).
 pub const PROTOCOL_VERSION: i32 = 12;
 
-/// Link port (§4.2).
+/// Link port.
 pub const PORT_LINK: u8 = 15;
-/// Platform port (§4.2).
+/// Platform port.
 pub const PORT_PLATFORM: u8 = 13;
 
-/// True if `header` is a null packet (`header & 0xF3 == 0xF3`, port 15 channel 3, §4.1).
+/// True if `header` is a null packet (`header & 0xF3 == 0xF3`, port 15 channel 3).
 pub const fn is_null_header(header: u8) -> bool {
     header & 0xF3 == 0xF3
 }
@@ -126,11 +126,11 @@ pub trait Service {
     fn handle(&mut self, packet: &CrtpPacket) -> Option<CrtpPacket>;
 }
 
-/// The link service, port 15 (§4.3).
+/// The link service, port 15.
 #[derive(Debug, Clone, Copy, Default)]
 pub struct LinkService;
 
-/// The 30-byte link-source reply: "Bitcraze Crazyflie" then 12 zeros (§4.3).
+/// The 30-byte link-source reply: "Bitcraze Crazyflie" then 12 zeros.
 pub const LINK_SOURCE_REPLY: [u8; MAX_DATA] = {
     let magic = *b"Bitcraze Crazyflie";
     let mut out = [0u8; MAX_DATA];
@@ -156,14 +156,14 @@ impl Service for LinkService {
     }
 }
 
-/// The platform service, port 13 (§4.4): version channel 1 only.
+/// The platform service, port 13: version channel 1 only.
 #[derive(Debug, Clone, Copy)]
 pub struct PlatformService {
     firmware_version: &'static str,
     device_type_name: &'static str,
 }
 
-/// Device type name the stock firmware reports for a Crazyflie 2.1 (§4.4 example).
+/// Device type name the stock firmware reports for a Crazyflie 2.1 (`docs/hardware.md` §4 example).
 pub const DEVICE_TYPE_NAME: &str = "Crazyflie 2.1";
 
 impl PlatformService {
@@ -226,8 +226,8 @@ pub struct RouterStats {
     pub dropped: u32,
 }
 
-/// Dispatches uplink packets and releases at most one downlink packet per uplink packet (§3.3: the nRF may
-/// send one RADIO_RAW only after receiving one; null packets count as uplinks, §3.4).
+/// Dispatches uplink packets and releases at most one downlink packet per uplink packet (`docs/hardware.md` §4: the nRF may
+/// send one RADIO_RAW only after receiving one; null packets count as uplinks).
 ///
 /// Replies and packets [`enqueue`](Self::enqueue)d by other code (console, log data) wait in a FIFO of `Q`.
 #[derive(Debug, Clone)]

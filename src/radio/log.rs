@@ -6,7 +6,7 @@
 //! Non-goals: no V1 (8-bit id) TOC or block commands, no raw-memory ops (var id 0xFFFF), no clock (the caller
 //! passes `now_ms`), no connection-loss detection (call [`LogService::reset`] on inactivity).
 //!
-//! Sources (`crazyflie-hardware.md` §4.6, §4.9 step 3–4; `crtp-over-udp.md` §2 steps 3–5 and the probe trace):
+//! Sources (`docs/hardware.md` §4 step 3–4; `docs/radio.md`, the connection steps that fetch the log TOC and their trace):
 //! * ch0 `[3]` → `[3, count u16, crc u32, 16, 128]` (9 bytes); `[2, id u16]` → `[2, id u16, type, group\0,
 //!   name\0]`, id out of range → `[2]`.
 //! * ch1 every reply is `[cmd, block id, result]`: create v2 `[6, id, (fmt, var u16)…]`, append v2 `[7, …]`,
@@ -37,10 +37,10 @@ use core::marker::PhantomData;
 use heapless::Vec;
 
 use super::crtp::{CrtpPacket, MAX_DATA, Service};
-use super::log_registry::{LogEntry, LogSource, LogType, log_toc_crc};
-use super::registry::toc_item;
+use super::toc::toc_item;
+use crate::radio::log_decl::{LogEntry, LogSource, LogType, log_toc_crc};
 
-/// Log port (§4.2).
+/// Log port.
 pub const PORT_LOG: u8 = 5;
 /// TOC channel.
 pub const CH_TOC: u8 = 0;

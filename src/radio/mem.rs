@@ -1,5 +1,5 @@
 //! The memory service, CRTP port 4: the memory count cflib asks for while connecting and, when the endpoint
-//! serves it, one read-only memory holding the drone's map ([`super::map_mem`]).
+//! serves it, one read-only memory holding the drone's map ([`crate::radio_binding::map_mem`]).
 //!
 //! Job: channel 0 answers `[1]` (GET_NUMBER_OF_MEMS) with `[1, n]` and `[2, id]` (GET_INFO) with
 //! `[2, id, type, size u32, 8 zero bytes]`; channel 1 takes reads `[id, addr u32, len u8]`, channel 2 writes
@@ -8,7 +8,7 @@
 //! map, of type [`MAP_MEMORY_TYPE`]: a read of it is held ([`MemService::take_map_read`]) for the caller, who
 //! owns the live map, to answer at once with [`MapRead::answer`]; writes are refused (`EIO`).
 //!
-//! Non-goals: other memories (EEPROM, 1-wire, decks), the map's layout (see [`super::map_mem`]).
+//! Non-goals: other memories (EEPROM, 1-wire, decks), the map's layout (see [`crate::radio_binding::map_mem`]).
 //!
 //! Wire layouts (stock `src/modules/src/crtp_mem.c`: `createInfoResponse`, `memReadProcess`,
 //! `memWriteProcess`; cflib 0.1.34 `cflib/crazyflie/mem/__init__.py` `_handle_cmd_info_details`,
@@ -18,14 +18,13 @@
 //! (`get_mems(type)` finds it, `mem.read` reads it); crazyflie-lib 0.8.2 lists it as `MemoryType::UNKNOWN` and
 //! reads it through `RawMemory`.
 //!
-//! Sources also: `crazyflie-hardware.md` §4.7, `crtp-over-udp.md` §2 step 6.
+//! Sources also: `docs/hardware.md` §4, `docs/radio.md` (the memory count cflib asks for while connecting).
 //!
 //! Memory: a flag and the held read (8 bytes).
 
 use super::crtp::{CrtpPacket, Service};
-use super::map_mem::{MAX_READ_LEN, MapView, map_memory_size};
 
-/// Memory port (§4.2).
+/// Memory port.
 pub const PORT_MEM: u8 = 4;
 /// Info channel.
 pub const CH_INFO: u8 = 0;
@@ -54,31 +53,10 @@ pub struct MapRead {
     pub len: u8,
 }
 
-impl MapRead {
-    /// The read reply from `view`: the bytes, or status `EIO` when the range is refused.
-    pub fn answer<const CELLS: usize>(&self, view: &MapView<'_, CELLS>) -> CrtpPacket {
-        let mut buf = [0u8; 6 + MAX_READ_LEN];
-        buf[0] = MAP_MEMORY_ID;
-        buf[1..5].copy_from_slice(&self.addr.to_le_bytes());
-        let len = usize::from(self.len);
-        let ok = buf
-            .get_mut(6..6 + len)
-            .is_some_and(|out| view.read(self.addr, out).is_ok());
-        buf[5] = if ok { 0 } else { STATUS_EIO };
-        let n = if ok { 6 + len } else { 6 };
-        // `n` ≤ 30 bytes and the port and channel are in range: `new` cannot fail.
-        CrtpPacket::new(PORT_MEM, CH_READ, &buf[..n]).unwrap_or_else(|_| CrtpPacket {
-            port: PORT_MEM,
-            channel: CH_READ,
-            data: heapless::Vec::new(),
-        })
-    }
-}
-
 /// The memory service: no memories, or the map.
 #[derive(Debug, Clone, Copy, Default)]
 pub struct MemService {
-    map_cells: Option<usize>,
+    map_size: Option<u32>,
     held: Option<MapRead>,
 }
 
@@ -86,16 +64,17 @@ impl MemService {
     /// A service listing no memories.
     pub const fn new() -> Self {
         Self {
-            map_cells: None,
+            map_size: None,
             held: None,
         }
     }
 
-    /// A service listing the map memory of a grid of `cells` capacity (its size is
-    /// [`map_memory_size`]`(cells)`). The caller must answer every [`take_map_read`](Self::take_map_read).
-    pub const fn with_map(cells: usize) -> Self {
+    /// A service listing the map memory, `size` bytes long. The caller must answer every
+    /// [`take_map_read`](Self::take_map_read). cfnav's map builds it with `MemService::with_map` (in
+    /// `crate::radio_binding::map_mem`), which gives the size of its layout.
+    pub const fn with_map_size(size: u32) -> Self {
         Self {
-            map_cells: Some(cells),
+            map_size: Some(size),
             held: None,
         }
     }
@@ -107,7 +86,7 @@ impl MemService {
     }
 
     fn count(&self) -> u8 {
-        u8::from(self.map_cells.is_some())
+        u8::from(self.map_size.is_some())
     }
 
     fn status_reply(channel: u8, data: &[u8]) -> Option<CrtpPacket> {
@@ -133,8 +112,7 @@ impl Service for MemService {
                 CMD_INFO_NBR => CrtpPacket::new(PORT_MEM, CH_INFO, &[CMD_INFO_NBR, self.count()]).ok(),
                 CMD_INFO_DETAILS => {
                     let id = *data.get(1)?;
-                    let cells = self.map_cells.filter(|_| id == MAP_MEMORY_ID)?;
-                    let size = u32::try_from(map_memory_size(cells)).unwrap_or(u32::MAX);
+                    let size = self.map_size.filter(|_| id == MAP_MEMORY_ID)?;
                     let mut buf = [0u8; 15];
                     buf[0] = CMD_INFO_DETAILS;
                     buf[1] = id;
@@ -148,7 +126,7 @@ impl Service for MemService {
                 if data.len() < 6 {
                     return None;
                 }
-                if data[0] == MAP_MEMORY_ID && self.map_cells.is_some() {
+                if data[0] == MAP_MEMORY_ID && self.map_size.is_some() {
                     let addr = u32::from_le_bytes([data[1], data[2], data[3], data[4]]);
                     self.held = Some(MapRead { addr, len: data[5] });
                     return None;

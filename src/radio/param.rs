@@ -7,7 +7,7 @@
 //! Non-goals: no V1 (8-bit id) commands, no EEPROM access (the persistent commands hand the caller the
 //! bytes to write, [`ParamService::eeprom_write`], and answer when it reports back).
 //!
-//! Sources (`crazyflie-hardware.md` §4.5, `crtp-over-udp.md` §2 steps 7, 8, 10 and the probe trace):
+//! Sources (`docs/hardware.md` §4, `docs/radio.md`, the connection steps that fetch the parameter TOC and values and their trace):
 //! * ch0 `[3]` → `[3, count u16, crc u32]` (7 bytes); `[2, id u16]` → `[2, id u16, type, group\0, name\0]`,
 //!   id out of range → `[2]` only.
 //! * ch1 `[id u16]` → `[id u16, 0, value]` (exactly 3 + size), unknown id → `[id u16, 2]` (ENOENT).
@@ -19,7 +19,7 @@
 //! * A write whose value is not exactly the parameter's size, and any truncated request (TOC item or read
 //!   without a full id, write without one, set-by-name without two NULs and a type byte) gets **no reply** and
 //!   changes nothing. Stock does not check these sizes (it reads past the payload); cflib never sends them.
-//! * A write refused by its declaration (range) or by the store (interfaces.md §5) is echoed with the value **in effect**; the refusal is
+//! * A write refused by its declaration (range) or by the store (`docs/radio.md`) is echoed with the value **in effect**; the refusal is
 //!   kept for a console line ([`ParamService::take_refusal`]). Every write echo carries the value read back.
 //! * Set-by-name errors: ENOENT (2) unknown name, EINVAL (22) type mismatch, wrong value size or a refused
 //!   value, EACCES (13) read-only; a successful set-by-name queues no VALUE_UPDATED (as stock).
@@ -50,10 +50,11 @@ use core::fmt::Write as _;
 use heapless::{Deque, String, Vec};
 
 use super::crtp::{CrtpPacket, MAX_DATA, Service};
-use super::registry::{FLAG_EXTENDED, ParamEntry, ParamStore, ParamType, Refusal, Value, toc_crc, toc_item};
+use super::param_decl::{FLAG_EXTENDED, ParamEntry, ParamStore, ParamType, Refusal, toc_crc};
+use super::toc::{Value, toc_item};
 use crate::system::persistent_params::{PendingWrite, PersistentParams};
 
-/// Parameter port (§4.2).
+/// Parameter port.
 pub const PORT_PARAM: u8 = 2;
 /// TOC channel.
 pub const CH_TOC: u8 = 0;
@@ -273,7 +274,7 @@ impl<S: ParamStore> ParamService<S> {
 
     /// The console line for a refusal: `param group.name refused: reason\n`; a value outside the declared
     /// range names the range, `param group.name refused: not in [0, 1]` (truncated to 64 bytes; every line
-    /// of [`super::registry::PARAM_TABLE`] fits).
+    /// of [`crate::radio_binding::param_table::PARAM_TABLE`] fits).
     pub fn console_line(note: &RefusalNote) -> String<64> {
         let mut out = String::new();
         let _ = match (Self::entry(note.id), note.refusal) {
@@ -370,7 +371,7 @@ impl<S: ParamStore> ParamService<S> {
         if e.read_only() {
             return None;
         }
-        // Accepted or refused, the echo carries the value in effect (interfaces.md §5).
+        // Accepted or refused, the echo carries the value in effect (`docs/radio.md`).
         let _accepted_or_refused = self.apply(id, e.ty, &data[2..])?;
         self.value_reply(CH_WRITE, id, false)
     }

@@ -7,26 +7,26 @@
 //! Non-goals: no UART, DMA or TXEN flow-control handling (the caller moves bytes); no policy on when to send
 //! what (the "one RADIO_RAW down per RADIO_RAW up" rule is kept by [`super::crtp::Router`]).
 //!
-//! Sources (`/work/shared/reference/crazyflie-hardware.md`):
-//! * §3.2 frame format: `BC CF TYPE LEN DATA… CK_A CK_B`, `LEN ≤ 64`, 8-bit Fletcher checksum over
+//! Sources (`docs/hardware.md` §4, syslink):
+//! * frame format: `BC CF TYPE LEN DATA… CK_A CK_B`, `LEN ≤ 64`, 8-bit Fletcher checksum over
 //!   TYPE, LEN and DATA (`A += byte; B += A`, both mod 256); worked examples RADIO_READY = `BC CF 0B 00 0B 16`,
 //!   PM_BATTERY_AUTOUPDATE = `BC CF 14 00 14 28`, RADIO_CHANNEL 80 = `BC CF 01 01 50 52 55`.
-//! * §3.3 packet type numbers and payloads; §3.4 the stock boot order; §3.5 the PM_BATTERY_STATE payload.
+//! * packet type numbers and payloads; the stock boot order; the PM_BATTERY_STATE payload.
 //!
 //! Memory: a packet is 66 bytes; the decoder holds one 70-byte frame buffer plus counters.
 
 use heapless::Vec;
 
-/// First start byte of every frame (§3.2).
+/// First start byte of every frame.
 pub const START1: u8 = 0xBC;
-/// Second start byte of every frame (§3.2).
+/// Second start byte of every frame.
 pub const START2: u8 = 0xCF;
-/// Largest payload (`SYSLINK_MTU`, §3.2).
+/// Largest payload (`SYSLINK_MTU`).
 pub const MTU: usize = 64;
 /// Largest whole frame: 2 start bytes, type, length, payload, 2 checksum bytes.
 pub const MAX_FRAME: usize = 4 + MTU + 2;
 
-/// Packet type numbers (§3.3, identical in the STM32 and nRF firmwares).
+/// Packet type numbers (`docs/hardware.md` §4, identical in the STM32 and nRF firmwares).
 pub mod kind {
     /// Raw ESB payload: CRTP header byte + ≤ 30 data bytes.
     pub const RADIO_RAW: u8 = 0x00;
@@ -98,14 +98,14 @@ pub enum EncodeError {
     },
     /// The payload is longer than [`MTU`].
     PayloadTooLong,
-    /// An argument is outside the range §3.3 allows (channel > 125, address wider than 40 bits).
+    /// An argument is outside the range `docs/hardware.md` §4 allows (channel > 125, address wider than 40 bits).
     OutOfRange,
 }
 
 /// Why a candidate frame was rejected; the decoder has already resynchronised when it reports one.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum DecodeError {
-    /// The length byte exceeded [`MTU`] (the stock receiver resyncs too, §3.2).
+    /// The length byte exceeded [`MTU`] (the stock receiver resyncs too).
     Oversized(u8),
     /// The two checksum bytes did not match the frame.
     BadChecksum,
@@ -114,13 +114,13 @@ pub enum DecodeError {
 /// One syslink packet: a type number (see [`kind`]) and up to [`MTU`] payload bytes.
 #[derive(Debug, Clone, PartialEq, Eq)]
 pub struct SyslinkPacket {
-    /// Packet type (§3.3).
+    /// Packet type.
     pub kind: u8,
     /// Payload, little-endian multi-byte values.
     pub payload: Vec<u8, MTU>,
 }
 
-/// Radio data rates for [`SyslinkPacket::radio_datarate`] (§3.3).
+/// Radio data rates for [`SyslinkPacket::radio_datarate`].
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum Datarate {
     /// 250 kbit/s.
@@ -150,7 +150,7 @@ impl SyslinkPacket {
         Self::new(kind::RADIO_RAW, crtp)
     }
 
-    /// RADIO_CHANNEL (boot step 1, §3.4); `channel` must be 0–125.
+    /// RADIO_CHANNEL (boot step 1); `channel` must be 0–125.
     pub fn radio_channel(channel: u8) -> Result<Self, EncodeError> {
         if channel > 125 {
             return Err(EncodeError::OutOfRange);
@@ -158,7 +158,7 @@ impl SyslinkPacket {
         Self::new(kind::RADIO_CHANNEL, &[channel])
     }
 
-    /// RADIO_DATARATE (boot step 1, §3.4).
+    /// RADIO_DATARATE (boot step 1).
     pub fn radio_datarate(rate: Datarate) -> Self {
         let mut p = Self::empty(kind::RADIO_DATARATE);
         // One byte always fits in an empty 64-byte vector.
@@ -166,7 +166,7 @@ impl SyslinkPacket {
         p
     }
 
-    /// RADIO_ADDRESS (boot step 1, §3.4): 5 bytes little-endian; `address` must fit in 40 bits
+    /// RADIO_ADDRESS (boot step 1): 5 bytes little-endian; `address` must fit in 40 bits
     /// (default 0xE7E7E7E7E7).
     pub fn radio_address(address: u64) -> Result<Self, EncodeError> {
         if address >> 40 != 0 {
@@ -176,12 +176,12 @@ impl SyslinkPacket {
         Self::new(kind::RADIO_ADDRESS, &bytes[..5])
     }
 
-    /// RADIO_READY (boot step 5, §3.4): no payload.
+    /// RADIO_READY (boot step 5): no payload.
     pub fn radio_ready() -> Self {
         Self::empty(kind::RADIO_READY)
     }
 
-    /// PM_BATTERY_AUTOUPDATE (boot step 4, §3.4): no payload.
+    /// PM_BATTERY_AUTOUPDATE (boot step 4): no payload.
     pub fn pm_battery_autoupdate() -> Self {
         Self::empty(kind::PM_BATTERY_AUTOUPDATE)
     }
@@ -197,7 +197,7 @@ impl SyslinkPacket {
     }
 }
 
-/// The §3.2 checksum of a frame body (`TYPE, LEN, DATA…`): 8-bit Fletcher, `A += byte; B += A`, mod 256.
+/// The syslink checksum of a frame body (`TYPE, LEN, DATA…`): 8-bit Fletcher, `A += byte; B += A`, mod 256.
 pub fn checksum(body: &[u8]) -> [u8; 2] {
     let (mut a, mut b) = (0u8, 0u8);
     for &byte in body {
@@ -207,7 +207,7 @@ pub fn checksum(body: &[u8]) -> [u8; 2] {
     [a, b]
 }
 
-/// Writes `packet` as one frame into `out` (§3.2) and returns the frame length.
+/// Writes `packet` as one frame into `out` and returns the frame length.
 pub fn encode(packet: &SyslinkPacket, out: &mut [u8]) -> Result<usize, EncodeError> {
     let n = packet.payload.len();
     let needed = n + 6;
@@ -372,7 +372,7 @@ impl SyslinkDecoder {
     }
 }
 
-/// The nRF's battery report (PM_BATTERY_STATE, §3.5).
+/// The nRF's battery report (PM_BATTERY_STATE).
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct BatteryState {
     /// Raw flag byte.
@@ -396,7 +396,7 @@ pub struct BatteryState {
 pub enum BatteryError {
     /// The packet is not of type PM_BATTERY_STATE.
     WrongKind,
-    /// The payload is shorter than the 9 bytes §3.5 requires.
+    /// The payload is shorter than the 9 bytes `docs/hardware.md` §4 requires.
     TooShort,
 }
 

@@ -2,19 +2,19 @@
 //! name and its two wire codes (the parameter type byte's low nibble and the log type code).
 //!
 //! Job: say once what a `uint16` or a `float` is on the wire, for both TOCs. The parameter registry
-//! ([`super::registry::ParamType`]) and the log registry ([`super::log_registry::LogType`]) are this type under
-//! their protocol's name; the values themselves are [`super::registry::Value`] (encode `to_le`, decode
+//! ([`super::param_decl::ParamType`]) and the log registry ([`crate::radio::log_decl::LogType`]) are this type under
+//! their protocol's name; the values themselves are [`super::toc::Value`] (encode `to_le`, decode
 //! `from_le`, log conversion `convert`).
 //!
 //! Non-goals: no 64-bit types, no FP16 parameters (FP16 is a log *fetch* type only: no value is stored as
 //! one, and [`WireType::from_param_code`] never yields it).
 //!
-//! Sources: `crazyflie-hardware.md` §4.5 (parameter type byte: bits 1..0 size 0 = 1 B, 1 = 2 B, 2 = 4 B; bit 2
-//! float; bit 3 unsigned) and §4.6 (log type codes 1 u8, 2 u16, 3 u32, 4 i8, 5 i16, 6 i32, 7 float, 8 FP16).
+//! Sources: `docs/hardware.md` §4 (parameter type byte: bits 1..0 size 0 = 1 B, 1 = 2 B, 2 = 4 B; bit 2
+//! float; bit 3 unsigned) and `docs/hardware.md` §4 (log type codes 1 u8, 2 u16, 3 u32, 4 i8, 5 i16, 6 i32, 7 float, 8 FP16).
 //!
 //! Memory: one byte, `Copy`.
 
-/// A scalar type on the wire (§4.5, §4.6).
+/// A scalar type on the wire.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum WireType {
     /// `uint8_t`: param code 0x08, log code 1.
@@ -57,7 +57,7 @@ impl WireType {
         }
     }
 
-    /// The name interfaces.md §5 and the README use (`uint8`, `float`, ...).
+    /// The name `docs/radio.md` and the README use (`uint8`, `float`, ...).
     pub const fn name(self) -> &'static str {
         match self {
             Self::U8 => "uint8",
@@ -71,7 +71,7 @@ impl WireType {
         }
     }
 
-    /// The parameter type code (low nibble of the type byte), built from §4.5's bits: size, float, unsigned.
+    /// The parameter type code (low nibble of the type byte), built from `docs/hardware.md` §4's bits: size, float, unsigned.
     pub const fn param_code(self) -> u8 {
         let size_bits = match self.size() {
             1 => 0,
@@ -97,7 +97,7 @@ impl WireType {
         None
     }
 
-    /// The log type code (§4.6).
+    /// The log type code.
     pub const fn log_code(self) -> u8 {
         match self {
             Self::U8 => 1,

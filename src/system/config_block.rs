@@ -8,7 +8,7 @@
 //! Non-goals: no I2C (the board layer reads [`READ_LEN`] bytes from EEPROM address 0x0000 at I2C address
 //! [`EEPROM_I2C_ADDRESS`]), no writing or upgrading the block, no KVE (persistent parameters at offset 1024).
 //!
-//! Layout (`crazyflie-hardware.md` §1.5; bitcraze crazyflie-firmware `src/utils/src/configblockeeprom.c`,
+//! Layout (`docs/hardware.md` §1; bitcraze crazyflie-firmware `src/utils/src/configblockeeprom.c`,
 //! `configblock_v0_s` / `configblock_v1_s`, packed, little-endian):
 //!
 //! | offset | v0 | v1 |
@@ -25,13 +25,13 @@
 //!
 //! The checksum is the byte sum (mod 256) of every byte before it (`calculate_cksum`). A v0 block has no
 //! address: the default address is used with its channel and rate. Other versions (v2 is a development
-//! layout) are not trusted: defaults. Channel > 125 (§3.3) or an unknown rate code also give the defaults.
+//! layout) are not trusted: defaults. Channel > 125 (`docs/hardware.md` §4) or an unknown rate code also give the defaults.
 //!
 //! Memory: [`RadioSettings`] is 16 bytes; nothing is kept.
 
 use crate::radio::syslink::{Datarate, EncodeError, SyslinkPacket};
 
-/// The EEPROM's 7-bit I2C address on the deck bus I2C1 (`crazyflie-hardware.md` §1.5, §5.6).
+/// The EEPROM's 7-bit I2C address on the deck bus I2C1 (`docs/hardware.md` §1, §2).
 pub const EEPROM_I2C_ADDRESS: u8 = 0x50;
 /// Magic number at offset 0 ("0xCB" in ASCII order, stock `MAGIC`).
 pub const MAGIC: u32 = 0x4342_7830;
@@ -45,7 +45,7 @@ pub const DEFAULT_CHANNEL: u8 = 80;
 pub const DEFAULT_DATARATE: Datarate = Datarate::Rate2M;
 /// Stock default radio address (`config.h` `RADIO_ADDRESS`).
 pub const DEFAULT_ADDRESS: u64 = 0xE7_E7E7_E7E7;
-/// Highest radio channel (2400 + 125 MHz, §3.3).
+/// Highest radio channel (2400 + 125 MHz, `docs/hardware.md` §4).
 pub const MAX_CHANNEL: u8 = 125;
 
 /// Radio settings and board calibration, from the block or the defaults.
@@ -156,7 +156,7 @@ impl RadioSettings {
     }
 
     /// The boot packets in the stock order (`radiolink.c` `radiolinkInit`: channel, data rate, address),
-    /// sent before RADIO_READY (`crazyflie-hardware.md` §3.4 step 1). Fails only for a hand-built value with
+    /// sent before RADIO_READY (`docs/hardware.md` §4 step 1). Fails only for a hand-built value with
     /// a channel above 125 or an address wider than 40 bits ([`parse`](Self::parse) never makes one).
     pub fn boot_packets(&self) -> Result<[SyslinkPacket; 3], EncodeError> {
         Ok([

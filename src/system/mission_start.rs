@@ -4,7 +4,7 @@
 //!
 //! Job: turn a write of `mission.start` into a request for the mission task or a refusal, and tell the radio
 //! when the parameter must go back to 0: a refused start (the outcome came back as an error, or the request
-//! could not be queued, or a fault is recorded) and the end of a mission (interfaces.md §5: "back to 0 when
+//! could not be queued, or a fault is recorded) and the end of a mission (`docs/radio.md`: "back to 0 when
 //! it ends, set by the firmware, which then queues a VALUE_UPDATED").
 //!
 //! Rule that avoids the race: while a start request is pending (sent, no outcome yet) the parameter is never

@@ -13,7 +13,7 @@
 //!
 //! # Layout
 //! The region starts at EEPROM offset [`REGION_START`] (1024, where stock keeps its KVE partition:
-//! `crazyflie-hardware.md` §1.5, stock `storage.c` `KVE_PARTITION_START`; the config block at 0..21 is
+//! `docs/hardware.md` §1, stock `storage.c` `KVE_PARTITION_START`; the config block at 0..21 is
 //! never touched) and holds two slots of [`SLOT_LEN`] bytes. A slot, little-endian:
 //!
 //! | offset | field |
@@ -23,7 +23,7 @@
 //! | 6 | record count u16 (≤ [`MAX_RECORDS`]) |
 //! | 8 | sequence number u32 (the newer slot has the larger one, compared with wrap-around) |
 //! | 12 | reserved u32 = 0 |
-//! | 16 | records, [`RECORD_LEN`] bytes each: key u32 ([`param_key`]), type code u8 (param protocol §4.5), value 4 bytes (little-endian, zero-padded) |
+//! | 16 | records, [`RECORD_LEN`] bytes each: key u32 ([`param_key`]), type code u8 (param protocol `docs/hardware.md` §4), value 4 bytes (little-endian, zero-padded) |
 //! | … | zeros up to the CRC |
 //! | `SLOT_LEN − 4` | CRC-32 (reflected 0xEDB88320, init/xorout 0xFFFFFFFF) of bytes 0 .. `SLOT_LEN − 4` |
 //!
@@ -44,7 +44,7 @@
 //!
 //! Memory: [`PersistentParams`] is one slot image (640 bytes) and a few words; a [`PendingWrite`] another.
 
-use crate::radio::registry::crc32;
+use crate::crc::crc32;
 
 /// EEPROM offset of the first slot (stock's KVE partition start, 1024).
 pub const REGION_START: u16 = 0x0400;
@@ -76,7 +76,7 @@ const CRC_AT: usize = SLOT_LEN - 4;
 /// `prm/` prefix, hashed to fit a fixed record). Keys, not ids, so a stored value survives a firmware whose
 /// table has other ids; the host tests check that no two parameters share a key.
 pub const fn param_key(group: &str, name: &str) -> u32 {
-    use crate::radio::registry::crc32_update;
+    use crate::crc::crc32_update;
     let crc = crc32_update(0xFFFF_FFFF, group.as_bytes());
     let crc = crc32_update(crc, b".");
     crc32_update(crc, name.as_bytes()) ^ 0xFFFF_FFFF
@@ -87,7 +87,7 @@ pub const fn param_key(group: &str, name: &str) -> u32 {
 pub struct Record {
     /// [`param_key`] of the parameter.
     pub key: u32,
-    /// Its wire type code (§4.5), so a value stored for another type is never applied.
+    /// Its wire type code (`docs/hardware.md` §4), so a value stored for another type is never applied.
     pub type_code: u8,
     /// The value, little-endian, zero-padded to 4 bytes.
     pub value: [u8; 4],

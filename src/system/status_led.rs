@@ -5,7 +5,7 @@
 //! ([`led_frame`]).
 //!
 //! Non-goals: no pins (the board layer maps a [`LedFrame`] to PD2/PC0–PC3 and their polarity,
-//! `crazyflie-hardware.md` §7), no nRF-driven blue LED.
+//! stock `led.h`), no nRF-driven blue LED.
 //!
 //! Patterns (all periodic in 1 s, sampled at ≥ 40 Hz by the board's LED task); each status uses a colour or a
 //! rhythm no other status uses, so they can be told apart from across the room:

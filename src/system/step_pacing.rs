@@ -2,7 +2,7 @@
 //!
 //! Job: the control task drains its input queue before each step. A flow update (≈ 14 k instructions) and
 //! a Multi-ranger sweep with wall anchors (≈ 20 k) landing in the same step made that step 37 k
-//! instructions (BENCHMARKS.md §6), a third of the core at CPI 1.5; the budget is a quarter. [`HeavyInputGate`]
+//! instructions (QEMU counts, BENCHMARKS.md), a third of the core at CPI 1.5; the budget is a quarter. [`HeavyInputGate`]
 //! lets the first costly input of a step through and holds the next one for the following step (1 ms
 //! later; the sensors deliver at 100 Hz and 10 Hz, so it never holds more than one), and the caller stops
 //! draining while it holds one, so the inputs keep their order.

@@ -1,4 +1,4 @@
-//! The build's git revision as stock's `firmware` parameter group publishes it (issue 13):
+//! The build's git revision as stock's `firmware` parameter group publishes it:
 //! `firmware.revision0` (uint32, read-only) = the first 8 hex digits of the commit hash, `firmware.revision1`
 //! (uint16, read-only) = the next 4, `firmware.modified` (uint8, read-only) = 1 when the firmware's tracked
 //! inputs (`src`, `build.rs`, `Cargo.toml`, `memory.x`) differed from that commit at build time. Stock

@@ -36,7 +36,7 @@ pub const MIN_TIMEOUT_US: u32 = 100_000;
 /// How often the feeder runs, µs: a fifth of [`MIN_TIMEOUT_US`], so four periods of lateness are tolerated.
 pub const FEED_PERIOD_US: u32 = 20_000;
 /// Thread mode (the mission task) must report progress within this, µs. The longest thread-mode slice is one
-/// planner slice (BENCHMARKS.md §6: 4000 expansions ≈ 6.5 M instructions, ≤ 155 ms even at a CPI of 3
+/// planner slice (QEMU counts in BENCHMARKS.md: 4000 expansions ≈ 6.5 M instructions, ≤ 155 ms even at a CPI of 3
 /// with the control and I/O executors taking a quarter of the core), so this leaves a 3× margin.
 pub const THREAD_STALL_US: u32 = 500_000;
 /// The control loop (1 kHz) must advance within this once running, µs (its own missed-edge handling stops the

@@ -4,7 +4,7 @@
 
 use cfnav::flight::high_level::HlCommand;
 use cfnav::radio::crtp::CrtpPacket;
-use cfnav::radio::high_level::{HighLevelService, HlError, HlPacket, decode, in_group};
+use cfnav::radio_binding::high_level::{HighLevelService, HlError, HlPacket, decode, in_group};
 
 /// cflib's `'<BBff?f'`: command, group mask, height, yaw, useCurrentYaw, duration.
 fn takeoff_land(cmd: u8, mask: u8, height: f32, yaw: f32, use_current: bool, duration: f32) -> Vec<u8> {

@@ -9,12 +9,15 @@ use cfnav::radio::crtp::{PlatformService, Router, Service};
 use cfnav::radio::log::{
     E2BIG, EEXIST, EINVAL, ENOENT, ENOMEM, LogService, MAX_BLOCK_DATA, MAX_BLOCKS, MAX_OPS, PORT_LOG,
 };
-use cfnav::radio::log_registry::{
-    FlightLogState, ID_MISSION_STATE, ID_RANGE_FRONT, ID_RANGE_ZRANGE, ID_VBAT, ID_X, ID_Y, ID_Z, LOG_CRC_SEED,
-    LOG_TABLE, LogEntry, LogSource, LogType, LogValue, log_toc_crc, single_to_half,
-};
+use cfnav::radio::log_decl::{LOG_CRC_SEED, LogEntry, LogSource, LogType, LogValue, log_toc_crc, single_to_half};
 use cfnav::radio::param::ParamService;
-use cfnav::radio::registry::{MissionParamState, PARAM_CRC_SEED, PARAM_TABLE, ParamType, Value, toc_crc};
+use cfnav::radio::param_decl::{PARAM_CRC_SEED, ParamType, toc_crc};
+use cfnav::radio::toc::Value;
+use cfnav::radio_binding::log_table::{
+    FlightLogState, ID_MISSION_STATE, ID_RANGE_FRONT, ID_RANGE_ZRANGE, ID_VBAT, ID_X, ID_Y, ID_Z, LOG_TABLE,
+};
+use cfnav::radio_binding::param_state::MissionParamState;
+use cfnav::radio_binding::param_table::PARAM_TABLE;
 use rand::rngs::SmallRng;
 use rand::{Rng, SeedableRng};
 

@@ -5,10 +5,10 @@
 use cfnav::nav::grid::{ChangedCells, OccupancyGrid};
 use cfnav::nav::map::{Cell, GridShape};
 use cfnav::radio::crtp::CrtpPacket;
-use cfnav::radio::map_mem::{
+use cfnav::radio::mem::{MAP_MEMORY_TYPE, MemService, STATUS_EIO};
+use cfnav::radio_binding::map_mem::{
     Crc32, MAX_PADS, MAX_PATH_POINTS, MapReadError, MapView, PadKind, PadRecord, map_memory_size,
 };
-use cfnav::radio::mem::{MAP_MEMORY_TYPE, MemService, STATUS_EIO};
 use proptest::prelude::*;
 
 use super::{hex, send, wire};

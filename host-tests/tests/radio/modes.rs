@@ -6,7 +6,9 @@
 use super::param::{assert_refused, service, write_f32};
 use super::send;
 use cfnav::mission::{MissionMode, MissionParams};
-use cfnav::radio::registry::{ID_COVERAGE, ID_HOVER_TIME, ID_MODE, ID_START, ParamStore, Refusal, Value};
+use cfnav::radio::param_decl::{ParamStore, Refusal};
+use cfnav::radio::toc::Value;
+use cfnav::radio_binding::param_table::{ID_COVERAGE, ID_HOVER_TIME, ID_MODE, ID_START};
 
 fn write_u8(id: u16, v: u8) -> Vec<u8> {
     let mut out = vec![0x2E];
@@ -118,7 +120,7 @@ fn generated_mode_table_is_the_declaration() {
         "docs/mission.md's mode table differs from the declaration; paste this between its markers:\n{table}"
     );
     // Every mode the parameter's declared range admits has a row, and no other.
-    let e = cfnav::radio::registry::PARAM_TABLE
+    let e = cfnav::radio_binding::param_table::PARAM_TABLE
         .iter()
         .find(|e| e.group == "mission" && e.name == "mode")
         .unwrap();

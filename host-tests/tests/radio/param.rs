@@ -4,13 +4,17 @@
 //! CRC, and a seeded random-bytes loop.
 
 use super::{hex, send, wire};
+use cfnav::crc::{crc32, crc32_update};
 use cfnav::mission::MissionParams;
 use cfnav::radio::crtp::{CrtpPacket, PlatformService, Router, Service};
 use cfnav::radio::param::{EACCES, EINVAL, ENOENT, ParamService, RefusalNote};
-use cfnav::radio::registry::{
-    FLAG_EXTENDED, FLAG_READ_ONLY, ID_GOAL_X, ID_GOAL_Y, ID_HEIGHT, ID_SPEED, ID_START, ID_START_X, ID_START_Y,
-    MissionParamState, PARAM_CRC_SEED, PARAM_TABLE, ParamEntry, ParamStore, ParamType, Refusal, Value, crc32,
-    crc32_update, toc_crc,
+use cfnav::radio::param_decl::{
+    FLAG_EXTENDED, FLAG_READ_ONLY, PARAM_CRC_SEED, ParamEntry, ParamStore, ParamType, Refusal, toc_crc,
+};
+use cfnav::radio::toc::Value;
+use cfnav::radio_binding::param_state::MissionParamState;
+use cfnav::radio_binding::param_table::{
+    ID_GOAL_X, ID_GOAL_Y, ID_HEIGHT, ID_SPEED, ID_START, ID_START_X, ID_START_Y, PARAM_TABLE,
 };
 use rand::rngs::SmallRng;
 use rand::{Rng, SeedableRng};
@@ -406,7 +410,7 @@ fn height_below_0_2_and_negative_speed_are_refused() {
 #[test]
 fn link_loss_parameters_are_bounded() {
     use cfnav::mission::link_loss::LinkLossPolicy;
-    use cfnav::radio::registry::{ID_LINK_LOSS, ID_LINK_TIMEOUT};
+    use cfnav::radio_binding::param_table::{ID_LINK_LOSS, ID_LINK_TIMEOUT};
     let mut m = service();
     assert_eq!(m.store().read(ID_LINK_LOSS), Some(Value::U8(0)), "default: go on");
     assert_eq!(m.store().read(ID_LINK_TIMEOUT), Some(Value::F32(2.0)), "default: 2 s");

@@ -6,12 +6,13 @@
 
 use cfnav::mission::MissionParams;
 use cfnav::radio::crtp::{CrtpPacket, Service};
-use cfnav::radio::log_registry::{LOG_TABLE, write_log_table};
+use cfnav::radio::log_decl::write_log_table;
 use cfnav::radio::param::ParamService;
-use cfnav::radio::registry::{
-    FLAG_READ_ONLY, ID_RESET_ESTIMATION, MissionParamState, PARAM_TABLE, ParamStore, ParamType, Refusal, Value,
-    write_param_table,
-};
+use cfnav::radio::param_decl::{FLAG_READ_ONLY, ParamStore, ParamType, Refusal, write_param_table};
+use cfnav::radio::toc::Value;
+use cfnav::radio_binding::log_table::LOG_TABLE;
+use cfnav::radio_binding::param_state::MissionParamState;
+use cfnav::radio_binding::param_table::{ID_RESET_ESTIMATION, PARAM_TABLE};
 
 type Params = ParamService<MissionParamState>;
 
@@ -244,9 +245,9 @@ fn every_declared_range_is_enforced_on_the_wire() {
     // For each writable declaration with a range, a value just outside is refused and changes nothing.
     for (i, e) in PARAM_TABLE.iter().enumerate() {
         let outside = match (e.range, e.ty) {
-            (cfnav::radio::registry::Range::Closed(_, hi), ParamType::U8) => Value::U8(hi as u8 + 1),
-            (cfnav::radio::registry::Range::Closed(_, hi), ParamType::F32) => Value::F32(hi + 0.5),
-            (cfnav::radio::registry::Range::LeftOpen(lo, _), ParamType::F32) => Value::F32(lo),
+            (cfnav::radio::param_decl::Range::Closed(_, hi), ParamType::U8) => Value::U8(hi as u8 + 1),
+            (cfnav::radio::param_decl::Range::Closed(_, hi), ParamType::F32) => Value::F32(hi + 0.5),
+            (cfnav::radio::param_decl::Range::LeftOpen(lo, _), ParamType::F32) => Value::F32(lo),
             _ => continue,
         };
         if e.read_only() {

@@ -6,7 +6,7 @@
 
 use cfnav::flight::supervisor::{Reason, SupervisorFlags, SupervisorOutput, SupervisorState};
 use cfnav::radio::crtp::{CrtpPacket, PlatformService, Router, Service};
-use cfnav::radio::supervisor_port::{
+use cfnav::radio_binding::supervisor_port::{
     ESTOP_WATCHDOG_US, SupervisorPortConfig, SupervisorPortService, SupervisorRequests, SupervisorStatus,
 };
 use rand::rngs::SmallRng;

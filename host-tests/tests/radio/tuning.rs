@@ -8,9 +8,11 @@ use cfnav::flight::control::{Controller, ControllerConfig};
 use cfnav::mission::MissionParams;
 use cfnav::nav::avoidance::AvoidanceMethod;
 use cfnav::radio::param::{EBUSY, EIO, ENOENT, ENOSPC, ParamService};
-use cfnav::radio::registry::{
-    ID_GOAL_X, MissionParamState, PARAM_TABLE, ParamStore, ParamType, Refusal, Tuning, Value, tune_field,
-};
+use cfnav::radio::param_decl::{ParamStore, ParamType, Refusal};
+use cfnav::radio::toc::Value;
+use cfnav::radio_binding::param_state::MissionParamState;
+use cfnav::radio_binding::param_table::{ID_GOAL_X, PARAM_TABLE};
+use cfnav::radio_binding::tuning::{Tuning, tune_field};
 use cfnav::system::persistent_params::{MAX_RECORDS, PersistentParams, SLOT_LEN, param_key};
 
 type Svc = ParamService<MissionParamState>;

@@ -5,10 +5,10 @@
 use cfnav::flight::control::ControlOutput;
 use cfnav::radio::crtp::{CrtpPacket, Service};
 use cfnav::radio::log::{LogService, PORT_LOG};
-use cfnav::radio::log_registry::{
+use cfnav::radio::log_decl::{LOG_CRC_SEED, LogSource, LogType, LogValue, log_toc_crc};
+use cfnav::radio_binding::log_table::{
     FirmwareLogState, FlightLogState, ID_CPU_LOAD_PCT, ID_LOOP_JITTER_US, ID_LOOP_RATE_HZ, ID_LOOP_STEP_MAX_US,
-    ID_MISSION_LOAD_PCT, ID_VBAT, ID_X, LOG_CRC_SEED, LOG_TABLE, LogSource, LogType, LogValue, battery_level_pct,
-    log_toc_crc,
+    ID_MISSION_LOAD_PCT, ID_VBAT, ID_X, LOG_TABLE, battery_level_pct,
 };
 use cfnav::types::{Setpoint, StateEstimate};
 

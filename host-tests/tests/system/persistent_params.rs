@@ -238,7 +238,7 @@ fn raw_slot(version: u16, seq: u32, records: &[Record]) -> Vec<u8> {
         b[at + 4] = r.type_code;
         b[at + 5..at + 9].copy_from_slice(&r.value);
     }
-    let crc = cfnav::radio::registry::crc32(&b[..SLOT_LEN - 4]);
+    let crc = cfnav::crc::crc32(&b[..SLOT_LEN - 4]);
     b[SLOT_LEN - 4..].copy_from_slice(&crc.to_le_bytes());
     b
 }
@@ -270,7 +270,7 @@ fn a_slot_of_another_format_version_is_not_read() {
     // An impossible record count with a valid CRC is not trusted either.
     let mut bad = raw_slot(FORMAT_VERSION, 1, &[]);
     bad[6..8].copy_from_slice(&(MAX_RECORDS as u16 + 1).to_le_bytes());
-    let crc = cfnav::radio::registry::crc32(&bad[..SLOT_LEN - 4]);
+    let crc = cfnav::crc::crc32(&bad[..SLOT_LEN - 4]);
     bad[SLOT_LEN - 4..].copy_from_slice(&crc.to_le_bytes());
     assert_eq!(
         PersistentParams::load(&bad).1.slots[0],

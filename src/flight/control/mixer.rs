@@ -1,7 +1,7 @@
 //! Power distribution: the legacy quadrotor mixer in cfnav's attitude convention, the stock capping, the
 //! battery-voltage compensation and the 8-bit duty.
 //!
-//! Pipeline per motor (stock `power_distribution_quadrotor.c` + `motors.c`, crazyflie-hardware.md §6):
+//! Pipeline per motor (stock `power_distribution_quadrotor.c` + `motors.c`, `docs/hardware.md` §3):
 //!
 //! 1. **mix** the collective thrust `T` and the rate loops' torque commands `(roll, pitch, yaw)` (signed
 //!    16-bit, cfnav convention: positive roll torque lowers the right side, positive pitch torque lowers

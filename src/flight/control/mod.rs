@@ -3,7 +3,7 @@
 //!
 //! Job: turn a [`Setpoint`] and the [`StateEstimate`] into the four motor duties, at 1 kHz, with the
 //! structure and gains of the stock Crazyflie PID controller (`controller_pid.c`,
-//! `position_controller_pid.c`, `attitude_pid_controller.c`, crazyflie-hardware.md §6 and §8.3), adapted
+//! `position_controller_pid.c`, `attitude_pid_controller.c`, `docs/hardware.md` §3), adapted
 //! to cfnav's SI API and right-hand attitude convention.
 //!
 //! Non-goals: state estimation, deciding whether the motors may run (that is [`crate::flight::supervisor`]),
@@ -136,7 +136,7 @@ pub fn hover_thrust_cmd(mass_kg: f32) -> f32 {
     }
 }
 
-/// Everything tunable. [`Default`] is the stock CF2 PID tuning (crazyflie-hardware.md §8.3).
+/// Everything tunable. [`Default`] is the stock CF2 PID tuning (from the stock files the module docs name).
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct ControllerConfig {
     /// Roll-rate PID: deg/s in, 16-bit torque counts out. Stock 250/500/2.5, i-limit 33.3.
@@ -511,7 +511,7 @@ impl Controller {
         Ok(cfg)
     }
 
-    /// New gains and limits (the tuning parameters, issue 13), in effect from the next call: integrators,
+    /// New gains and limits (the tuning parameters), in effect from the next call: integrators,
     /// derivative histories and targets are kept (as stock, whose parameters write the gains in place,
     /// in flight too), each integral clamped to its new i-limit. An invalid configuration is refused and
     /// nothing changes.

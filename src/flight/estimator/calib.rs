@@ -1,5 +1,5 @@
 //! Gyro-bias and accelerometer-scale calibration at rest (the stock `processGyroBias` /
-//! `processAccScale`, \[FW\] src/hal/src/sensors_bmi088_bmp3xx.c L83-91, crazyflie-hardware.md §8.1).
+//! `processAccScale`, \[FW\] src/hal/src/sensors_bmi088_bmp3xx.c L83-91, `docs/hardware.md` §2).
 //!
 //! Samples are gathered in windows of [`WINDOW`] (stock: a 512-sample buffer, ~0.5 s at 1 kHz). A window
 //! whose gyro variance is below the stock threshold on every axis (100 LSB² at 0.061 °/s per LSB) and whose

@@ -1,7 +1,7 @@
 //! Map-relative localization: the horizontal Multi-ranger beams measured against the occupancy map the
 //! drone has already built, as scalar position fixes for the EKF.
 //!
-//! Why: flow-only position is a random walk (≈ 1 cm/√s, 10–25 cm over a mission; BENCHMARKS.md §5). The
+//! Why: flow-only position is a random walk (≈ 1 cm/√s, 10–25 cm over a mission in simulation). The
 //! arena's walls and the obstacles the map already holds do not move, so a beam that reaches one of them
 //! measures the drone's distance to it. The wall anchors (`wall_hold`) do this only while hovering and only
 //! square to the axes; here every sweep in flight is used, at any heading, against the map.
@@ -30,19 +30,19 @@
 //! cell within 1.5 cells of it is a fix against it, once the beams have met the face over at least
 //! [`LANDMARK_MIN_EXTENT_CELLS`] cells along it (a box's face, not a cylinder's flank).
 //!
-//! Landmarks along a corridor (measured, BENCHMARKS.md §5, session 24). A drone flying along a wall at
+//! Landmarks along a corridor (measured in simulation). A drone flying along a wall at
 //! 0.45 m/s passes a 5 cm row per sweep, and its heading swings while it looks ahead, so a side beam meets
 //! each row of the face about once per pass, in scattered rows. Three rules let such a face become one
 //! landmark: one hit from an earlier sweep locates a surface ([`CONFIRMED_LOG_ODDS`]); a beam joins a
 //! landmark up to [`LANDMARK_GAP_CELLS`] beyond its extent; a new landmark replaces an unsettled one
-//! before a settled one, so the faces found on the way out still hold on the way back. Before them, a
-//! stressed world's corridor (228 000 725) gave its side beams no settled landmark in 20 s and the
-//! estimate drifted 22.6 cm across it (15.5 cm with them); over 2 000 stressed worlds the missions whose
+//! before a settled one, so the faces found on the way out still hold on the way back. Without them, a
+//! corridor can give its side beams no settled landmark for 20 s and the estimate drifts across it
+//! (22.6 cm against 15.5 cm with them in one stressed world); over 2 000 stressed worlds the missions whose
 //! estimate ever erred by more than 10 cm fell from 84 to 51. The extent rule keeps a cylinder's flank,
 //! which the looser rules would otherwise settle, from pulling the estimate along as the beam slides
-//! over the curve (208 000 672: 24 cm without it, 5 cm with it).
+//! over the curve (24 cm of error without it, 5 cm with it, in one stressed world).
 //!
-//! Why landmarks rather than the cells themselves (measured, BENCHMARKS.md §5): with the plane through
+//! Why landmarks rather than the cells themselves (measured in simulation): with the plane through
 //! the first confirmed cell's centre, the fixes ratcheted. The first confirmed cell along a ray is the
 //! nearest of the cells the noisy hits straddle, so its centre is biased towards the drone; the fix then
 //! moves the estimate away from the surface, the next hits (written from the moved estimate) confirm a
@@ -113,7 +113,7 @@ pub const PRE_GATE_M: f32 = 0.3;
 /// if it differs from the expected distance by at most this, m. The map smears a surface's end by a cell
 /// or so, and a curved surface (a cylinder) looks straight for a few cells, so a beam there may pass the
 /// end or meet the curve far behind the plane: a 14 cm cylinder's flank, taken for its widest face, read
-/// 6–9 cm long for three sweeps running (stressed world 156 000 500) and pulled the estimate 5 cm off.
+/// 6–9 cm long for three sweeps running in a stressed simulation and pulled the estimate 5 cm off.
 pub const FACE_END_MAX_DIFFERENCE_M: f32 = 0.04;
 /// Ranger noise of the fix: this floor plus [`RANGER_STD_RELATIVE`] × range, m (the VL53L1x: a few mm plus
 /// ≈ 1 % of the range; doubled for surfaces that are not quite flat).
@@ -420,9 +420,9 @@ const BESIDE_END_CELLS: i32 = 2;
 /// surface (further than [`SHORT_BEAM_CELLS`] from its plane). Then the beam met an object the map already
 /// knows but the ray slipped past: the curve of a cylinder, or a box in front of a wall whose first sweep
 /// wrote one hit beside this ray. Every later sweep of such an object reads the same shortfall, so the
-/// estimator's jump rule (a jump needs a second sweep's word) would take it for a real drift: world
-/// 368 001 203 (default settings) jumped 19 cm on three beams that met a 0.3 m cylinder 0.23 m in front of
-/// the arena's west wall, and its estimate stayed 20 cm off for the rest of the outbound leg. A real drift
+/// estimator's jump rule (a jump needs a second sweep's word) would take it for a real drift: three beams
+/// that meet a 0.3 m cylinder 0.23 m in front of a wall can make the estimate jump 19 cm and stay off for
+/// the rest of the leg. A real drift
 /// towards a surface leaves the beam's end in the free cells before it, unless the map has absorbed the
 /// drift already (then the cast stops at those cells and this rule does not apply). At most 25 cell
 /// look-ups.

@@ -1,5 +1,5 @@
 //! The state estimator: an error-state extended Kalman filter in the spirit of the stock one
-//! (\[FW\] src/modules/src/kalman_core/, crazyflie-hardware.md §9), fusing the IMU (1 kHz), the Flow deck's
+//! (\[FW\] src/modules/src/kalman_core/), fusing the IMU (1 kHz), the Flow deck's
 //! optical flow (100 Hz) and downward range (40 Hz), with a surface tracker that keeps elevated objects
 //! under the drone out of the height estimate (the "pad step", anchors-peers-planning-style.md §A.4).
 //!
@@ -80,7 +80,7 @@
 //! "thrust axis = vertical", wrong whenever the drone accelerates. The rates output is the bias-corrected
 //! gyro through the stock 80 Hz second-order low-pass.
 //!
-//! ## Flow update (stock mm_flow.c, §9)
+//! ## Flow update (stock mm_flow.c)
 //!
 //! `N_x = dt·(35/0.71674)·(v_bx·R22/h − ω_y)`, `N_y = dt·(35/0.71674)·(v_by·R22/h + ω_x)` against the
 //! measured `0.1·dpixel`, std `0.1·flow_std_counts` (stock 2.0 counts), with `h = max(z − s, 0.1 m)` the
@@ -100,7 +100,7 @@
 //! height the model divides by is the range's (a few mm off), the lens and the floor's texture differ from
 //! the stock constants. The flow alone cannot tell `e` from a velocity, so uncorrected it scales every
 //! distance flown: 3 % over a 4 m leg is 12 cm, and in the simulator's stress batch (±3 % per seed) it made
-//! most of the estimate's tail (BENCHMARKS.md §5, session 25). `e` is therefore a state: the flow's
+//! most of the estimate's tail. `e` is therefore a state: the flow's
 //! prediction is `(1 + e)·c·R22/h·v_b − c·ω` (the rotational part, from the gyro, is not scaled), its
 //! Jacobian on `δe` is the translational flow `c·R22/h·v_b`. Only the map fixes against the arena's exact
 //! walls *learn* it (through the velocity's correlation with it): they measure position in a frame that
@@ -112,7 +112,7 @@
 //! moves at most 0.005 per update and is bounded to ±0.3; a divergence reset starts it over. Cost: the
 //! error state grows from 9 to 10, about a quarter more work per update.
 //!
-//! ## Range update (stock mm_tof.c / zranger2.c, §9)
+//! ## Range update (stock mm_tof.c / zranger2.c)
 //!
 //! Used when `R22 ≥ tof_min_r22` (stock 0.1, here cos 36.9° by default: a steeper beam hits the ground far
 //! from below the drone). Cone correction as stock: `α = max(acos R22 − 7.5°, 0)`, so the measured height is
@@ -145,10 +145,9 @@
 //! fix's turn bounded by `map_fix_max_yaw_step_rad`). A fix implying a jump beyond `map_fix_jump_m`
 //! (8 cm) is held back unless a fix along the same normal direction in one of the two sweeps before
 //! agreed (within 4 cm): one beam that met another surface than the cast predicted, accepted by a gate
-//! the position's own uncertainty had widened, made the worst single errors (a 14 cm step in one sweep,
-//! training seed 21000241). Over a default-world mission this holds the
+//! the position's own uncertainty had widened, made the worst single errors (a 14 cm step in one sweep). Over a default-world mission this holds the
 //! horizontal error to an RMS of
-//! ≈ 1.5 cm instead of the flow's ≈ 6.6 cm random walk (BENCHMARKS.md §5).
+//! ≈ 1.5 cm instead of the flow's ≈ 6.6 cm random walk (simulator batches).
 //!
 //! ## The pad step
 //!
@@ -258,7 +257,7 @@ const SV: usize = 3;
 const SD: usize = 6;
 /// The flow's scale error `e` (the sensor reads `1 + e` times the translational flow the model predicts).
 const SS: usize = 9;
-/// The largest flow scale error the state may hold (interfaces.md §3 allows ±0.3 in the simulator).
+/// The largest flow scale error the state may hold (the world file format, `docs/formats.md`, allows ±0.3 in the simulator).
 const FLOW_SCALE_MAX: f32 = 0.3;
 /// Random walk of the flow scale error, 1/√s: the floor's texture and the height change across a room.
 const FLOW_SCALE_WALK_PER_SQRT_S: f32 = 0.001;
@@ -277,7 +276,7 @@ const COVARIANCE_MAX: f32 = 100.0;
 const MAX_POSITION_M: f32 = 100.0;
 const MAX_VELOCITY_M_S: f32 = 10.0;
 
-/// The IMU's nominal rate (stock main loop, §8.3): sets the rate-output filter.
+/// The IMU's nominal rate (stock main loop, `stabilizer.c`): sets the rate-output filter.
 const IMU_RATE_HZ: f32 = 1000.0;
 /// Gyro low-pass of the rates output (stock `GYRO_LPF_CUTOFF_FREQ`, sensors_bmi088_bmp3xx.c L140).
 const GYRO_LPF_HZ: f32 = 80.0;
@@ -390,7 +389,7 @@ pub struct EstimatorConfig {
     /// `map_fix_jump_agree_m`): a real drift shows in every sweep, a beam that met another surface than
     /// the cast (a corner, an obstacle's side, a ranger outlier) in one. Default 0.08 (measured at 0.06
     /// on training seeds 20–23, where single-sweep
-    /// jumps of up to 14 cm were the worst estimate errors, BENCHMARKS.md §5; 0.06 lost two sim CI runs).
+    /// jumps of up to 14 cm were the worst estimate errors; 0.06 failed two runs of the CI batches).
     pub map_fix_jump_m: f32,
     /// See `map_fix_jump_m`, m. Default 0.04.
     pub map_fix_jump_agree_m: f32,

@@ -11,7 +11,7 @@ use super::{
 use crate::types::{GRAVITY_M_S2, ImuSample};
 
 const ACCEL_RANGE_M_S2: f32 = 24.0 * GRAVITY_M_S2;
-/// BMI088 ranges as configured by stock (§8.1): ±2000 °/s, ±24 g. Anything beyond is clamped.
+/// BMI088 ranges as configured by stock (`docs/hardware.md` §2): ±2000 °/s, ±24 g. Anything beyond is clamped.
 const GYRO_RANGE_RAD_S: f32 = 34.9;
 /// Longest IMU step integrated, s; a longer gap is integrated as this (and is a fault upstream).
 const MAX_IMU_DT_S: f32 = 0.05;

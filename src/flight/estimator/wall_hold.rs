@@ -1,8 +1,8 @@
 //! Wall anchors: while the drone holds a position, the four horizontal Multi-ranger beams tie the estimate
 //! to the walls they saw when the hold began.
 //!
-//! Why: flow-only position is a random walk of the flow noise (≈ 1 cm/√s on the simulated PMW3901, see
-//! BENCHMARKS.md §5), so a drone told to hover wanders even though its controller holds the *estimate*
+//! Why: flow-only position is a random walk of the flow noise (≈ 1 cm/√s on the simulated PMW3901),
+//! so a drone told to hover wanders even though its controller holds the *estimate*
 //! within millimetres. A wall a beam sees does not move: if the range to it changes, the drone moved.
 //!
 //! Model: when a beam is anchored it remembers its range `r₀`, the estimated position `p₀` and its

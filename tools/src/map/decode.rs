@@ -1,4 +1,4 @@
-//! Decoding the map memory (layout version 1, `cfnav::radio::map_mem`, `docs/map-memory.md`) into a
+//! Decoding the map memory (layout version 1, `cfnav::radio_binding::map_mem`, `docs/map-memory.md`) into a
 //! [`MapSnapshot`], to compare cell for cell with the simulator's own map in the same JSON form
 //! (`crate::sim::map_dump`).
 //!

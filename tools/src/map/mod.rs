@@ -1,6 +1,6 @@
 //! `cfnav map`: download the map a drone (`radio://…`) or a simulator (`udp://…`, `cfnav sim --serve`) has
 //! built — occupancy grid, current path, pad estimates — from its map memory (CRTP port 4, layout in
-//! `cfnav::radio::map_mem` and `docs/map-memory.md`), and draw it like the simulator's plot and/or write it as
+//! `cfnav::radio_binding::map_mem` and `docs/map-memory.md`), and draw it like the simulator's plot and/or write it as
 //! JSON.
 //!
 //! The client is crazyflie-lib 0.8.2 (as `cfnav mission start`): it lists the drone's memories while

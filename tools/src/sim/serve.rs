@@ -48,7 +48,7 @@
 //! estimate and the simulated body's true position (arena frame, z of its underside above the floor, m).
 //! Nothing of it goes over the radio: a client sees what it would see from a real drone.
 //!
-//! Memory (port 4): memory 0 is the drone's map (`cfnav::radio::map_mem`), each read answered at once from
+//! Memory (port 4): memory 0 is the drone's map (`cfnav::radio_binding::map_mem`), each read answered at once from
 //! the live map; with `--map-json FILE`, every read of its CRC field (a download starting) and the end of a
 //! mission also write the simulator's own map of that moment to FILE ([`super::map_dump::SimMapDump`]).
 
@@ -60,13 +60,15 @@ use std::time::{Duration, Instant};
 use cfnav::mission::MissionState;
 use cfnav::radio::commander::{Command, SetpointFollower};
 use cfnav::radio::crtp::{CrtpPacket, NULL_HEADER, is_null_header};
-use cfnav::radio::endpoint::Endpoint;
-use cfnav::radio::log_registry::FlightLogState;
-use cfnav::radio::map_mem::{CRC_OFFSET, MapView};
 use cfnav::radio::mem::MemService;
 use cfnav::radio::param::ParamService;
-use cfnav::radio::registry::{ID_RESET_ESTIMATION, ID_START, MissionParamState, Tuning};
-use cfnav::radio::supervisor_port::{SupervisorPortConfig, SupervisorStatus};
+use cfnav::radio_binding::endpoint::Endpoint;
+use cfnav::radio_binding::log_table::FlightLogState;
+use cfnav::radio_binding::map_mem::{CRC_OFFSET, MapView};
+use cfnav::radio_binding::param_state::MissionParamState;
+use cfnav::radio_binding::param_table::{ID_RESET_ESTIMATION, ID_START};
+use cfnav::radio_binding::supervisor_port::{SupervisorPortConfig, SupervisorStatus};
+use cfnav::radio_binding::tuning::Tuning;
 use cfnav::stack::FlightConfig;
 use cfnav::stack::HighLevelError;
 use cfnav::system::persistent_params::{PersistentParams, REGION_LEN, REGION_START};
@@ -951,7 +953,7 @@ mod tests {
             data.extend_from_slice(value);
             b.uplink(2, 2, &data);
         };
-        use cfnav::radio::registry::{ID_START_X, ID_START_Y};
+        use cfnav::radio_binding::param_table::{ID_START_X, ID_START_Y};
         write(&mut b, ID_START_X, &1.5f32.to_le_bytes());
         write(&mut b, ID_START_Y, &2.0f32.to_le_bytes());
         let before = b.drone.core.estimate().position_m;
@@ -984,7 +986,7 @@ mod tests {
     #[test]
     fn a_silent_client_triggers_the_link_loss_policy_and_keep_alives_count() {
         use cfnav::mission::MissionState;
-        use cfnav::radio::registry::ID_LINK_LOSS;
+        use cfnav::radio_binding::param_table::ID_LINK_LOSS;
         let mut b = Bench::new();
         b.step_ms(1500);
         let write_u8 = |b: &mut Bench, id: u16, v: u8| {

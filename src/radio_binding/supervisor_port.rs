@@ -8,7 +8,7 @@
 //! Non-goals: it changes no flight state itself (the caller owns the supervisor and the flight core); no
 //! deprecated platform-port arming (port 13 ch0) or localization-port emergency stop (port 6).
 //!
-//! # Wire format (`crazyflie-hardware.md` §4.10; firmware `crtp_supervisor.h` / `crtp_supervisor.c`;
+//! # Wire format (`docs/hardware.md` §4; firmware `crtp_supervisor.h` / `crtp_supervisor.c`;
 //! cflib 0.1.34 `cflib/crazyflie/supervisor.py`, read from the installed package)
 //! * ch0 info: `[0x0C]` → `[0x8C, bitfield u16 LE]`; `[n]` for n = 0x01..=0x0B → `[0x80 | n, bit n−1]`
 //!   (stock `handleSupervisorInfo`); anything else, or an empty packet → no reply. cflib 0.1.34 only sends
@@ -54,11 +54,11 @@
 //!
 //! Memory: 56 bytes (measured on the 64-bit host).
 
-use super::crtp::{CrtpPacket, Service};
 use crate::flight::supervisor::{Reason, SupervisorFlags, SupervisorOutput, SupervisorState};
+use crate::radio::crtp::{CrtpPacket, Service};
 use crate::types::Micros;
 
-/// Supervisor port (§4.2).
+/// Supervisor port.
 pub const PORT_SUPERVISOR: u8 = 9;
 /// Info channel.
 pub const CH_INFO: u8 = 0;
@@ -76,7 +76,7 @@ pub const CMD_RECOVER_SYSTEM: u8 = 0x02;
 pub const CMD_EMERGENCY_STOP: u8 = 0x03;
 /// Command: emergency-stop watchdog keepalive.
 pub const CMD_EMERGENCY_STOP_WATCHDOG: u8 = 0x04;
-/// Emergency-stop watchdog timeout once started, µs (stock 1000 ms, §10.1).
+/// Emergency-stop watchdog timeout once started, µs (stock `supervisor.c` `DEFAULT_EMERGENCY_STOP_WATCHDOG_TIMEOUT`, 1000 ms).
 pub const ESTOP_WATCHDOG_US: u64 = 1_000_000;
 
 /// Bit numbers of the bitfield (stock order, cflib `BIT_*`).

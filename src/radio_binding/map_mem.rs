@@ -7,7 +7,7 @@
 //! or longer than [`MAX_READ_LEN`] is refused) without panicking.
 //!
 //! Non-goals: writes (the memory is read-only: writes are refused with status `EIO`), transport and the
-//! memory protocol's packets (see [`super::mem`]), decoding (the host tool `cfnav map` and
+//! memory protocol's packets (see [`crate::radio::mem`]), decoding (the host tool `cfnav map` and
 //! `tools/e2e/cflib_map.py` decode it).
 //!
 //! # Layout, version 1 (all little-endian; `docs/map-memory.md` has the full description)
@@ -50,6 +50,8 @@
 use crate::mission::Mission;
 use crate::nav::grid::OccupancyGrid;
 use crate::nav::map::{CELL_SIZE_M, Cell, GridShape};
+use crate::radio::crtp::CrtpPacket;
+use crate::radio::mem::{CH_READ, MAP_MEMORY_ID, MapRead, MemService, PORT_MEM, STATUS_EIO};
 
 /// Magic at offset 0.
 pub const MAGIC: [u8; 4] = *b"CFNM";
@@ -361,7 +363,7 @@ impl<'a, const CELLS: usize> MapView<'a, CELLS> {
 }
 
 /// CRC-32 (polynomial 0xEDB88320 reflected, initial and final XOR 0xFFFFFFFF) fed a byte at a time, over
-/// [`super::registry::crc32_update`]: no table, 4 bytes of state.
+/// [`crate::crc::crc32_update`]: no table, 4 bytes of state.
 #[derive(Clone, Copy, Debug)]
 pub struct Crc32(u32);
 
@@ -374,7 +376,7 @@ impl Crc32 {
     /// Folds one byte in.
     pub fn update(&mut self, byte: u8) {
         // The one CRC-32 register of the crate (the TOC and persistent-parameter CRCs use it too).
-        self.0 = super::registry::crc32_update(self.0, &[byte]);
+        self.0 = crate::crc::crc32_update(self.0, &[byte]);
     }
 
     /// The CRC of the bytes folded in.
@@ -386,5 +388,37 @@ impl Crc32 {
 impl Default for Crc32 {
     fn default() -> Self {
         Self::new()
+    }
+}
+
+/// The map as memory 0 of the memory service: the service learns the map's size here, and a held read is
+/// answered from a view of the live map.
+impl MemService {
+    /// A service listing the map memory of a grid of `cells` capacity (its size is
+    /// [`map_memory_size`]`(cells)`). The caller must answer every
+    /// [`take_map_read`](MemService::take_map_read).
+    pub fn with_map(cells: usize) -> Self {
+        Self::with_map_size(u32::try_from(map_memory_size(cells)).unwrap_or(u32::MAX))
+    }
+}
+
+impl MapRead {
+    /// The read reply from `view`: the bytes, or status `EIO` when the range is refused.
+    pub fn answer<const CELLS: usize>(&self, view: &MapView<'_, CELLS>) -> CrtpPacket {
+        let mut buf = [0u8; 6 + MAX_READ_LEN];
+        buf[0] = MAP_MEMORY_ID;
+        buf[1..5].copy_from_slice(&self.addr.to_le_bytes());
+        let len = usize::from(self.len);
+        let ok = buf
+            .get_mut(6..6 + len)
+            .is_some_and(|out| view.read(self.addr, out).is_ok());
+        buf[5] = if ok { 0 } else { STATUS_EIO };
+        let n = if ok { 6 + len } else { 6 };
+        // `n` ≤ 30 bytes and the port and channel are in range: `new` cannot fail.
+        CrtpPacket::new(PORT_MEM, CH_READ, &buf[..n]).unwrap_or_else(|_| CrtpPacket {
+            port: PORT_MEM,
+            channel: CH_READ,
+            data: heapless::Vec::new(),
+        })
     }
 }

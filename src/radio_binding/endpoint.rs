@@ -10,17 +10,18 @@
 //! Memory: the router's reply queue (`Q` × 32 bytes), the console queue (`C` × 31 bytes) and the services'
 //! own fixed state; nothing is allocated.
 
-use super::commander::CommanderService;
-use super::console::ConsoleService;
-use super::crtp::{CrtpPacket, PlatformService, Router, Service};
-use super::high_level::HighLevelService;
-use super::log::LogService;
-use super::log_registry::LogSource;
-use super::mem::MemService;
-use super::param::ParamService;
-use super::registry::ParamStore;
-use super::supervisor_port::{SupervisorPortConfig, SupervisorPortService};
+use crate::radio::commander::CommanderService;
+use crate::radio::console::ConsoleService;
+use crate::radio::crtp::{CrtpPacket, PlatformService, Router, Service};
+use crate::radio::log::LogService;
+use crate::radio::log_decl::LogSource;
+use crate::radio::mem::MemService;
+use crate::radio::param::ParamService;
+use crate::radio::param_decl::ParamStore;
 use crate::types::Micros;
+
+use super::high_level::HighLevelService;
+use super::supervisor_port::{SupervisorPortConfig, SupervisorPortService};
 
 /// One endpoint's router and services: parameters (port 2), logs (5), memory (4), commander (3 and 7),
 /// high-level commander (8), supervisor (9) and console (0); link (15) and platform (13) live in the router.

@@ -1,208 +1,36 @@
-//! The log-variable declarations: one `const` line per variable (group, name, storage type, unit, doc) in
-//! [`LOG_TABLE`], the values read through [`LogSource`], the stock type conversion, and what the firmware and
-//! the simulator publish ([`FlightLogState`], [`FirmwareLogState`]).
+//! Every log variable cfnav serves, declared once: one `const` line per variable (group, name, storage
+//! type, unit, doc) in [`LOG_TABLE`], the `ID_*` constants, and what the firmware and the simulator publish
+//! ([`FlightLogState`], [`FirmwareLogState`]).
 //!
-//! Job: describe every log variable once. The TOC (type code, names, CRC), the `ID_*` constants (looked up in
-//! the table at compile time, [`log_id`]) and the README's log table ([`write_log_table`]) derive from it; the
-//! conversion to the type a log block asks for is stock's.
+//! Job: the TOC (type code, names, CRC), the `ID_*` constants (looked up in the table at compile time,
+//! [`log_id`]) and the log table of the docs ([`write_log_table`]) derive from these declarations.
 //!
-//! Non-goals: no wire protocol (that is [`super::log`]), no raw-memory variables, no FP16 storage type.
+//! Non-goals: the declaration type and the type conversion (see [`crate::radio::log_decl`]), the wire
+//! protocol (see [`crate::radio::log`]).
 //!
-//! Sources: `crazyflie-hardware.md` §4.6 (type codes 1 u8, 2 u16, 3 u32, 4 i8, 5 i16, 6 i32, 7 float, 8 FP16,
-//! the TOC byte is the plain code); `crtp-over-udp.md` §2 (the CRC is a cache key shared with the param TOC: it
-//! must change with the TOC and differ from the param TOC's); `interfaces.md` §5 (ids 0–10). Stock names, types
-//! and units from `bitcraze/crazyflie-firmware` (`LOG_ADD` lines): `stateEstimate.*` floats, attitude in
-//! degrees with pitch exported with the opposite sign (`kalman_core.c`: `.pitch = -pitch*RAD_TO_DEG`);
-//! `stabilizer.roll/pitch/yaw` the same attitude, `stabilizer.thrust` the collective thrust in motor counts;
-//! `motor.m1..m4` uint16 ratios (`motors.c`); `sys.canfly` uint8 (`supervisor.c`); `supervisor.info` uint16
-//! bitfield (`supervisor.c`, the same bits as the supervisor port); `pm.state` int8 (0 battery, 1 charging,
-//! 2 charged, 3 low power, 4 shutdown) and `pm.batteryLevel` uint8 % from `LiPoTypicalChargeCurve`
-//! (`pm_stm32f4.c`); `gyro.x/y/z` float deg/s (`stabilizer.c`); `controller.roll/pitch/yaw` and
-//! `controller.rollRate/pitchRate/yawRate` float, deg and deg/s (`controller_pid.c`, `attitude_pid_controller.c`);
-//! `posCtl.targetX/Y/Z/VX/VY/VZ` float (`position_controller_pid.c`). Every variable the stock cfclient
-//! 2026.8.1 puts in a log block (battery, Flight tab, pose logger, the shipped Plotter configurations) is here:
-//! one missing variable makes cflib refuse the whole block.
+//! Sources: `docs/radio.md` (the `mission.*`, `stateEstimate.*`, `range.*` and `pm.vbat` ids 0–10). Stock
+//! names, types and units from `bitcraze/crazyflie-firmware` (`LOG_ADD` lines): `stateEstimate.*` floats,
+//! attitude in degrees with pitch exported with the opposite sign (`kalman_core.c`:
+//! `.pitch = -pitch*RAD_TO_DEG`); `stabilizer.roll/pitch/yaw` the same attitude, `stabilizer.thrust` the
+//! collective thrust in motor counts; `motor.m1..m4` uint16 ratios (`motors.c`); `sys.canfly` uint8
+//! (`supervisor.c`); `supervisor.info` uint16 bitfield (`supervisor.c`, the same bits as the supervisor
+//! port); `pm.state` int8 (0 battery, 1 charging, 2 charged, 3 low power, 4 shutdown) and `pm.batteryLevel`
+//! uint8 % from `LiPoTypicalChargeCurve` (`pm_stm32f4.c`); `gyro.x/y/z` float deg/s (`stabilizer.c`);
+//! `controller.roll/pitch/yaw` and `controller.rollRate/pitchRate/yawRate` float, deg and deg/s
+//! (`controller_pid.c`, `attitude_pid_controller.c`); `posCtl.targetX/Y/Z/VX/VY/VZ` float
+//! (`position_controller_pid.c`). Every variable the stock cfclient 2026.8.1 puts in a log block (battery,
+//! Flight tab, pose logger, the shipped Plotter configurations) is here: one missing variable makes cflib
+//! refuse the whole block.
 //!
-//! Type conversion (the references only say "converted to its fetch type"; rule taken from stock `log.c`
-//! `logRunBlock` and `single2half`, read in a public copy of the Bitcraze firmware):
-//! * the stored value is first read into an `int32` (`valuei`): integers widen (a `uint32` wraps), a float is
-//!   converted toward zero (C conversion; on the Cortex-M4 VCVT saturates and NaN gives 0, which is Rust's
-//!   `as i32`);
-//! * fetch float: the float itself if stored as float, else `(float)valuei`;
-//! * fetch FP16: `single2half` of that float (no subnormals: |x| < 2^-14 → 0; exponent > 15 → ±inf; NaN →
-//!   0x7E00; mantissa rounded by adding bit 12, OR-ed in as stock does);
-//! * fetch integer: the low 1, 2 or 4 bytes of `valuei`, little-endian (so float 3.7 → u16 `03 00`, float -1.5
-//!   → u16 `FF FF`, u16 300 → u8 `2C`).
-//!
-//! Design choices: the TOC CRC is CRC-32 over [`LOG_CRC_SEED`] followed by, for every entry in id order, the
-//! type code, the group, a NUL, the name and a NUL (same scheme as the param TOC with a different seed, so the two
-//! CRCs differ even for identical names). One table serves the firmware and the simulator: the `cfnav.*` CPU
-//! and loop-timing variables (ids 11–17) read 0 in the simulator, which has no CPU to measure. The stock
-//! variables are appended after them, so every older id is unchanged.
+//! Design choices: one table serves the firmware and the simulator: the `cfnav.*` CPU and loop-timing
+//! variables (ids 11–17) read 0 in the simulator, which has no CPU to measure. The stock variables are
+//! appended after them, so every older id is unchanged.
 //!
 //! Memory: the table is `'static`; [`FlightLogState`] is about 200 bytes.
 
 use crate::flight::control::ControlOutput;
+use crate::radio::log_decl::{LogEntry, LogSource, LogType, LogValue, log_id};
 use crate::types::{Setpoint, StateEstimate};
-
-use super::registry::{Value, assert_toc_name, crc32_toc_entry, crc32_update, str_eq};
-pub use super::wire_type::WireType;
-
-/// Bytes before `group\0name\0` in a TOC item reply: command, id u16, type (§4.6).
-pub const TOC_ITEM_HEADER: usize = 4;
-/// Bytes the log CRC starts with, so that it differs from the param TOC CRC.
-pub const LOG_CRC_SEED: &[u8] = b"cfnav/log-toc/v1";
-
-/// A log type: the shared [`WireType`] (log code [`WireType::log_code`], §4.6), the storage type of a
-/// variable or the fetch type of a block op.
-pub type LogType = WireType;
-
-/// A variable's value as the source holds it: the same values as parameters.
-pub type LogValue = Value;
-
-/// Stock `single2half`: float to IEEE half, no subnormals, round by adding bit 12 (module docs).
-pub const fn single_to_half(x: f32) -> u16 {
-    let num = x.to_bits();
-    let s = num >> 31;
-    let e = (num >> 23) & 0xFF;
-    if e == 255 && num & 0x007F_FFFF != 0 {
-        return 0x7E00;
-    }
-    if e > 127 + 15 {
-        return if s != 0 { 0xFC00 } else { 0x7C00 };
-    }
-    if e < 127 - 15 {
-        return 0;
-    }
-    ((s << 15) | ((e + 15 - 127) << 10) | (((num >> 13) & 0x3FF) + ((num >> 12) & 0x01))) as u16
-}
-
-impl Value {
-    /// The stock `valuei`: the value as an `int32` (module docs).
-    pub fn as_i32(self) -> i32 {
-        match self {
-            Self::U8(v) => i32::from(v),
-            Self::U16(v) => i32::from(v),
-            Self::U32(v) => v as i32,
-            Self::I8(v) => i32::from(v),
-            Self::I16(v) => i32::from(v),
-            Self::I32(v) => v,
-            Self::F32(v) => v as i32,
-        }
-    }
-
-    /// The value converted to `fetch` as stock does, little-endian: the first `fetch.size()` bytes are used.
-    pub fn convert(self, fetch: LogType) -> ([u8; 4], usize) {
-        let mut out = [0u8; 4];
-        let n = fetch.size();
-        let as_float = || match self {
-            Self::F32(v) => v,
-            other => other.as_i32() as f32,
-        };
-        match fetch {
-            LogType::F32 => out = as_float().to_le_bytes(),
-            LogType::Fp16 => out[..2].copy_from_slice(&single_to_half(as_float()).to_le_bytes()),
-            _ => {
-                let b = self.as_i32().to_le_bytes();
-                out[..n].copy_from_slice(&b[..n]);
-            }
-        }
-        (out, n)
-    }
-}
-
-/// One variable's declaration. Build it with [`LogEntry::new`] or [`LogEntry::declare`] in a `const` so the
-/// checks run at compile time.
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
-pub struct LogEntry {
-    /// Group name (ASCII, no NUL).
-    pub group: &'static str,
-    /// Variable name (ASCII, no NUL).
-    pub name: &'static str,
-    /// Storage type (never [`LogType::Fp16`]).
-    pub ty: LogType,
-    /// Unit (`""` for none).
-    pub unit: &'static str,
-    /// One sentence for the README table.
-    pub doc: &'static str,
-}
-
-impl LogEntry {
-    /// A bare entry; panics (a compile error in a `const`) if the TOC item `[2, id u16, type, group\0, name\0]`
-    /// would not fit 30 bytes, a name is empty, holds a NUL or non-ASCII byte, or the type is FP16.
-    pub const fn new(group: &'static str, name: &'static str, ty: LogType) -> Self {
-        Self::declare(group, name, ty, "", "")
-    }
-
-    /// The one-line declaration: [`Self::new`]'s checks, plus the unit and the doc.
-    pub const fn declare(
-        group: &'static str,
-        name: &'static str,
-        ty: LogType,
-        unit: &'static str,
-        doc: &'static str,
-    ) -> Self {
-        assert_toc_name(group, name, TOC_ITEM_HEADER);
-        assert!(!matches!(ty, LogType::Fp16), "FP16 is not a storage type");
-        Self {
-            group,
-            name,
-            ty,
-            unit,
-            doc,
-        }
-    }
-}
-
-/// The log TOC CRC: CRC-32 over [`LOG_CRC_SEED`], then per entry `type, group, 0, name, 0`.
-pub const fn log_toc_crc(table: &[LogEntry]) -> u32 {
-    let mut crc = crc32_update(0xFFFF_FFFF, LOG_CRC_SEED);
-    let mut i = 0;
-    while i < table.len() {
-        let e = &table[i];
-        crc = crc32_toc_entry(crc, e.ty.log_code(), e.group, e.name);
-        i += 1;
-    }
-    crc ^ 0xFFFF_FFFF
-}
-
-/// Id of `group.name` in `table`, at compile time; panics (a compile error in a `const`) if it is missing.
-pub const fn log_id(table: &[LogEntry], group: &str, name: &str) -> u16 {
-    let mut i = 0;
-    while i < table.len() {
-        if str_eq(table[i].group, group) && str_eq(table[i].name, name) {
-            return i as u16;
-        }
-        i += 1;
-    }
-    panic!("no such log variable")
-}
-
-/// Writes the README's log table for `table`: one Markdown row per declaration.
-pub fn write_log_table(out: &mut impl core::fmt::Write, table: &[LogEntry]) -> core::fmt::Result {
-    writeln!(out, "| name | type | unit | meaning |")?;
-    writeln!(out, "|---|---|---|---|")?;
-    for e in table {
-        writeln!(
-            out,
-            "| `{}.{}` | {} | {} | {} |",
-            e.group,
-            e.name,
-            e.ty.name(),
-            e.unit,
-            e.doc
-        )?;
-    }
-    Ok(())
-}
-
-/// State the log service samples by id (ids are indices into [`Self::TABLE`]).
-pub trait LogSource {
-    /// The table, in id order.
-    const TABLE: &'static [LogEntry];
-    /// The current value of variable `id`; `None` if there is no such id.
-    fn value(&self, id: u16) -> Option<LogValue>;
-}
 
 const F: LogType = LogType::F32;
 
@@ -373,7 +201,7 @@ pub const LOG_TABLE: &[LogEntry] = &[
     ),
     LogEntry::declare("posCtl", "targetY", F, "m", "position target y"),
     LogEntry::declare("posCtl", "targetZ", F, "m", "position target z"),
-    // Mission modes (issue 13 part 3)
+    // Mission modes
     LogEntry::declare(
         "mission",
         "hoverDevXY",
@@ -483,7 +311,7 @@ fn deg(rad: f32) -> f32 {
 /// What the firmware or the simulator publishes for logging; fill it every control cycle (or at the log rate).
 #[derive(Debug, Clone, Copy, PartialEq, Default)]
 pub struct FlightLogState {
-    /// `mission.state` (interfaces.md §5 codes).
+    /// `mission.state` (codes in `docs/radio.md`).
     pub mission_state: u8,
     /// `stateEstimate.x/.y/.z`, arena frame, m.
     pub position_m: [f32; 3],

@@ -29,8 +29,8 @@
 
 use core::cell::Cell;
 
-use super::crtp::{CrtpPacket, Service};
 use crate::flight::high_level::HlCommand;
+use crate::radio::crtp::{CrtpPacket, Service};
 use crate::types::Micros;
 
 /// The high-level commander port.

@@ -28,12 +28,13 @@ use std::sync::atomic::{AtomicU32, AtomicU64, Ordering};
 
 use cfnav::mission::{HOME_TOLERANCE_M, MissionMode, MissionState};
 use cfnav::radio::commander::{TYPE_HOVER, TYPE_POSITION, TYPE_STOP, TYPE_VELOCITY_WORLD, TYPE_ZDISTANCE};
-use cfnav::radio::registry::{
-    ID_COVERAGE, ID_HOVER_TIME, ID_LINK_LOSS, ID_LINK_TIMEOUT, ID_MODE, ID_RESET_ESTIMATION, ID_START,
-    MissionParamState, PARAM_TABLE, param_id,
+use cfnav::radio::param_decl::param_id;
+use cfnav::radio_binding::param_state::MissionParamState;
+use cfnav::radio_binding::param_table::{
+    ID_COVERAGE, ID_HOVER_TIME, ID_LINK_LOSS, ID_LINK_TIMEOUT, ID_MODE, ID_RESET_ESTIMATION, ID_START, PARAM_TABLE,
 };
-use cfnav_tools::sim::serve::InProcess;
 use cfnav_sim::world::{BODY_RADIUS_M, World};
+use cfnav_tools::sim::serve::InProcess;
 use proptest::prelude::*;
 use proptest::test_runner::{Config, RngAlgorithm, TestCaseError, TestRng, TestRunner};
 
@@ -187,7 +188,7 @@ fn floats(head: &[u8], values: &[f32]) -> Vec<u8> {
 type Settable = (
     u8,
     cfnav::mission::MissionParams,
-    cfnav::radio::registry::Tuning,
+    cfnav::radio_binding::tuning::Tuning,
     cfnav::mission::link_loss::LinkLossConfig,
     u8,
     u8,

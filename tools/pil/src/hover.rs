@@ -4,7 +4,7 @@
 //!
 //! Script: once the image has sent RADIO_READY and [`SCRIPT_DELAY_NS`] more have passed (the boot's last
 //! tasks settle), one CRTP param write (port 2, channel 2: `[id u16 LE, value]`, the ids are the firmware's
-//! own `cfnav::radio::registry` constants) per [`SCRIPT_GAP_NS`]: `mission.mode` = 1 (hover test),
+//! own `cfnav::radio_binding::param_table` constants) per [`SCRIPT_GAP_NS`]: `mission.mode` = 1 (hover test),
 //! `mission.hoverTime`, `mission.height`, then `mission.start` = 1. The nRF keeps polling (null packets,
 //! as cflib's radio driver does when idle) so the image's answers leave it.
 //!

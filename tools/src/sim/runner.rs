@@ -17,7 +17,7 @@ use cfnav::stack::{BEAM_MIDPOINT_US, FlightConfig, FlightCore, ZRANGE_MIDPOINT_U
 use cfnav::types::{MotorDuty, MultiRangerSample, RangeReading};
 use rand::rngs::SmallRng;
 use rand::{Rng, SeedableRng};
-use serde::Serialize;
+use serde::{Deserialize, Serialize};
 
 use super::physics::Quadrotor;
 use super::sensors::{BatterySensor, FlowSensor, Imu, MultiRanger, SensorFault, ZRanger};
@@ -99,7 +99,7 @@ impl RunOptions {
 }
 
 /// One landing: where the drone came to rest.
-#[derive(Clone, Copy, Debug, Serialize, PartialEq)]
+#[derive(Clone, Copy, Debug, Serialize, Deserialize, PartialEq)]
 pub struct Landing {
     /// The pad it landed on, or the nearest pad.
     pub pad: usize,
@@ -110,13 +110,14 @@ pub struct Landing {
 }
 
 /// The report of one run (interfaces.md §4), plus a few extra fields.
-#[derive(Clone, Debug, Serialize)]
+#[derive(Clone, Debug, Serialize, Deserialize)]
 pub struct RunReport {
     pub world: String,
     pub seed: u64,
     /// completed | aborted | crashed | timeout
     pub outcome: &'static str,
     /// A short word when not completed.
+    #[serde(borrow)]
     pub reason: Option<&'static str>,
     pub mission_time_s: Option<f64>,
     pub collisions: u32,
@@ -194,7 +195,7 @@ impl RunReport {
 
 /// The hover test in the report: the firmware's figures (`mission.hoverDevXY`, `.hoverDevZ`: the estimate's
 /// view) beside the truth's.
-#[derive(Clone, Debug, Serialize, PartialEq)]
+#[derive(Clone, Debug, Serialize, Deserialize, PartialEq)]
 pub struct HoverReport {
     /// `mission.hoverTime`, s.
     pub hover_time_s: f32,
@@ -213,7 +214,7 @@ pub struct HoverReport {
 }
 
 /// The exploration in the report.
-#[derive(Clone, Debug, Serialize, PartialEq)]
+#[derive(Clone, Debug, Serialize, Deserialize, PartialEq)]
 pub struct ExploreReport {
     /// `mission.coverage`, the target.
     pub coverage_target: f32,
@@ -225,6 +226,7 @@ pub struct ExploreReport {
     pub occupied_correct: Option<f32>,
     /// `coverage`, `no_frontier`, `battery` (the reserve turned it home), or `None` when the exploration
     /// did not end (battery low, abort, crash...).
+    #[serde(borrow)]
     pub end: Option<&'static str>,
     /// The mission's console lines (`Mission::take_note`), e.g. why the battery reserve turned it home.
     pub console: Vec<String>,

@@ -147,14 +147,23 @@ fn stop(children: &mut Vec<(String, Child)>) {
     children.clear();
 }
 
-/// Runs the `lines` from `root`, printing each; `Err` names the first line that failed.
+/// Runs the `lines` from `root`, printing each; the number of lines run, or every failure (one line each,
+/// with its place in `file`). After a failure the rest of that block is left out (its lines may need the
+/// failed one) and the next block runs.
 pub fn run(file: &str, lines: &[Line], root: &Path) -> Result<usize, String> {
     use std::os::unix::process::CommandExt;
     let mut background: Vec<(String, Child)> = Vec::new();
     let mut ran = 0;
-    let mut result = Ok(());
+    let mut failures: Vec<String> = Vec::new();
+    let mut failed_block = None;
     for (i, line) in lines.iter().enumerate() {
         let at = format!("{file}:{}", line.number);
+        let block_ends = lines.get(i + 1).is_none_or(|next| next.block != line.block);
+        if failed_block == Some(line.block) {
+            println!("{at}: left out (an earlier line of its block failed): {}", line.text);
+            continue;
+        }
+        let mut failure = None;
         match action(&line.text) {
             Action::Skip => println!("{at}: skipped (needs the hardware): {}", line.text),
             Action::Run(cmd) => {
@@ -162,7 +171,7 @@ pub fn run(file: &str, lines: &[Line], root: &Path) -> Result<usize, String> {
                 let status = bash(&cmd, root).status().map_err(|e| format!("{at}: bash: {e}"))?;
                 ran += 1;
                 if !status.success() {
-                    result = Err(format!("{at}: `{}` exited with {status}", line.text));
+                    failure = Some(format!("{at}: `{}` exited with {status}", line.text));
                 }
             }
             Action::Background(cmd, port) => {
@@ -173,36 +182,41 @@ pub fn run(file: &str, lines: &[Line], root: &Path) -> Result<usize, String> {
                 ran += 1;
                 background.push((cmd.clone(), child));
                 if let Some(port) = port {
-                    let started = Instant::now();
-                    let mut up = false;
-                    while started.elapsed() < SERVE_WAIT {
-                        if answers_scan_probe(port, Duration::from_secs(2)) {
-                            up = true;
-                            break;
-                        }
-                        if let Some((_, child)) = background.last_mut()
-                            && let Ok(Some(status)) = child.try_wait()
-                        {
-                            result = Err(format!("{at}: `{}` ended ({status}) before it answered", line.text));
-                            break;
-                        }
-                    }
-                    if result.is_ok() && !up {
-                        result = Err(format!("{at}: `{}` does not answer on port {port}", line.text));
-                    }
-                    if up {
-                        println!("{at}: answers on udp://127.0.0.1:{port}");
-                    }
+                    failure = wait_until_served(&at, &line.text, port, &mut background);
                 }
             }
         }
-        let block_ends = lines.get(i + 1).is_none_or(|next| next.block != line.block);
-        if block_ends || result.is_err() {
+        if let Some(f) = failure {
+            println!("FAILED {f}");
+            failures.push(f);
+            failed_block = Some(line.block);
+        }
+        if block_ends || failed_block == Some(line.block) {
             stop(&mut background);
         }
-        result.clone()?;
     }
-    Ok(ran)
+    if failures.is_empty() {
+        Ok(ran)
+    } else {
+        Err(failures.join("\n"))
+    }
+}
+
+/// Waits until the last background process answers on `port`; `Some(failure)` if it ends or never does.
+fn wait_until_served(at: &str, text: &str, port: u16, background: &mut [(String, Child)]) -> Option<String> {
+    let started = Instant::now();
+    while started.elapsed() < SERVE_WAIT {
+        if answers_scan_probe(port, Duration::from_secs(2)) {
+            println!("{at}: answers on udp://127.0.0.1:{port}");
+            return None;
+        }
+        if let Some((_, child)) = background.last_mut()
+            && let Ok(Some(status)) = child.try_wait()
+        {
+            return Some(format!("{at}: `{text}` ended ({status}) before it answered"));
+        }
+    }
+    Some(format!("{at}: `{text}` does not answer on port {port}"))
 }
 
 #[cfg(test)]
@@ -291,10 +305,17 @@ mod tests {
     #[test]
     fn a_failing_line_fails_with_its_line_number() {
         let dir = scratch("fail");
-        let text = "```sh\ntrue\nexit 3\ntouch never\n```\n";
+        let text = "```sh\ntrue\nexit 3\ntouch never\n```\n\n```sh\ntouch next\nfalse\n```\n";
         let err = run("README.md", &sh_lines(text), &dir).unwrap_err();
-        assert!(err.starts_with("README.md:3: `exit 3` exited"), "{err}");
-        assert!(!dir.join("never").exists(), "lines after the failure must not run");
+        let failures: Vec<&str> = err.lines().collect();
+        assert_eq!(failures.len(), 2, "{err}");
+        assert!(failures[0].starts_with("README.md:3: `exit 3` exited"), "{err}");
+        assert!(failures[1].starts_with("README.md:9: `false` exited"), "{err}");
+        assert!(
+            !dir.join("never").exists(),
+            "lines after the failure in its block must not run"
+        );
+        assert!(dir.join("next").exists(), "the next block runs after a failed one");
         std::fs::remove_dir_all(&dir).unwrap();
     }
 

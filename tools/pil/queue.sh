@@ -7,7 +7,8 @@
 # JOBS: one job per line, "NAME PROGRAM ARGS..." (words split as xargs splits them; '#' lines and blank lines
 # are skipped), longest first so the two workers finish close together. For each job it writes DIR/NAME.log
 # (stdout and stderr), DIR/NAME.wall (seconds) and, last, DIR/NAME.rc (the exit status): a waiter polls for
-# the .rc file (`pil_wait` in .ci/run). Run it with setsid so one kill of its process group stops every job.
+# the .rc file (the `pil` step, xtask/src/steps.rs). Run it in its own process group, so one kill of the
+# group stops every job.
 set -uo pipefail
 jobs=$1
 export QUEUE_DIR=$2

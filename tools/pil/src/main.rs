@@ -37,6 +37,7 @@ mod rtt;
 mod stuck;
 mod track;
 mod udp_bridge;
+mod verdict;
 
 use std::path::PathBuf;
 use std::process::ExitCode;
@@ -158,6 +159,15 @@ struct Args {
     /// `replans` is null, the planner's count stays inside the image), so a script reads both the same way.
     #[arg(long, requires = "mission", value_name = "FILE")]
     sim_json: Option<PathBuf>,
+    /// After the run, apply CI's check NAME to its report (src/verdict.rs): print the check's line and exit 0
+    /// if it holds, else print the failed assertion and exit 1 (the run's own verdict is part of the checks
+    /// whose scenario must also pass on its own).
+    #[arg(long, value_name = "NAME", value_parser = clap::builder::PossibleValuesParser::new(verdict::NAMES))]
+    check: Option<String>,
+    /// Run nothing: compare two boot reports (`--json` files) and exit 0 if their fingerprints and ready
+    /// times are equal, else 1.
+    #[arg(long, num_args = 2, value_names = ["FIRST", "SECOND"], conflicts_with = "check")]
+    same_boot: Option<Vec<PathBuf>>,
     /// With --hover or --mission: write the flight as points (the image's estimate and mission state from the
     /// trace log block, as --trace asks for it, each with the truth at its time stamp) and its score, for
     /// `cfnav pil --plot`, which draws it with `cfnav sim --plot`'s figure. Adds the trace block's radio
@@ -1009,6 +1019,18 @@ fn read_flag(board: &Board, statics: &[(&'static str, u64)], name: &str) -> Opti
 
 fn main() -> ExitCode {
     let args = Args::parse();
+    if let Some(paths) = &args.same_boot {
+        return match verdict::same_boot(&paths[0], &paths[1]) {
+            Ok(line) => {
+                println!("same boot: {line}");
+                ExitCode::SUCCESS
+            }
+            Err(e) => {
+                eprintln!("same boot failed: {e}");
+                ExitCode::from(1)
+            }
+        };
+    }
     match run(&args) {
         Ok((report, passed)) => {
             println!(
@@ -1117,7 +1139,20 @@ fn main() -> ExitCode {
                     return ExitCode::from(2);
                 }
             }
-            if passed { ExitCode::SUCCESS } else { ExitCode::from(1) }
+            match &args.check {
+                Some(name) => match verdict::check(name, &report, passed) {
+                    Ok(line) => {
+                        println!("check {name}: {line}");
+                        ExitCode::SUCCESS
+                    }
+                    Err(e) => {
+                        eprintln!("check {name} failed: {e}");
+                        ExitCode::from(1)
+                    }
+                },
+                None if passed => ExitCode::SUCCESS,
+                None => ExitCode::from(1),
+            }
         }
         Err(e) => {
             eprintln!("error: {e:#}");

@@ -7,7 +7,7 @@ use std::sync::atomic::{AtomicUsize, Ordering};
 
 use cfnav::mission::{COVERAGE_RANGE, HOVER_TIME_RANGE_S, MissionMode};
 use clap::Args;
-use serde::Serialize;
+use serde::{Deserialize, Serialize};
 
 use cfnav::mission::link_loss::LinkLossConfig;
 
@@ -146,7 +146,7 @@ fn apply_mode(args: &SimArgs, options: &mut RunOptions) -> Result<(), String> {
 }
 
 /// The `--random` report's summary (interfaces.md §4).
-#[derive(Serialize, Debug)]
+#[derive(Serialize, Deserialize, Debug, PartialEq)]
 pub struct Summary {
     pub runs: usize,
     pub completed: usize,

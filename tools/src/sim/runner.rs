@@ -17,7 +17,7 @@ use cfnav::stack::{BEAM_MIDPOINT_US, FlightConfig, FlightCore, ZRANGE_MIDPOINT_U
 use cfnav::types::{MotorDuty, MultiRangerSample, RangeReading};
 use rand::rngs::SmallRng;
 use rand::{Rng, SeedableRng};
-use serde::Serialize;
+use serde::{Deserialize, Serialize};
 
 use cfnav_sim::physics::Quadrotor;
 use cfnav_sim::report::Landing;
@@ -100,13 +100,14 @@ impl RunOptions {
 }
 
 /// The report of one run (interfaces.md §4), plus a few extra fields.
-#[derive(Clone, Debug, Serialize)]
+#[derive(Clone, Debug, Serialize, Deserialize)]
 pub struct RunReport {
     pub world: String,
     pub seed: u64,
     /// completed | aborted | crashed | timeout
     pub outcome: &'static str,
     /// A short word when not completed.
+    #[serde(borrow)]
     pub reason: Option<&'static str>,
     pub mission_time_s: Option<f64>,
     pub collisions: u32,
@@ -184,7 +185,7 @@ impl RunReport {
 
 /// The hover test in the report: the firmware's figures (`mission.hoverDevXY`, `.hoverDevZ`: the estimate's
 /// view) beside the truth's.
-#[derive(Clone, Debug, Serialize, PartialEq)]
+#[derive(Clone, Debug, Serialize, Deserialize, PartialEq)]
 pub struct HoverReport {
     /// `mission.hoverTime`, s.
     pub hover_time_s: f32,
@@ -203,7 +204,7 @@ pub struct HoverReport {
 }
 
 /// The exploration in the report.
-#[derive(Clone, Debug, Serialize, PartialEq)]
+#[derive(Clone, Debug, Serialize, Deserialize, PartialEq)]
 pub struct ExploreReport {
     /// `mission.coverage`, the target.
     pub coverage_target: f32,
@@ -215,6 +216,7 @@ pub struct ExploreReport {
     pub occupied_correct: Option<f32>,
     /// `coverage`, `no_frontier`, `battery` (the reserve turned it home), or `None` when the exploration
     /// did not end (battery low, abort, crash...).
+    #[serde(borrow)]
     pub end: Option<&'static str>,
     /// The mission's console lines (`Mission::take_note`), e.g. why the battery reserve turned it home.
     pub console: Vec<String>,

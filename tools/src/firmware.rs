@@ -726,8 +726,14 @@ mod tests {
         let args = Cli::try_parse_from(["firmware"]).unwrap().firmware;
         assert_eq!((args.max_flash_kib, args.max_ram_kib), (1008, 128));
         let memory_x = include_str!("../../memory.x");
-        assert!(memory_x.contains("FLASH  : ORIGIN = 0x08004000, LENGTH = 1024K - 16K"), "{memory_x}");
-        assert!(memory_x.contains("RAM    : ORIGIN = 0x20000000, LENGTH = 128K"), "{memory_x}");
+        assert!(
+            memory_x.contains("FLASH  : ORIGIN = 0x08004000, LENGTH = 1024K - 16K"),
+            "{memory_x}"
+        );
+        assert!(
+            memory_x.contains("RAM    : ORIGIN = 0x20000000, LENGTH = 128K"),
+            "{memory_x}"
+        );
     }
 
     #[test]

@@ -1,12 +1,11 @@
 //! Rooms that are not the seed's arena: the world keys `walls`, `placed`, `yaw`, `[[polygons]]`,
 //! `[[movers]]` and `[[floor]]`, their geometry, and the `rooms` generator.
 
-use cfnav_sim::physics::{Geometry, Quadrotor, QuadParams};
+use cfnav_sim::physics::{Geometry, QuadParams, Quadrotor};
 use cfnav_sim::sensors::{FlowParams, FlowSensor};
 use cfnav_sim::world::{
     ALL_WALLS, BODY_RADIUS_M, FloorPatch, Generator, MAX_MOVER_SPEED_MPS, MOVER_GIVE_WAY_M, Mover, PAD_HEIGHT_M,
-    PAD_SIDE_M, Polygon, SOLVABILITY_INFLATION_M, WALL_EAST, WALL_NORTH, WALL_SOUTH, WALL_WEST, World,
-    room_capacity,
+    PAD_SIDE_M, Polygon, SOLVABILITY_INFLATION_M, WALL_EAST, WALL_NORTH, WALL_SOUTH, WALL_WEST, World, room_capacity,
 };
 use rand::rngs::SmallRng;
 use rand::{Rng, SeedableRng};
@@ -68,7 +67,10 @@ fn every_rooms_key_is_read() {
     assert_eq!(w.pads[1].yaw_deg, 15.0);
     assert_eq!(w.pads[0].yaw_deg, 0.0);
     assert_eq!(w.boxes[0].yaw_deg, 30.0);
-    assert_eq!(w.boxes[0].height, w.arena.ceiling, "a box's height defaults to the ceiling");
+    assert_eq!(
+        w.boxes[0].height, w.arena.ceiling,
+        "a box's height defaults to the ceiling"
+    );
     assert_eq!(
         w.polygons,
         vec![Polygon {
@@ -117,15 +119,39 @@ fn refused(from: &str, to: &str, key: &str) {
 
 #[test]
 fn rooms_keys_out_of_range_are_refused_naming_the_key() {
-    refused(r#"walls = ["south", "west"]"#, r#"walls = ["south", "up"]"#, "arena.walls");
-    refused(r#"walls = ["south", "west"]"#, r#"walls = ["south", "south"]"#, "arena.walls");
+    refused(
+        r#"walls = ["south", "west"]"#,
+        r#"walls = ["south", "up"]"#,
+        "arena.walls",
+    );
+    refused(
+        r#"walls = ["south", "west"]"#,
+        r#"walls = ["south", "south"]"#,
+        "arena.walls",
+    );
     refused("placed = [0.63, 1.27, 9.0]", "placed = [0.63, 1.27]", "mission.placed");
-    refused("placed = [0.63, 1.27, 9.0]", "placed = [-0.5, 1.27, 9.0]", "mission.placed");
-    refused("placed = [0.63, 1.27, 9.0]", "placed = [3.3, 0.4, 0.0]", "mission.placed");
+    refused(
+        "placed = [0.63, 1.27, 9.0]",
+        "placed = [-0.5, 1.27, 9.0]",
+        "mission.placed",
+    );
+    refused(
+        "placed = [0.63, 1.27, 9.0]",
+        "placed = [3.3, 0.4, 0.0]",
+        "mission.placed",
+    );
     refused("size = [0.2, 0.4]", "size = [0.15, 0.4]", "pads[1].size");
     refused("size = [0.2, 0.4]", "size = [0.2, 0.45]", "pads[1].size");
-    refused("height = 0.1\nyaw = 15.0", "height = 0.04\nyaw = 15.0", "pads[1].height");
-    refused("height = 0.1\nyaw = 15.0", "height = 0.25\nyaw = 15.0", "pads[1].height");
+    refused(
+        "height = 0.1\nyaw = 15.0",
+        "height = 0.04\nyaw = 15.0",
+        "pads[1].height",
+    );
+    refused(
+        "height = 0.1\nyaw = 15.0",
+        "height = 0.25\nyaw = 15.0",
+        "pads[1].height",
+    );
     refused("yaw = 30.0", "yaw = nan", "boxes[0].yaw");
     // A self-crossing polygon (a bow tie) and a clockwise one.
     refused(
@@ -149,12 +175,24 @@ fn rooms_keys_out_of_range_are_refused_naming_the_key() {
         "polygons[0].points",
     );
     refused("height = 0.9", "height = 0.0", "polygons[0].height");
-    refused("speed = 0.4", &format!("speed = {}", MAX_MOVER_SPEED_MPS + 0.05), "movers[0].speed");
+    refused(
+        "speed = 0.4",
+        &format!("speed = {}", MAX_MOVER_SPEED_MPS + 0.05),
+        "movers[0].speed",
+    );
     refused("speed = 0.4", "speed = -0.1", "movers[0].speed");
     refused("radius = 0.2", "radius = 0.0", "movers[0].radius");
     refused("path = [[3.3, 0.4], [3.3, 2.6]]", "path = []", "movers[0].path");
-    refused("path = [[3.3, 0.4], [3.3, 2.6]]", "path = [[3.3, 0.4], [7.0, 2.6]]", "movers[0].path");
-    refused("path = [[3.3, 0.4], [3.3, 2.6]]", "path = [[0.6, 1.4], [3.3, 2.6]]", "movers[0].path");
+    refused(
+        "path = [[3.3, 0.4], [3.3, 2.6]]",
+        "path = [[3.3, 0.4], [7.0, 2.6]]",
+        "movers[0].path",
+    );
+    refused(
+        "path = [[3.3, 0.4], [3.3, 2.6]]",
+        "path = [[0.6, 1.4], [3.3, 2.6]]",
+        "movers[0].path",
+    );
     refused("squal = 20", "squal = 256", "floor[0].squal");
     refused("squal = 20", "squal = -1", "floor[0].squal");
     refused("flow_dropout = 0.6", "flow_dropout = 1.5", "floor[0].flow_dropout");
@@ -164,7 +202,11 @@ fn rooms_keys_out_of_range_are_refused_naming_the_key() {
     // A room larger than the firmware maps (its widest grid, from cfnav::nav::map).
     let ([cells_x, _], _) = room_capacity();
     let too_wide = f32::from(cells_x) * cfnav::nav::map::CELL_SIZE_M + 0.05;
-    refused("size = [6.0, 3.0]", &format!("size = [{too_wide:.2}, 3.0]"), "arena.size");
+    refused(
+        "size = [6.0, 3.0]",
+        &format!("size = [{too_wide:.2}, 3.0]"),
+        "arena.size",
+    );
 }
 
 /// A box of `size` centred on `c` and turned by `yaw_deg`, the only obstacle of an otherwise empty room.
@@ -237,7 +279,12 @@ fn ray_casts_against_a_turned_box_match_an_independent_computation() {
             let (px, py) = (o[0] - c[0], o[1] - c[1]);
             (co * px + s * py).abs() <= size[0] / 2.0 && (-s * px + co * py).abs() <= size[1] / 2.0
         };
-        let oracle = if inside { Some(0.0) } else { first_edge_hit(&corners, o, d) }.filter(|t| *t <= 0.5);
+        let oracle = if inside {
+            Some(0.0)
+        } else {
+            first_edge_hit(&corners, o, d)
+        }
+        .filter(|t| *t <= 0.5);
         match (oracle, cast) {
             (Some(t), Some(got)) => {
                 hits += 1;
@@ -270,7 +317,9 @@ fn ray_casts_against_a_polygon_match_an_independent_computation() {
     assert!((t - 1.1).abs() < 1e-5, "{t}");
     let t = w.ray_cast([2.2, 1.5, 1.5], [0.0, 0.0, -1.0], 5.0).expect("the top");
     assert!((t - 0.6).abs() < 1e-5, "{t}");
-    let t = w.ray_cast([2.7, 1.7, 1.5], [0.0, 0.0, -1.0], 5.0).expect("the floor in the notch");
+    let t = w
+        .ray_cast([2.7, 1.7, 1.5], [0.0, 0.0, -1.0], 5.0)
+        .expect("the floor in the notch");
     assert!((t - 1.5).abs() < 1e-5, "{t}");
     // Random rays at 0.5 m from points outside it against the edge oracle.
     let pts: Vec<[f64; 2]> = l.iter().map(|p| [f64::from(p[0]), f64::from(p[1])]).collect();
@@ -322,9 +371,13 @@ fn an_open_side_lets_a_ray_pass_and_a_walled_one_stops_it() {
     assert_eq!(w.ray_cast([5.5, 1.5, 0.5], [1.0, 0.0, 0.0], 4.0), None);
     assert_eq!(w.ray_cast([3.0, 2.5, 0.5], [0.0, 1.0, 0.0], 4.0), None);
     assert_eq!(w.ray_cast([3.0, 2.5, 0.5], [1.0, 1.0, 0.0], 4.0), None);
-    let t = w.ray_cast([3.0, 1.0, 0.5], [0.0, -1.0, 0.0], 4.0).expect("the south wall");
+    let t = w
+        .ray_cast([3.0, 1.0, 0.5], [0.0, -1.0, 0.0], 4.0)
+        .expect("the south wall");
     assert!((t - 1.0).abs() < 1e-6, "{t}");
-    let t = w.ray_cast([1.0, 1.0, 0.5], [-1.0, 0.0, 0.0], 4.0).expect("the west wall");
+    let t = w
+        .ray_cast([1.0, 1.0, 0.5], [-1.0, 0.0, 0.0], 4.0)
+        .expect("the west wall");
     assert!((t - 1.0).abs() < 1e-6, "{t}");
     // Out through the open east side and south of the arena's corner: the south wall ends at x = 6.
     assert_eq!(w.ray_cast([5.9, 0.1, 0.5], [1.0, -1.0, 0.0], 4.0), None);
@@ -333,7 +386,9 @@ fn an_open_side_lets_a_ray_pass_and_a_walled_one_stops_it() {
     assert!((t - 0.5 * 5f32.sqrt()).abs() < 1e-5, "{t}");
     // The same room walled all round stops the first ray at the east wall.
     w.arena.walls = ALL_WALLS;
-    let t = w.ray_cast([5.5, 1.5, 0.5], [1.0, 0.0, 0.0], 4.0).expect("the east wall");
+    let t = w
+        .ray_cast([5.5, 1.5, 0.5], [1.0, 0.0, 0.0], 4.0)
+        .expect("the east wall");
     assert!((t - 0.5).abs() < 1e-6, "{t}");
     // Clearance: an open side is no wall; the body can cross it without contact.
     w.arena.walls = WALL_SOUTH | WALL_WEST;
@@ -400,7 +455,10 @@ fn a_mover_walks_its_path_and_pauses_near_the_drone() {
         least = least.min(gap(&w));
     }
     assert!(least >= MOVER_GIVE_WAY_M - 1e-4, "came within {least} m");
-    assert!(least < MOVER_GIVE_WAY_M + 0.001, "stopped {least} m away, not at the give-way distance");
+    assert!(
+        least < MOVER_GIVE_WAY_M + 0.001,
+        "stopped {least} m away, not at the give-way distance"
+    );
     let before = w.movers[0].position();
     w.step_movers(0.5, drone);
     assert_eq!(w.movers[0].position(), before, "it waits while the drone is there");
@@ -409,7 +467,9 @@ fn a_mover_walks_its_path_and_pauses_near_the_drone() {
     assert_ne!(w.movers[0].position(), before);
     // It is a solid where it stands: a ray along its path meets it.
     let p = w.movers[0].position();
-    let t = w.ray_cast([p[0] - 1.0, p[1], 0.5], [1.0, 0.0, 0.0], 4.0).expect("the mover");
+    let t = w
+        .ray_cast([p[0] - 1.0, p[1], 0.5], [1.0, 0.0, 0.0], 4.0)
+        .expect("the mover");
     assert!((t - 0.8).abs() < 1e-4, "{t}");
 }
 
@@ -429,7 +489,9 @@ fn a_poor_floor_patch_changes_the_flow_reading() {
         q.set_velocity([0.3, 0.0, 0.0]);
         let mut f = FlowSensor::new(FlowParams::default());
         let mut rng = SmallRng::seed_from_u64(3);
-        (0..50).map(|_| f.sample(&q, w, &mut rng).expect("a reading")).collect::<Vec<_>>()
+        (0..50)
+            .map(|_| f.sample(&q, w, &mut rng).expect("a reading"))
+            .collect::<Vec<_>>()
     };
     let over = read(&w, 2.5);
     let off = read(&w, 1.5);
@@ -439,7 +501,10 @@ fn a_poor_floor_patch_changes_the_flow_reading() {
     assert!(over.iter().all(|s| s.motion_valid));
     w.floor[0].flow_dropout = Some(1.0);
     assert!(read(&w, 2.5).iter().all(|s| !s.motion_valid));
-    assert!(read(&w, 1.5).iter().all(|s| s.motion_valid), "off the patch nothing changes");
+    assert!(
+        read(&w, 1.5).iter().all(|s| s.motion_valid),
+        "off the patch nothing changes"
+    );
 }
 
 #[test]
@@ -451,12 +516,19 @@ fn the_rooms_generator_is_deterministic_valid_and_solvable() {
         let w = World::random_with(Generator::Rooms, seed);
         assert_eq!(w, World::random_with(Generator::Rooms, seed), "seed {seed}");
         w.validate().unwrap_or_else(|e| panic!("seed {seed}: {e}"));
-        assert_eq!(w.name, format!("room-{seed}"), "seed {seed}: fell back to the open world");
+        assert_eq!(
+            w.name,
+            format!("room-{seed}"),
+            "seed {seed}: fell back to the open world"
+        );
         let back = World::from_toml_str(&w.to_toml_string(), "room.toml").unwrap_or_else(|e| panic!("{e}"));
         assert_eq!(back, w, "seed {seed}");
         // Within what the firmware maps.
         let shape = w.grid_shape().expect("a grid");
-        assert!(shape.width <= cells_x && shape.height <= cells_y && shape.cells() <= capacity, "seed {seed}");
+        assert!(
+            shape.width <= cells_x && shape.height <= cells_y && shape.cells() <= capacity,
+            "seed {seed}"
+        );
         assert!(w.arena.size[0] >= 2.0 - cell && w.arena.size[1] >= 2.0 - cell);
         // Solvable for the body with margin, every side counted as walled and the walkers aside.
         let mut closed = w.clone();
@@ -468,7 +540,10 @@ fn the_rooms_generator_is_deterministic_valid_and_solvable() {
             for s in p.size {
                 assert!((PAD_SIDE_M[0]..=PAD_SIDE_M[1]).contains(&s), "seed {seed}: {p:?}");
             }
-            assert!((PAD_HEIGHT_M[0]..=PAD_HEIGHT_M[1]).contains(&p.height), "seed {seed}: {p:?}");
+            assert!(
+                (PAD_HEIGHT_M[0]..=PAD_HEIGHT_M[1]).contains(&p.height),
+                "seed {seed}: {p:?}"
+            );
         }
         let [x, y, yaw] = w.mission.placed.expect("placed by hand");
         let s = w.mission.start;
@@ -483,5 +558,8 @@ fn the_rooms_generator_is_deterministic_valid_and_solvable() {
         seen[6] += usize::from(w.cylinders.len() >= 4);
         seen[7] += usize::from(w.pads.iter().any(|p| p.size[0] != p.size[1]));
     }
-    assert!(seen.iter().all(|&n| n >= 3), "some feature is (nearly) never drawn: {seen:?}");
+    assert!(
+        seen.iter().all(|&n| n >= 3),
+        "some feature is (nearly) never drawn: {seen:?}"
+    );
 }

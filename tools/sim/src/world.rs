@@ -10,11 +10,21 @@
 //! | field | default | accepted |
 //! |---|---|---|
 //! | `name` | the file's stem | 1 to 64 printable characters |
-//! | `arena.size` | required | 0.5 ≤ x ≤ 6.4, 0.5 ≤ y ≤ 3.2, multiples of 0.05 m (whole 5 cm map cells) |
+//! | `arena.size` | required | 0.5 ≤ x ≤ 6.4, 0.5 ≤ y ≤ 3.2 ([`MAX_ARENA_M`]: `cfnav::nav::map`'s widest and deepest grid), multiples of 0.05 m (whole 5 cm map cells) |
 //! | `arena.ceiling` | 2.5 | 0 < ceiling ≤ 10 |
+//! | `arena.walls` | all four | a list of distinct side names `"south"` (y = 0), `"east"` (x = max), `"north"` (y = max), `"west"` (x = 0); stored as [`Arena::walls`] (bits 1, 2, 4, 8) |
+//! | `mission.placed` | `start`, yaw 0 | `[x, y, yaw_deg]`: strictly inside the arena, \|yaw\| ≤ 180, the body clear as at `start` |
 //! | `mission.start`, `.goal` | required | strictly inside the arena; the body disc at `start` clears the walls, boxes and cylinders, and it stands either on a pad's top or clear of the pads' sides |
 //! | `mission.height` | 0.5 | 0.2 ≤ height < ceiling |
 //! | `mission.speed` | 0.5 | 0 < speed ≤ 2 |
+//! | `[[pads]]`, `[[boxes]]` `yaw` | 0 | finite, degrees counter-clockwise about the centre; overlap and inside-the-arena rules read a turned footprint's bounding rectangle |
+//! | `[[polygons]]` `points` | required | 3 to 64 corners inside the arena, counter-clockwise, no two edges crossing or touching but neighbours at their shared corner; at most 64 polygons |
+//! | `[[polygons]]` `height` | the ceiling | 0 < height ≤ ceiling |
+//! | `[[movers]]` `radius`, `speed`, `path` | required | 0 < radius ≤ 1 m; 0 ≤ speed ≤ 0.5 m/s; 1 to 64 points inside the arena, the first clear of the body at `start`; at most 64 movers |
+//! | `[[movers]]` `height` | 1.8 (at most the ceiling) | 0 < height ≤ ceiling |
+//! | `[[floor]]` `min`, `max` | required | min < max, inside the arena; at most 64 patches |
+//! | `[[floor]]` `squal`, `flow_dropout` | the sensor's own | 0..255; 0..1 |
+//! | `[[pads]]` `size`, `height` | required | each side 0.2..0.4 m ([`PAD_SIDE_M`]), 0.05..0.2 m high ([`PAD_HEIGHT_M`]) and below `mission.height` |
 //! | `[[pads]]` `center`, `size`, `height` | required | 2 to 16 pads, the first is home, the last the goal pad; footprints inside the arena, not overlapping each other or any obstacle; 0 < height < `mission.height`; home within 0.35 m of `start`, goal pad within 0.35 m of `goal` (centre to centre) |
 //! | `[[boxes]]` `min`, `max` | required | min < max, inside the arena; at most 256 |
 //! | `[[boxes]]`, `[[cylinders]]` `height` | the ceiling | 0 < height ≤ ceiling |
@@ -46,7 +56,8 @@
 //!
 //! # Random worlds
 //!
-//! Two generators (`cfnav sim --random N --generator wide|classic`); a candidate is kept only if it validates
+//! Three generators (`cfnav sim --random N --generator wide|classic|rooms`; `rooms` is described in its own
+//! module, `world/rooms.rs`); a candidate is kept only if it validates
 //! and [`World::is_solvable`] with [`SOLVABILITY_INFLATION_M`], otherwise the generator draws again from
 //! the same random stream, so a seed always gives the same world.
 //!
@@ -77,8 +88,14 @@
 //! # Geometry
 //!
 //! The solid world is everything outside the arena's interior box `(0, W) × (0, H) × (0, ceiling)` (the four
-//! walls, the floor and the ceiling), plus boxes, pads (boxes from the floor to their height) and vertical
-//! cylinders (from the floor to their height). Solids are closed sets: a point on a surface is inside.
+//! walls, the floor and the ceiling), plus boxes and pads (boxes from the floor to their height, possibly
+//! turned about their centre), vertical cylinders, prisms over polygons, and the movers where they stand now
+//! (cylinders; [`World::step_movers`] walks them). Solids are closed sets: a point on a surface is inside.
+//!
+//! An open side (`arena.walls`) has no wall: the floor and the ceiling go on beyond it, rays pass out to
+//! their range, the body may cross it (the simulator then ends the run, `left_arena`), and each wall that
+//! exists is its side's segment, not a half-plane. Floor patches change only the flow sensor's readings
+//! ([`crate::physics::Geometry::flow_floor`]).
 
 use std::collections::HashMap;
 use std::fmt;

@@ -1013,7 +1013,7 @@ impl Mover {
         let Some(&first) = self.path.first() else {
             return [f32::NAN; 2];
         };
-        if !(length > 0.0) || !walked_m.is_finite() {
+        if length.is_nan() || length <= 0.0 || !walked_m.is_finite() {
             return first;
         }
         let mut s = walked_m.rem_euclid(2.0 * length);
@@ -1331,7 +1331,7 @@ impl World {
             }
         }
 
-        self.check_room_items(&in_arena)?;
+        self.check_room_items(in_arena)?;
 
         for (i, p) in self.pads.iter().enumerate() {
             if let Some(j) = self

@@ -9,6 +9,7 @@ mod modes;
 mod pads;
 mod physics;
 mod ranger_loss;
+mod rooms;
 mod sequences;
 mod stress;
 mod world;

@@ -62,8 +62,9 @@ impl Physics {
         let stream = |k: u64| SmallRng::seed_from_u64(seed.wrapping_mul(0x9E37_79B9_7F4A_7C15) ^ k);
         let mut rng_imu = stream(1);
         let stress = &world.stress;
-        let start = world.mission.start;
-        let mut quad = Quadrotor::new(stress.quad_params(), [start[0], start[1], 0.0], 0.0);
+        // The drone truly stands at `mission.placed` (put down by hand) when the world says so.
+        let (start, yaw) = world.mission.true_start();
+        let mut quad = Quadrotor::new(stress.quad_params(), [start[0], start[1], 0.0], yaw);
         quad.place_on_surface(&world);
         let imu = Imu::new(stress.imu_params(), &mut rng_imu);
         let flow = FlowSensor::new(stress.flow_params(&mut stream(7)));
@@ -127,6 +128,8 @@ impl Physics {
         self.quad.set_duty(self.duty);
         if now_ns > self.now_ns {
             let dt_s = (now_ns - self.now_ns) as f32 * 1e-9;
+            // The walkers walk first, giving way to the drone where it is.
+            self.world.step_movers(dt_s, self.quad.position());
             self.quad.step(dt_s, &self.world);
             self.now_ns = now_ns;
         }

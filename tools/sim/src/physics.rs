@@ -70,6 +70,12 @@ pub trait Geometry {
     fn bounds(&self) -> Option<([f32; 3], [f32; 3])> {
         None
     }
+    /// The floor under `(x, y)` as the flow sensor reads it, if it is a poor patch: its SQUAL (in place of
+    /// the height model's) and the probability that a reading is invalid there. `None` (the default): the
+    /// sensor's own model.
+    fn flow_floor(&self, _x: f32, _y: f32) -> Option<(Option<u8>, Option<f32>)> {
+        None
+    }
 }
 
 /// The battery: a 1S LiPo behind the Crazyflie's power path.

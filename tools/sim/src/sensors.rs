@@ -392,6 +392,16 @@ impl FlowSensor {
         if p.dropout_probability > 0.0 && rng.random::<f32>() < p.dropout_probability {
             return Some(invalid);
         }
+        // A poor floor patch under the camera: its own dropout (drawn only over a patch, so the stream is
+        // unchanged elsewhere) and SQUAL.
+        let pos = truth.position();
+        let patch = geometry.flow_floor(pos[0], pos[1]);
+        if let Some((_, Some(q))) = patch
+            && q > 0.0
+            && rng.random::<f32>() < q
+        {
+            return Some(invalid);
+        }
         let scale = 1.0 + if p.scale_error.is_finite() { p.scale_error } else { 0.0 };
         let mut counts = [0i16; 2];
         for i in 0..2 {
@@ -403,9 +413,12 @@ impl FlowSensor {
             self.residual[i] = (v - c).clamp(-0.5, 0.5);
             counts[i] = c as i16;
         }
-        let squal = (p.squal_nominal - p.squal_per_m * h + 3.0 * gauss(rng))
-            .round()
-            .clamp(20.0, 255.0) as u8;
+        let squal = match patch {
+            Some((Some(q), _)) => (f32::from(q) + 3.0 * gauss(rng)).round().clamp(0.0, 255.0) as u8,
+            _ => (p.squal_nominal - p.squal_per_m * h + 3.0 * gauss(rng))
+                .round()
+                .clamp(20.0, 255.0) as u8,
+        };
         Some(FlowSample {
             dpixel_x: counts[0],
             dpixel_y: counts[1],

@@ -10,11 +10,21 @@
 //! | field | default | accepted |
 //! |---|---|---|
 //! | `name` | the file's stem | 1 to 64 printable characters |
-//! | `arena.size` | required | 0.5 ≤ x ≤ 6.4, 0.5 ≤ y ≤ 3.2, multiples of 0.05 m (whole 5 cm map cells) |
+//! | `arena.size` | required | 0.5 ≤ x ≤ 6.4, 0.5 ≤ y ≤ 3.2 ([`MAX_ARENA_M`]: `cfnav::nav::map`'s widest and deepest grid), multiples of 0.05 m (whole 5 cm map cells) |
 //! | `arena.ceiling` | 2.5 | 0 < ceiling ≤ 10 |
+//! | `arena.walls` | all four | a list of distinct side names `"south"` (y = 0), `"east"` (x = max), `"north"` (y = max), `"west"` (x = 0); stored as [`Arena::walls`] (bits 1, 2, 4, 8) |
+//! | `mission.placed` | `start`, yaw 0 | `[x, y, yaw_deg]`: strictly inside the arena, \|yaw\| ≤ 180, the body clear as at `start` |
 //! | `mission.start`, `.goal` | required | strictly inside the arena; the body disc at `start` clears the walls, boxes and cylinders, and it stands either on a pad's top or clear of the pads' sides |
 //! | `mission.height` | 0.5 | 0.2 ≤ height < ceiling |
 //! | `mission.speed` | 0.5 | 0 < speed ≤ 2 |
+//! | `[[pads]]`, `[[boxes]]` `yaw` | 0 | finite, degrees counter-clockwise about the centre; overlap and inside-the-arena rules read a turned footprint's bounding rectangle |
+//! | `[[polygons]]` `points` | required | 3 to 64 corners inside the arena, counter-clockwise, no two edges crossing or touching but neighbours at their shared corner; at most 64 polygons |
+//! | `[[polygons]]` `height` | the ceiling | 0 < height ≤ ceiling |
+//! | `[[movers]]` `radius`, `speed`, `path` | required | 0 < radius ≤ 1 m; 0 ≤ speed ≤ 0.5 m/s; 1 to 64 points inside the arena, the first clear of the body at `start`; at most 64 movers |
+//! | `[[movers]]` `height` | 1.8 (at most the ceiling) | 0 < height ≤ ceiling |
+//! | `[[floor]]` `min`, `max` | required | min < max, inside the arena; at most 64 patches |
+//! | `[[floor]]` `squal`, `flow_dropout` | the sensor's own | 0..255; 0..1 |
+//! | `[[pads]]` `size`, `height` | required | each side 0.2..0.4 m ([`PAD_SIDE_M`]), 0.05..0.2 m high ([`PAD_HEIGHT_M`]) and below `mission.height` |
 //! | `[[pads]]` `center`, `size`, `height` | required | 2 to 16 pads, the first is home, the last the goal pad; footprints inside the arena, not overlapping each other or any obstacle; 0 < height < `mission.height`; home within 0.35 m of `start`, goal pad within 0.35 m of `goal` (centre to centre) |
 //! | `[[boxes]]` `min`, `max` | required | min < max, inside the arena; at most 256 |
 //! | `[[boxes]]`, `[[cylinders]]` `height` | the ceiling | 0 < height ≤ ceiling |
@@ -46,7 +56,8 @@
 //!
 //! # Random worlds
 //!
-//! Two generators (`cfnav sim --random N --generator wide|classic`); a candidate is kept only if it validates
+//! Three generators (`cfnav sim --random N --generator wide|classic|rooms`; `rooms` is described in its own
+//! module, `world/rooms.rs`); a candidate is kept only if it validates
 //! and [`World::is_solvable`] with [`SOLVABILITY_INFLATION_M`], otherwise the generator draws again from
 //! the same random stream, so a seed always gives the same world.
 //!
@@ -77,8 +88,14 @@
 //! # Geometry
 //!
 //! The solid world is everything outside the arena's interior box `(0, W) × (0, H) × (0, ceiling)` (the four
-//! walls, the floor and the ceiling), plus boxes, pads (boxes from the floor to their height) and vertical
-//! cylinders (from the floor to their height). Solids are closed sets: a point on a surface is inside.
+//! walls, the floor and the ceiling), plus boxes and pads (boxes from the floor to their height, possibly
+//! turned about their centre), vertical cylinders, prisms over polygons, and the movers where they stand now
+//! (cylinders; [`World::step_movers`] walks them). Solids are closed sets: a point on a surface is inside.
+//!
+//! An open side (`arena.walls`) has no wall: the floor and the ceiling go on beyond it, rays pass out to
+//! their range, the body may cross it (the simulator then ends the run, `left_arena`), and each wall that
+//! exists is its side's segment, not a half-plane. Floor patches change only the flow sensor's readings
+//! ([`crate::physics::Geometry::flow_floor`]).
 
 use std::collections::HashMap;
 use std::fmt;
@@ -93,11 +110,13 @@ use toml::Spanned;
 
 mod geometry;
 mod random;
+mod rooms;
 
 pub use random::{
     FOREST_PAD_GAP_M, FOREST_RADIUS_M, Generator, KEEP_OUT_M, NEAR_PAD_GAP_M, SOLVABILITY_INFLATION_M, START_PAD_GAP_M,
     WIDE_ARENA_MAX_M, WIDE_ARENA_MIN_M,
 };
+pub use rooms::{ROOM_MIN_M, room_capacity};
 
 impl Stress {
     /// Read a `--stress FILE`: either a whole world file (its `[sensors]` and `[disturbances]` are taken) or
@@ -123,8 +142,11 @@ impl Stress {
 
 /// Radius of the drone's body disc: touching an obstacle with it is a collision (interfaces.md §3).
 pub const BODY_RADIUS_M: f32 = 0.06;
-/// Largest arena the firmware maps (128 × 64 cells of 5 cm), metres.
-pub const MAX_ARENA_M: [f32; 2] = [6.4, 3.2];
+/// Largest arena the firmware maps (`cfnav::nav::map`'s widest and deepest grid at 5 cm cells), metres.
+pub const MAX_ARENA_M: [f32; 2] = [
+    MAX_WIDTH_CELLS as f32 * cfnav::nav::map::CELL_SIZE_M,
+    MAX_HEIGHT_CELLS as f32 * cfnav::nav::map::CELL_SIZE_M,
+];
 /// Smallest arena side accepted, metres.
 pub const MIN_ARENA_M: f32 = 0.5;
 /// Cells of the default firmware build's grid (120 × 60, a 6 × 3 m arena).
@@ -154,6 +176,20 @@ pub const MAX_TIME_LIMIT_S: f32 = 3600.0;
 pub const MAX_PADS: usize = 16;
 /// Most boxes, and most cylinders, a world may have.
 pub const MAX_OBSTACLES: usize = 256;
+/// Smallest and largest pad side accepted, metres.
+pub const PAD_SIDE_M: [f32; 2] = [0.2, 0.4];
+/// Lowest and highest pad accepted, metres.
+pub const PAD_HEIGHT_M: [f32; 2] = [0.05, 0.2];
+/// Most corners of a polygon, and most points of a mover's path.
+pub const MAX_POLYGON_POINTS: usize = 64;
+/// Most polygons, movers and floor patches a world may have (each).
+pub const MAX_ROOM_ITEMS: usize = 64;
+/// Fastest mover accepted, m/s.
+pub const MAX_MOVER_SPEED_MPS: f32 = 0.5;
+/// A mover pauses while its next step would bring its side within this of the drone's body, metres.
+pub const MOVER_GIVE_WAY_M: f32 = 0.25;
+/// Height of a mover when `height` is absent (a person; at most the ceiling), metres.
+pub const DEFAULT_MOVER_HEIGHT_M: f32 = 1.8;
 /// Obstacles taller than this count as occupied in [`World::true_occupancy`], metres.
 pub const OCCUPANCY_MIN_HEIGHT_M: f32 = 0.3;
 
@@ -171,10 +207,16 @@ pub struct World {
     pub mission: Mission,
     /// Landing pads; the first is home, the last the goal pad. At least two.
     pub pads: Vec<Pad>,
-    /// Axis-aligned solid boxes standing on the floor.
+    /// Solid boxes standing on the floor, possibly turned about their centre.
     pub boxes: Vec<BoxObstacle>,
     /// Vertical solid cylinders standing on the floor.
     pub cylinders: Vec<Cylinder>,
+    /// Solid prisms over simple polygons standing on the floor.
+    pub polygons: Vec<Polygon>,
+    /// People walking: vertical cylinders moving back and forth along a path.
+    pub movers: Vec<Mover>,
+    /// Floor patches the flow sensor reads poorly.
+    pub floor: Vec<FloorPatch>,
     /// Seed, time limit, expected outcome.
     pub sim: SimSettings,
     /// `[sensors]` and `[disturbances]` (stress testing; empty: the simulator's defaults).
@@ -188,6 +230,44 @@ pub struct Arena {
     pub size: [f32; 2],
     /// Height of the ceiling, metres.
     pub ceiling: f32,
+    /// The sides that have a wall, a bitmask of [`WALL_SOUTH`], [`WALL_EAST`], [`WALL_NORTH`] and
+    /// [`WALL_WEST`] (`walls = ["south", ...]`); [`ALL_WALLS`] by default. An open side has no wall: the floor
+    /// and the ceiling go on beyond it and nothing stands there.
+    pub walls: u8,
+}
+
+/// `walls` bit of the side y = 0.
+pub const WALL_SOUTH: u8 = 1;
+/// `walls` bit of the side x = `size[0]`.
+pub const WALL_EAST: u8 = 2;
+/// `walls` bit of the side y = `size[1]`.
+pub const WALL_NORTH: u8 = 4;
+/// `walls` bit of the side x = 0.
+pub const WALL_WEST: u8 = 8;
+/// Every side walled (the default).
+pub const ALL_WALLS: u8 = 15;
+/// The side names of `arena.walls`, with their bits.
+pub const WALL_NAMES: [(&str, u8); 4] = [
+    ("south", WALL_SOUTH),
+    ("east", WALL_EAST),
+    ("north", WALL_NORTH),
+    ("west", WALL_WEST),
+];
+
+impl Arena {
+    /// Whether the side with bit `side` has a wall.
+    pub fn has_wall(&self, side: u8) -> bool {
+        self.walls & side != 0
+    }
+
+    /// Whether a true position lies beyond an open side (outside the arena where it has no wall).
+    pub fn left_through_open_side(&self, x: f32, y: f32) -> bool {
+        let [w, h] = self.size;
+        (!self.has_wall(WALL_SOUTH) && y < 0.0)
+            || (!self.has_wall(WALL_EAST) && x > w)
+            || (!self.has_wall(WALL_NORTH) && y > h)
+            || (!self.has_wall(WALL_WEST) && x < 0.0)
+    }
 }
 
 /// `[mission]`: the parameters the drone is given (`mission.startX/Y`, `goalX/Y`, `height`, `speed`).
@@ -201,6 +281,19 @@ pub struct Mission {
     pub height: f32,
     /// Cruise speed, m/s.
     pub speed: f32,
+    /// Where the drone truly stands at power-on, `[x, y, yaw_deg]` (yaw counter-clockwise from +x); `None`:
+    /// `start`, yaw 0. The drone is told `start` and believes yaw 0 either way.
+    pub placed: Option<[f32; 3]>,
+}
+
+impl Mission {
+    /// The true power-on pose: `(x, y, yaw rad)`.
+    pub fn true_start(&self) -> ([f32; 2], f32) {
+        match self.placed {
+            Some([x, y, yaw_deg]) => ([x, y], yaw_deg.to_radians()),
+            None => (self.start, 0.0),
+        }
+    }
 }
 
 /// `[[pads]]`: a landing pad, a box standing on the floor.
@@ -212,17 +305,60 @@ pub struct Pad {
     pub size: [f32; 2],
     /// Height of its top, metres.
     pub height: f32,
+    /// Turned by this about its centre, degrees counter-clockwise (0: sides along x and y).
+    pub yaw_deg: f32,
 }
 
-/// `[[boxes]]`: an axis-aligned solid box from the floor up.
+/// `[[boxes]]`: a solid box from the floor up: `min`..`max` turned by `yaw_deg` about its centre.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct BoxObstacle {
-    /// Lower-left corner of its footprint, metres.
+    /// Lower-left corner of its footprint before the turn, metres.
     pub min: [f32; 2],
-    /// Upper-right corner of its footprint, metres.
+    /// Upper-right corner of its footprint before the turn, metres.
     pub max: [f32; 2],
     /// Height of its top, metres.
     pub height: f32,
+    /// Turned by this about its centre, degrees counter-clockwise (0: axis-aligned).
+    pub yaw_deg: f32,
+}
+
+/// `[[polygons]]`: a solid prism from the floor up over a simple polygon (corners counter-clockwise).
+#[derive(Clone, Debug, PartialEq)]
+pub struct Polygon {
+    /// Corners, counter-clockwise, metres; 3 to [`MAX_POLYGON_POINTS`].
+    pub points: Vec<[f32; 2]>,
+    /// Height of its top, metres.
+    pub height: f32,
+}
+
+/// `[[movers]]`: a person walking, a vertical solid cylinder that walks its path to the end, turns and walks
+/// back, at `speed`, pausing while its next step would bring it within [`MOVER_GIVE_WAY_M`] of the drone's
+/// body (see [`World::step_movers`]).
+#[derive(Clone, Debug, PartialEq)]
+pub struct Mover {
+    /// Radius, metres.
+    pub radius: f32,
+    /// Height of its top, metres.
+    pub height: f32,
+    /// Walking speed, m/s (0..[`MAX_MOVER_SPEED_MPS`]; 0 stands still at the path's first point).
+    pub speed: f32,
+    /// The polyline walked back and forth, metres; 1 to [`MAX_POLYGON_POINTS`] points.
+    pub path: Vec<[f32; 2]>,
+    /// State, not read from files: how far it has walked along the back-and-forth cycle since power-on, m.
+    pub walked_m: f32,
+}
+
+/// `[[floor]]`: a floor patch the flow sensor reads poorly (glossy tiles, a plain rug).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct FloorPatch {
+    /// Lower-left corner, metres.
+    pub min: [f32; 2],
+    /// Upper-right corner, metres.
+    pub max: [f32; 2],
+    /// The PMW3901's SQUAL over it (0..255), in place of the height model's; `None`: unchanged.
+    pub squal: Option<u8>,
+    /// Probability that a reading over it is invalid (0..1); `None`: the sensor's own.
+    pub flow_dropout: Option<f32>,
 }
 
 /// `[[cylinders]]`: a vertical solid cylinder from the floor up.
@@ -349,6 +485,12 @@ struct RawWorld {
     boxes: Vec<Spanned<RawBox>>,
     #[serde(default)]
     cylinders: Vec<Spanned<RawCylinder>>,
+    #[serde(default)]
+    polygons: Vec<Spanned<RawPolygon>>,
+    #[serde(default)]
+    movers: Vec<Spanned<RawMover>>,
+    #[serde(default)]
+    floor: Vec<Spanned<RawFloor>>,
     sim: Option<Spanned<RawSim>>,
     sensors: Option<Spanned<RawSensors>>,
     disturbances: Option<Spanned<RawDisturbances>>,
@@ -359,6 +501,7 @@ struct RawWorld {
 struct RawArena {
     size: Spanned<Vec<f32>>,
     ceiling: Option<Spanned<f32>>,
+    walls: Option<Spanned<Vec<String>>>,
 }
 
 #[derive(Deserialize)]
@@ -368,6 +511,7 @@ struct RawMission {
     goal: Spanned<Vec<f32>>,
     height: Option<Spanned<f32>>,
     speed: Option<Spanned<f32>>,
+    placed: Option<Spanned<Vec<f32>>>,
 }
 
 #[derive(Deserialize)]
@@ -376,6 +520,7 @@ struct RawPad {
     center: Spanned<Vec<f32>>,
     size: Spanned<Vec<f32>>,
     height: Spanned<f32>,
+    yaw: Option<Spanned<f32>>,
 }
 
 #[derive(Deserialize)]
@@ -384,6 +529,32 @@ struct RawBox {
     min: Spanned<Vec<f32>>,
     max: Spanned<Vec<f32>>,
     height: Option<Spanned<f32>>,
+    yaw: Option<Spanned<f32>>,
+}
+
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+struct RawPolygon {
+    points: Spanned<Vec<Vec<f32>>>,
+    height: Option<Spanned<f32>>,
+}
+
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+struct RawMover {
+    radius: Spanned<f32>,
+    height: Option<Spanned<f32>>,
+    speed: Spanned<f32>,
+    path: Spanned<Vec<Vec<f32>>>,
+}
+
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+struct RawFloor {
+    min: Spanned<Vec<f32>>,
+    max: Spanned<Vec<f32>>,
+    squal: Option<Spanned<i64>>,
+    flow_dropout: Option<Spanned<f32>>,
 }
 
 #[derive(Deserialize)]
@@ -429,6 +600,26 @@ impl Spans {
 
     fn optional<T>(&mut self, field: &str, v: Option<Spanned<T>>) -> Option<T> {
         v.map(|v| self.value(field, v))
+    }
+
+    fn points(&mut self, field: &str, v: Spanned<Vec<Vec<f32>>>) -> Result<Vec<[f32; 2]>, Invalid> {
+        let v = self.value(field, v);
+        if v.len() > MAX_POLYGON_POINTS {
+            return invalid(
+                field,
+                format!("{} points; expected at most {MAX_POLYGON_POINTS}", v.len()),
+            );
+        }
+        v.iter()
+            .enumerate()
+            .map(|(i, p)| match p.as_slice() {
+                &[x, y] => Ok([x, y]),
+                other => invalid(
+                    format!("{field}[{i}]"),
+                    format!("expected 2 numbers [x, y], found an array of {}", other.len()),
+                ),
+            })
+            .collect()
     }
 
     fn pair(&mut self, field: &str, v: Spanned<Vec<f32>>) -> Result<[f32; 2], Invalid> {
@@ -495,6 +686,25 @@ fn convert(raw: RawWorld, default_name: &str, spans: &mut Spans) -> Result<World
     let a = raw.arena.into_inner();
     let size = spans.pair("arena.size", a.size)?;
     let ceiling = spans.optional("arena.ceiling", a.ceiling).unwrap_or(DEFAULT_CEILING_M);
+    let mut walls = ALL_WALLS;
+    if let Some(names) = spans.optional("arena.walls", a.walls) {
+        walls = 0;
+        for name in &names {
+            let Some(&(_, bit)) = WALL_NAMES.iter().find(|(n, _)| n == name) else {
+                return invalid(
+                    "arena.walls",
+                    format!("{name:?} is not a side; expected a list of \"south\", \"east\", \"north\", \"west\""),
+                );
+            };
+            if walls & bit != 0 {
+                return invalid(
+                    "arena.walls",
+                    format!("{name:?} is listed twice; expected each side once"),
+                );
+            }
+            walls |= bit;
+        }
+    }
 
     spans.add("mission", raw.mission.span());
     let m = raw.mission.into_inner();
@@ -503,6 +713,18 @@ fn convert(raw: RawWorld, default_name: &str, spans: &mut Spans) -> Result<World
         goal: spans.pair("mission.goal", m.goal)?,
         height: spans.optional("mission.height", m.height).unwrap_or(DEFAULT_HEIGHT_M),
         speed: spans.optional("mission.speed", m.speed).unwrap_or(DEFAULT_SPEED_MPS),
+        placed: match spans.optional("mission.placed", m.placed) {
+            None => None,
+            Some(v) => match v.as_slice() {
+                &[x, y, yaw] => Some([x, y, yaw]),
+                other => {
+                    return invalid(
+                        "mission.placed",
+                        format!("expected 3 numbers [x, y, yaw_deg], found an array of {}", other.len()),
+                    );
+                }
+            },
+        },
     };
 
     if let Some(first) = raw.pads.first() {
@@ -517,6 +739,7 @@ fn convert(raw: RawWorld, default_name: &str, spans: &mut Spans) -> Result<World
             center: spans.pair(&format!("{f}.center"), p.center)?,
             size: spans.pair(&format!("{f}.size"), p.size)?,
             height: spans.value(&format!("{f}.height"), p.height),
+            yaw_deg: spans.optional(&format!("{f}.yaw"), p.yaw).unwrap_or(0.0),
         });
     }
 
@@ -529,6 +752,54 @@ fn convert(raw: RawWorld, default_name: &str, spans: &mut Spans) -> Result<World
             min: spans.pair(&format!("{f}.min"), b.min)?,
             max: spans.pair(&format!("{f}.max"), b.max)?,
             height: spans.optional(&format!("{f}.height"), b.height).unwrap_or(ceiling),
+            yaw_deg: spans.optional(&format!("{f}.yaw"), b.yaw).unwrap_or(0.0),
+        });
+    }
+
+    let mut polygons = Vec::with_capacity(raw.polygons.len().min(MAX_ROOM_ITEMS + 1));
+    for (i, q) in raw.polygons.into_iter().enumerate() {
+        let f = format!("polygons[{i}]");
+        spans.add(&f, q.span());
+        let q = q.into_inner();
+        polygons.push(Polygon {
+            points: spans.points(&format!("{f}.points"), q.points)?,
+            height: spans.optional(&format!("{f}.height"), q.height).unwrap_or(ceiling),
+        });
+    }
+
+    let mut movers = Vec::with_capacity(raw.movers.len().min(MAX_ROOM_ITEMS + 1));
+    for (i, m) in raw.movers.into_iter().enumerate() {
+        let f = format!("movers[{i}]");
+        spans.add(&f, m.span());
+        let m = m.into_inner();
+        movers.push(Mover {
+            radius: spans.value(&format!("{f}.radius"), m.radius),
+            height: spans
+                .optional(&format!("{f}.height"), m.height)
+                .unwrap_or(DEFAULT_MOVER_HEIGHT_M.min(ceiling)),
+            speed: spans.value(&format!("{f}.speed"), m.speed),
+            path: spans.points(&format!("{f}.path"), m.path)?,
+            walked_m: 0.0,
+        });
+    }
+
+    let mut floor = Vec::with_capacity(raw.floor.len().min(MAX_ROOM_ITEMS + 1));
+    for (i, p) in raw.floor.into_iter().enumerate() {
+        let f = format!("floor[{i}]");
+        spans.add(&f, p.span());
+        let p = p.into_inner();
+        let squal = match spans.optional(&format!("{f}.squal"), p.squal) {
+            None => None,
+            Some(q) => match u8::try_from(q) {
+                Ok(q) => Some(q),
+                Err(_) => return invalid(format!("{f}.squal"), format!("{q}; expected 0 ≤ squal ≤ 255")),
+            },
+        };
+        floor.push(FloorPatch {
+            min: spans.pair(&format!("{f}.min"), p.min)?,
+            max: spans.pair(&format!("{f}.max"), p.max)?,
+            squal,
+            flow_dropout: spans.optional(&format!("{f}.flow_dropout"), p.flow_dropout),
         });
     }
 
@@ -575,11 +846,14 @@ fn convert(raw: RawWorld, default_name: &str, spans: &mut Spans) -> Result<World
 
     Ok(World {
         name,
-        arena: Arena { size, ceiling },
+        arena: Arena { size, ceiling, walls },
         mission,
         pads,
         boxes,
         cylinders,
+        polygons,
+        movers,
+        floor,
         sim,
         stress,
     })
@@ -619,25 +893,262 @@ fn dist(a: [f32; 2], b: [f32; 2]) -> f32 {
     (a[0] - b[0]).hypot(a[1] - b[1])
 }
 
+/// The four corners, counter-clockwise, of a `size` rectangle centred on `c` and turned by `yaw_deg`.
+fn turned_corners(c: [f32; 2], size: [f32; 2], yaw_deg: f32) -> [[f32; 2]; 4] {
+    let (s, co) = yaw_deg.to_radians().sin_cos();
+    let h = [size[0] / 2.0, size[1] / 2.0];
+    [[-h[0], -h[1]], [h[0], -h[1]], [h[0], h[1]], [-h[0], h[1]]]
+        .map(|[x, y]| [c[0] + co * x - s * y, c[1] + s * x + co * y])
+}
+
+/// The axis-aligned bounding rectangle of some points.
+fn polygon_bounds(points: &[[f32; 2]]) -> ([f32; 2], [f32; 2]) {
+    let mut lo = [f32::INFINITY; 2];
+    let mut hi = [f32::NEG_INFINITY; 2];
+    for p in points {
+        for i in 0..2 {
+            lo[i] = lo[i].min(p[i]);
+            hi[i] = hi[i].max(p[i]);
+        }
+    }
+    (lo, hi)
+}
+
+/// Twice the signed area of a polygon (positive counter-clockwise).
+fn twice_area(points: &[[f32; 2]]) -> f64 {
+    let n = points.len();
+    (0..n)
+        .map(|i| {
+            let (a, b) = (points[i], points[(i + 1) % n]);
+            f64::from(a[0]) * f64::from(b[1]) - f64::from(b[0]) * f64::from(a[1])
+        })
+        .sum()
+}
+
+/// Whether segments `ab` and `cd` share a point (touching counts).
+fn segments_meet(a: [f32; 2], b: [f32; 2], c: [f32; 2], d: [f32; 2]) -> bool {
+    let p = |v: [f32; 2]| [f64::from(v[0]), f64::from(v[1])];
+    let (a, b, c, d) = (p(a), p(b), p(c), p(d));
+    let orient = |p: [f64; 2], q: [f64; 2], r: [f64; 2]| (q[0] - p[0]) * (r[1] - p[1]) - (q[1] - p[1]) * (r[0] - p[0]);
+    let on = |p: [f64; 2], q: [f64; 2], r: [f64; 2]| {
+        r[0] >= p[0].min(q[0]) && r[0] <= p[0].max(q[0]) && r[1] >= p[1].min(q[1]) && r[1] <= p[1].max(q[1])
+    };
+    let (o1, o2, o3, o4) = (orient(a, b, c), orient(a, b, d), orient(c, d, a), orient(c, d, b));
+    if o1 * o2 < 0.0 && o3 * o4 < 0.0 {
+        return true;
+    }
+    (o1 == 0.0 && on(a, b, c)) || (o2 == 0.0 && on(a, b, d)) || (o3 == 0.0 && on(c, d, a)) || (o4 == 0.0 && on(c, d, b))
+}
+
+/// The first pair of non-adjacent edges `(i, j)` of a closed polygon that meet, if any.
+fn self_crossing(points: &[[f32; 2]]) -> Option<(usize, usize)> {
+    let n = points.len();
+    for i in 0..n {
+        for j in i + 1..n {
+            if j == i + 1 || (i == 0 && j == n - 1) {
+                continue;
+            }
+            if segments_meet(points[i], points[(i + 1) % n], points[j], points[(j + 1) % n]) {
+                return Some((i, j));
+            }
+        }
+    }
+    None
+}
+
+/// Distance from a point to a polygon's area (0 inside or on it).
+fn polygon_point_distance(points: &[[f32; 2]], p: [f32; 2]) -> f32 {
+    geometry::polygon_signed_distance(points, [f64::from(p[0]), f64::from(p[1])]).max(0.0) as f32
+}
+
 impl Pad {
-    /// The footprint's lower-left and upper-right corners.
+    /// The footprint's lower-left and upper-right corners (of its bounding rectangle when turned).
     pub fn footprint(&self) -> ([f32; 2], [f32; 2]) {
+        if self.yaw_deg != 0.0 {
+            return polygon_bounds(&self.corners());
+        }
         let h = [self.size[0] / 2.0, self.size[1] / 2.0];
         (
             [self.center[0] - h[0], self.center[1] - h[1]],
             [self.center[0] + h[0], self.center[1] + h[1]],
         )
     }
+
+    /// The top's four corners, counter-clockwise.
+    pub fn corners(&self) -> [[f32; 2]; 4] {
+        turned_corners(self.center, self.size, self.yaw_deg)
+    }
 }
 
 impl BoxObstacle {
-    /// The footprint's lower-left and upper-right corners.
+    /// The footprint's lower-left and upper-right corners (of its bounding rectangle when turned).
     pub fn footprint(&self) -> ([f32; 2], [f32; 2]) {
+        if self.yaw_deg != 0.0 {
+            return polygon_bounds(&self.corners());
+        }
         (self.min, self.max)
+    }
+
+    /// The centre of the footprint.
+    pub fn center(&self) -> [f32; 2] {
+        [(self.min[0] + self.max[0]) / 2.0, (self.min[1] + self.max[1]) / 2.0]
+    }
+
+    /// The footprint's four corners after the turn, counter-clockwise.
+    pub fn corners(&self) -> [[f32; 2]; 4] {
+        let size = [self.max[0] - self.min[0], self.max[1] - self.min[1]];
+        turned_corners(self.center(), size, self.yaw_deg)
+    }
+}
+
+impl Mover {
+    /// Length of the path, m.
+    pub fn path_length(&self) -> f32 {
+        self.path.windows(2).map(|w| dist(w[0], w[1])).sum()
+    }
+
+    /// Where it stands after walking `walked_m` along its back-and-forth cycle.
+    pub fn position_after(&self, walked_m: f32) -> [f32; 2] {
+        let length = self.path_length();
+        let Some(&first) = self.path.first() else {
+            return [f32::NAN; 2];
+        };
+        if length.is_nan() || length <= 0.0 || !walked_m.is_finite() {
+            return first;
+        }
+        let mut s = walked_m.rem_euclid(2.0 * length);
+        if s > length {
+            s = 2.0 * length - s;
+        }
+        for w in self.path.windows(2) {
+            let l = dist(w[0], w[1]);
+            if s <= l && l > 0.0 {
+                let k = s / l;
+                return [w[0][0] + k * (w[1][0] - w[0][0]), w[0][1] + k * (w[1][1] - w[0][1])];
+            }
+            s -= l;
+        }
+        *self.path.last().unwrap_or(&first)
+    }
+
+    /// Where it stands now.
+    pub fn position(&self) -> [f32; 2] {
+        self.position_after(self.walked_m)
+    }
+}
+
+impl FloorPatch {
+    /// Whether `(x, y)` lies on the patch (edges included).
+    pub fn contains(&self, x: f32, y: f32) -> bool {
+        x >= self.min[0] && x <= self.max[0] && y >= self.min[1] && y <= self.max[1]
     }
 }
 
 impl World {
+    /// The rules of `[[polygons]]`, `[[movers]]` and `[[floor]]`.
+    fn check_room_items(&self, in_arena: impl Fn(([f32; 2], [f32; 2])) -> bool) -> Result<(), Invalid> {
+        let [w, h] = self.arena.size;
+        let c = self.arena.ceiling;
+        for (key, n) in [
+            ("polygons", self.polygons.len()),
+            ("movers", self.movers.len()),
+            ("floor", self.floor.len()),
+        ] {
+            if n > MAX_ROOM_ITEMS {
+                return invalid(key, format!("{n} entries; expected at most {MAX_ROOM_ITEMS}"));
+            }
+        }
+        for (i, q) in self.polygons.iter().enumerate() {
+            let f = format!("polygons[{i}].points");
+            if q.points.len() < 3 || !q.points.iter().all(|p| finite2(*p)) {
+                return invalid(
+                    f,
+                    format!("{} corners; expected 3 or more finite [x, y] corners", q.points.len()),
+                );
+            }
+            if !in_arena(polygon_bounds(&q.points)) {
+                return invalid(
+                    f,
+                    format!("a corner lies outside the {w} × {h} m arena; expected every corner inside"),
+                );
+            }
+            if let Some((a, b)) = self_crossing(&q.points) {
+                return invalid(
+                    f,
+                    format!("edges {a} and {b} cross; expected a simple polygon (edges meet only at shared corners)"),
+                );
+            }
+            if twice_area(&q.points) <= 0.0 {
+                return invalid(
+                    f,
+                    "the corners run clockwise (or enclose no area); expected them counter-clockwise",
+                );
+            }
+            if !(q.height.is_finite() && q.height > 0.0 && q.height <= c + EPS) {
+                return invalid(
+                    format!("polygons[{i}].height"),
+                    format!("{} m; expected 0 < height ≤ the ceiling ({c} m)", q.height),
+                );
+            }
+        }
+        for (i, m) in self.movers.iter().enumerate() {
+            if !(m.radius.is_finite() && m.radius > 0.0 && m.radius <= 1.0) {
+                return invalid(
+                    format!("movers[{i}].radius"),
+                    format!("{} m; expected 0 < radius ≤ 1 m", m.radius),
+                );
+            }
+            if !(m.height.is_finite() && m.height > 0.0 && m.height <= c + EPS) {
+                return invalid(
+                    format!("movers[{i}].height"),
+                    format!("{} m; expected 0 < height ≤ the ceiling ({c} m)", m.height),
+                );
+            }
+            if !(m.speed.is_finite() && m.speed >= 0.0 && m.speed <= MAX_MOVER_SPEED_MPS + EPS) {
+                return invalid(
+                    format!("movers[{i}].speed"),
+                    format!("{} m/s; expected 0 ≤ speed ≤ {MAX_MOVER_SPEED_MPS} m/s", m.speed),
+                );
+            }
+            let inside = |p: &[f32; 2]| finite2(*p) && p[0] >= 0.0 && p[0] <= w && p[1] >= 0.0 && p[1] <= h;
+            if m.path.is_empty() || !m.path.iter().all(inside) {
+                return invalid(
+                    format!("movers[{i}].path"),
+                    format!(
+                        "{} points; expected 1 or more points inside the {w} × {h} m arena",
+                        m.path.len()
+                    ),
+                );
+            }
+        }
+        for (i, p) in self.floor.iter().enumerate() {
+            if !finite2(p.min) || !finite2(p.max) || p.min[0] >= p.max[0] || p.min[1] >= p.max[1] {
+                return invalid(
+                    format!("floor[{i}]"),
+                    format!(
+                        "min [{}, {}], max [{}, {}]; expected min < max in both x and y",
+                        p.min[0], p.min[1], p.max[0], p.max[1]
+                    ),
+                );
+            }
+            if !in_arena((p.min, p.max)) {
+                return invalid(
+                    format!("floor[{i}]"),
+                    format!("leaves the {w} × {h} m arena; expected 0 ≤ min, max ≤ [{w}, {h}]"),
+                );
+            }
+            if let Some(d) = p.flow_dropout
+                && !(d.is_finite() && (0.0..=1.0).contains(&d))
+            {
+                return invalid(
+                    format!("floor[{i}].flow_dropout"),
+                    format!("{d}; expected 0 ≤ flow_dropout ≤ 1"),
+                );
+            }
+        }
+        Ok(())
+    }
+
     /// Check every rule of the schema (see the module documentation).
     fn check(&self) -> Result<(), Invalid> {
         let name_len = self.name.chars().count();
@@ -719,17 +1230,32 @@ impl World {
             if !finite2(p.center) {
                 return invalid(format!("pads[{i}].center"), "expected finite numbers");
             }
-            if !(finite2(p.size) && p.size[0] > 0.0 && p.size[1] > 0.0) {
+            let [lo, hi] = PAD_SIDE_M;
+            let side_ok = |v: f32| v.is_finite() && v >= lo - EPS && v <= hi + EPS;
+            if !(side_ok(p.size[0]) && side_ok(p.size[1])) {
                 return invalid(
                     format!("pads[{i}].size"),
-                    format!("[{}, {}]; expected two sizes > 0 m", p.size[0], p.size[1]),
+                    format!(
+                        "[{}, {}] m; expected both sides within {lo}..{hi} m",
+                        p.size[0], p.size[1]
+                    ),
                 );
             }
-            if !(p.height.is_finite() && p.height > 0.0 && p.height < height) {
+            let [lo, hi] = PAD_HEIGHT_M;
+            if !(p.height.is_finite() && p.height >= lo - EPS && p.height <= hi + EPS) {
                 return invalid(
                     format!("pads[{i}].height"),
-                    format!("{} m; expected 0 < height < the cruise height ({height} m)", p.height),
+                    format!("{} m; expected {lo}..{hi} m", p.height),
                 );
+            }
+            if p.height >= height {
+                return invalid(
+                    format!("pads[{i}].height"),
+                    format!("{} m; expected below the cruise height ({height} m)", p.height),
+                );
+            }
+            if !p.yaw_deg.is_finite() {
+                return invalid(format!("pads[{i}].yaw"), "expected a finite angle in degrees");
             }
             if !in_arena(p.footprint()) {
                 return invalid(
@@ -759,6 +1285,9 @@ impl World {
                         b.min[0], b.min[1], b.max[0], b.max[1]
                     ),
                 );
+            }
+            if !b.yaw_deg.is_finite() {
+                return invalid(format!("boxes[{i}].yaw"), "expected a finite angle in degrees");
             }
             if !in_arena(b.footprint()) {
                 return invalid(
@@ -802,7 +1331,19 @@ impl World {
             }
         }
 
+        self.check_room_items(in_arena)?;
+
         for (i, p) in self.pads.iter().enumerate() {
+            if let Some(j) = self
+                .polygons
+                .iter()
+                .position(|q| rects_overlap(p.footprint(), polygon_bounds(&q.points)))
+            {
+                return invalid(
+                    format!("pads[{i}]"),
+                    format!("overlaps polygons[{j}]; expected pads clear of obstacles"),
+                );
+            }
             if let Some(j) = self
                 .boxes
                 .iter()
@@ -869,6 +1410,52 @@ impl World {
                     s[0], s[1]
                 ),
             );
+        }
+
+        if let Some(j) = self
+            .polygons
+            .iter()
+            .position(|q| polygon_point_distance(&q.points, s) < BODY_RADIUS_M)
+        {
+            return invalid(
+                "mission.start",
+                format!(
+                    "the drone's body (radius {BODY_RADIUS_M} m) at [{}, {}] touches polygons[{j}]; expected {BODY_RADIUS_M} m of clearance",
+                    s[0], s[1]
+                ),
+            );
+        }
+        if let Some(j) = self
+            .movers
+            .iter()
+            .position(|m| dist(m.path[0], s) < m.radius + BODY_RADIUS_M)
+        {
+            return invalid(
+                format!("movers[{j}].path"),
+                format!(
+                    "its first point touches the drone's body at mission.start [{}, {}]; expected the mover to start clear of it",
+                    s[0], s[1]
+                ),
+            );
+        }
+        if let Some([x, y, yaw]) = self.mission.placed {
+            if !(inside([x, y]) && yaw.is_finite() && yaw.abs() <= 180.0) {
+                return invalid(
+                    "mission.placed",
+                    format!("[{x}, {y}, {yaw}]; expected a point inside the {w} × {h} m arena and a yaw within ±180°"),
+                );
+            }
+            let on = self.pad_index_at(x, y).map_or(0.0, |k| self.pads[k].height);
+            let c = self.clearance(x, y, on);
+            let walls = x.min(w - x).min(y).min(h - y);
+            if c < BODY_RADIUS_M || walls < BODY_RADIUS_M {
+                return invalid(
+                    "mission.placed",
+                    format!(
+                        "the drone's body (radius {BODY_RADIUS_M} m) at [{x}, {y}] touches an obstacle, a pad's side or the arena's edge; expected {BODY_RADIUS_M} m of clearance"
+                    ),
+                );
+            }
         }
 
         let last = self.pads.len() - 1;
@@ -992,18 +1579,21 @@ impl World {
             center,
             size: [0.3, 0.3],
             height: 0.1,
+            yaw_deg: 0.0,
         };
         World {
             name: "default".into(),
             arena: Arena {
                 size: [6.0, 3.0],
                 ceiling: DEFAULT_CEILING_M,
+                walls: ALL_WALLS,
             },
             mission: Mission {
                 start: [0.6, 1.3],
                 goal: [5.0, 1.5],
                 height: DEFAULT_HEIGHT_M,
                 speed: DEFAULT_SPEED_MPS,
+                placed: None,
             },
             pads: vec![pad([0.6, 1.3]), pad([5.12, 1.41])],
             boxes: vec![
@@ -1011,16 +1601,19 @@ impl World {
                     min: [2.0, 0.0],
                     max: [2.2, 2.0],
                     height: DEFAULT_CEILING_M,
+                    yaw_deg: 0.0,
                 },
                 BoxObstacle {
                     min: [4.0, 1.0],
                     max: [4.2, 3.0],
                     height: DEFAULT_CEILING_M,
+                    yaw_deg: 0.0,
                 },
                 BoxObstacle {
                     min: [2.8, 0.8],
                     max: [3.1, 1.2],
                     height: 1.2,
+                    yaw_deg: 0.0,
                 },
             ],
             cylinders: vec![Cylinder {
@@ -1028,6 +1621,9 @@ impl World {
                 radius: 0.15,
                 height: DEFAULT_CEILING_M,
             }],
+            polygons: Vec::new(),
+            movers: Vec::new(),
+            floor: Vec::new(),
             sim: SimSettings {
                 seed: 7,
                 time_limit: DEFAULT_TIME_LIMIT_S,
@@ -1080,6 +1676,14 @@ impl World {
             pair(self.arena.size),
             num(self.arena.ceiling)
         ));
+        if self.arena.walls != ALL_WALLS {
+            let names: Vec<String> = WALL_NAMES
+                .iter()
+                .filter(|(_, bit)| self.arena.has_wall(*bit))
+                .map(|(n, _)| format!("\"{n}\""))
+                .collect();
+            s.push_str(&format!("walls = [{}]\n", names.join(", ")));
+        }
         let m = &self.mission;
         s.push_str(&format!(
             "\n[mission]\nstart = {}\ngoal = {}\nheight = {}\nspeed = {}\n",
@@ -1088,6 +1692,9 @@ impl World {
             num(m.height),
             num(m.speed)
         ));
+        if let Some([x, y, yaw]) = m.placed {
+            s.push_str(&format!("placed = [{}, {}, {}]\n", num(x), num(y), num(yaw)));
+        }
         for p in &self.pads {
             s.push_str(&format!(
                 "\n[[pads]]\ncenter = {}\nsize = {}\nheight = {}\n",
@@ -1095,6 +1702,9 @@ impl World {
                 pair(p.size),
                 num(p.height)
             ));
+            if p.yaw_deg != 0.0 {
+                s.push_str(&format!("yaw = {}\n", num(p.yaw_deg)));
+            }
         }
         for b in &self.boxes {
             s.push_str(&format!(
@@ -1103,6 +1713,9 @@ impl World {
                 pair(b.max),
                 num(b.height)
             ));
+            if b.yaw_deg != 0.0 {
+                s.push_str(&format!("yaw = {}\n", num(b.yaw_deg)));
+            }
         }
         for c in &self.cylinders {
             s.push_str(&format!(
@@ -1111,6 +1724,32 @@ impl World {
                 num(c.radius),
                 num(c.height)
             ));
+        }
+        let points = |v: &[[f32; 2]]| v.iter().map(|p| pair(*p)).collect::<Vec<_>>().join(", ");
+        for q in &self.polygons {
+            s.push_str(&format!(
+                "\n[[polygons]]\npoints = [{}]\nheight = {}\n",
+                points(&q.points),
+                num(q.height)
+            ));
+        }
+        for m in &self.movers {
+            s.push_str(&format!(
+                "\n[[movers]]\nradius = {}\nheight = {}\nspeed = {}\npath = [{}]\n",
+                num(m.radius),
+                num(m.height),
+                num(m.speed),
+                points(&m.path)
+            ));
+        }
+        for f in &self.floor {
+            s.push_str(&format!("\n[[floor]]\nmin = {}\nmax = {}\n", pair(f.min), pair(f.max)));
+            if let Some(q) = f.squal {
+                s.push_str(&format!("squal = {q}\n"));
+            }
+            if let Some(d) = f.flow_dropout {
+                s.push_str(&format!("flow_dropout = {}\n", num(d)));
+            }
         }
         s.push_str(&format!(
             "\n[sim]\nseed = {}\ntime_limit = {}\n",

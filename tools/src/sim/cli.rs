@@ -159,6 +159,8 @@ pub struct Summary {
     /// Worlds whose arena has more cells than the default firmware build maps (120 × 60): only the
     /// `large-arena` build, which the simulator flies, can fly them.
     pub large_arena_runs: usize,
+    /// Runs that ended by crossing an open side of the arena (reason `left_arena`).
+    pub left_arena_runs: usize,
     /// Landings whose centre did not come to rest over the pad.
     pub off_pad_landings: usize,
     /// Median and largest RMS horizontal estimate error per run (airborne), m.
@@ -223,6 +225,7 @@ pub fn summarise(reports: &[RunReport], wall_s: f64) -> Summary {
         },
         sim_seconds_per_wall_second: if wall_s > 0.0 { sim_s / wall_s } else { 0.0 },
         large_arena_runs: reports.iter().filter(|r| r.needs_large_arena).count(),
+        left_arena_runs: reports.iter().filter(|r| r.reason == Some("left_arena")).count(),
         off_pad_landings: reports
             .iter()
             .flat_map(|r| r.landings.iter())
@@ -549,6 +552,7 @@ fn print_table(reports: &[RunReport], s: &Summary) {
     println!("{:<32} {:>6}", "worst estimate error", fmt_m(s.max_estimate_error_m));
     println!("{:<32} {:>6}", "landings off the pad", s.off_pad_landings);
     println!("{:<32} {:>6}", "worlds for the large-arena build", s.large_arena_runs);
+    println!("{:<32} {:>6}", "runs that left the arena", s.left_arena_runs);
     println!(
         "{:<32} {:>6.0}×",
         "simulation speed (real time)", s.sim_seconds_per_wall_second

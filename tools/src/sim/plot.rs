@@ -14,7 +14,7 @@ use plotters::prelude::*;
 use plotters::style::text_anchor::{HPos, Pos, VPos};
 
 use super::runner::RunResult;
-use cfnav_sim::world::World;
+use cfnav_sim::world::{ALL_WALLS, WALL_EAST, WALL_NORTH, WALL_SOUTH, WALL_WEST, World};
 
 /// Width of the figure, px.
 const WIDTH: u32 = 1600;
@@ -36,6 +36,10 @@ const SWATCH: i32 = 40;
 const GRID: RGBColor = RGBColor(220, 220, 220);
 const WALL: RGBColor = RGBColor(30, 30, 30);
 const OBSTACLE: RGBColor = RGBColor(150, 150, 150);
+/// A floor patch the flow sensor reads poorly.
+const POOR_FLOOR: RGBColor = RGBColor(236, 226, 200);
+/// A walker's path and its starting point.
+const MOVER: RGBColor = RGBColor(170, 60, 160);
 const OBSTACLE_EDGE: RGBColor = RGBColor(80, 80, 80);
 const LOW_OBSTACLE: RGBColor = RGBColor(210, 210, 210);
 const LOW_OBSTACLE_EDGE: RGBColor = RGBColor(150, 150, 150);
@@ -242,6 +246,15 @@ impl Figure {
         let (tx, ty) = self.px(0.0, ah);
         p.text("y (m)", (tx, ty - 28), Size::Normal, HPos::Left, MARK)?;
 
+        // Poor floor patches (the flow sensor reads them poorly), under everything else.
+        for f in &world.floor {
+            p.rect(
+                self.px(f.min[0], f.max[1]),
+                self.px(f.max[0], f.min[1]),
+                POOR_FLOOR.filled(),
+            )?;
+        }
+
         // True obstacles (lower than the cruise height in a lighter grey: the drone may fly over them).
         let low = |h: f32| h <= world.mission.height;
         for b in &world.boxes {
@@ -250,8 +263,34 @@ impl Figure {
             } else {
                 (OBSTACLE, OBSTACLE_EDGE)
             };
-            p.rect(self.px(b.min[0], b.max[1]), self.px(b.max[0], b.min[1]), fill.filled())?;
-            p.outline(&self.rect_corners(b.min, b.max), edge.stroke_width(1))?;
+            if b.yaw_deg == 0.0 {
+                p.rect(self.px(b.min[0], b.max[1]), self.px(b.max[0], b.min[1]), fill.filled())?;
+                p.outline(&self.rect_corners(b.min, b.max), edge.stroke_width(1))?;
+            } else {
+                let corners: Vec<(i32, i32)> = b.corners().iter().map(|c| self.px(c[0], c[1])).collect();
+                root.draw(&Polygon::new(corners.clone(), fill.filled()))
+                    .map_err(|e| e.to_string())?;
+                p.outline(&corners, edge.stroke_width(1))?;
+            }
+        }
+        for q in &world.polygons {
+            let (fill, edge) = if low(q.height) {
+                (LOW_OBSTACLE, LOW_OBSTACLE_EDGE)
+            } else {
+                (OBSTACLE, OBSTACLE_EDGE)
+            };
+            let corners: Vec<(i32, i32)> = q.points.iter().map(|c| self.px(c[0], c[1])).collect();
+            root.draw(&Polygon::new(corners.clone(), fill.filled()))
+                .map_err(|e| e.to_string())?;
+            p.outline(&corners, edge.stroke_width(1))?;
+        }
+        // Walkers: their path, and where each starts.
+        for m in &world.movers {
+            p.path(
+                m.path.iter().map(|c| self.px(c[0], c[1])).collect(),
+                MOVER.stroke_width(2),
+            )?;
+            p.outline(&self.circle(m.path[0], m.radius), MOVER.stroke_width(2))?;
         }
         for c in &world.cylinders {
             let (fill, edge) = if low(c.height) {
@@ -283,12 +322,36 @@ impl Figure {
                 i if i == goal => GOAL,
                 _ => OTHER_PAD,
             };
-            let half = [pad.size[0] / 2.0, pad.size[1] / 2.0];
-            let lo = [pad.center[0] - half[0], pad.center[1] - half[1]];
-            let hi = [pad.center[0] + half[0], pad.center[1] + half[1]];
-            p.frame(self.px(lo[0], hi[1]), self.px(hi[0], lo[1]), color, 3)?;
+            if pad.yaw_deg == 0.0 {
+                let half = [pad.size[0] / 2.0, pad.size[1] / 2.0];
+                let lo = [pad.center[0] - half[0], pad.center[1] - half[1]];
+                let hi = [pad.center[0] + half[0], pad.center[1] + half[1]];
+                p.frame(self.px(lo[0], hi[1]), self.px(hi[0], lo[1]), color, 3)?;
+            } else {
+                let corners: Vec<(i32, i32)> = pad.corners().iter().map(|c| self.px(c[0], c[1])).collect();
+                p.outline(&corners, color.stroke_width(3))?;
+            }
         }
-        p.frame(self.px(0.0, ah), self.px(aw, 0.0), WALL, 3)?;
+        if world.arena.walls == ALL_WALLS {
+            p.frame(self.px(0.0, ah), self.px(aw, 0.0), WALL, 3)?;
+        } else {
+            // Walls where they exist; an open side dashed thin.
+            for (bit, a, b) in [
+                (WALL_SOUTH, (0.0, 0.0), (aw, 0.0)),
+                (WALL_EAST, (aw, 0.0), (aw, ah)),
+                (WALL_NORTH, (0.0, ah), (aw, ah)),
+                (WALL_WEST, (0.0, 0.0), (0.0, ah)),
+            ] {
+                let line = vec![self.px(a.0, a.1), self.px(b.0, b.1)];
+                if world.arena.has_wall(bit) {
+                    p.path(line, WALL.stroke_width(3))?;
+                } else {
+                    for dash in dashes(&line, 8.0, 6.0) {
+                        p.path(dash, WALL.stroke_width(1))?;
+                    }
+                }
+            }
+        }
 
         // Planned paths: every snapshot thin and light, the last one thick.
         let n = result.paths.len();
@@ -482,12 +545,22 @@ fn legend(world: &World, result: &RunResult) -> Vec<(Swatch, String)> {
         .boxes
         .iter()
         .map(|b| b.height)
-        .chain(world.cylinders.iter().map(|c| c.height));
+        .chain(world.cylinders.iter().map(|c| c.height))
+        .chain(world.polygons.iter().map(|q| q.height));
     if low.any(|h| h <= world.mission.height) {
         v.push((
             Swatch::Fill(LOW_OBSTACLE.to_rgba(), LOW_OBSTACLE_EDGE.to_rgba()),
             "obstacle below cruise".into(),
         ));
+    }
+    if !world.floor.is_empty() {
+        v.push((
+            Swatch::Fill(POOR_FLOOR.to_rgba(), POOR_FLOOR.to_rgba()),
+            "poor floor".into(),
+        ));
+    }
+    if !world.movers.is_empty() {
+        v.push((Swatch::Outline(MOVER), "walker (start, path)".into()));
     }
     v.push((Swatch::Outline(HOME), "home pad".into()));
     v.push((Swatch::Outline(GOAL), "goal pad".into()));

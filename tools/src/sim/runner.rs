@@ -293,7 +293,9 @@ impl SimDrone {
         let mut rng_imu = stream(1);
         let stress = &world.stress;
         let start = world.mission.start;
-        let mut quad = Quadrotor::new(stress.quad_params(), [start[0], start[1], 0.0], 0.0);
+        // The drone truly stands at `placed` (a hand's placement), but is told `start` and believes yaw 0.
+        let (truly, yaw) = world.mission.true_start();
+        let mut quad = Quadrotor::new(stress.quad_params(), [truly[0], truly[1], 0.0], yaw);
         quad.place_on_surface(world);
         if let Some(soc) = stress.battery_state_of_charge(&quad.params().battery) {
             quad.battery_mut().set_state_of_charge(soc);
@@ -414,7 +416,12 @@ const BEAM_MIDPOINT_TICKS: u64 = BEAM_MIDPOINT_US / 1000;
 const _: () = assert!(Z_MIDPOINT_TICKS < Z_PERIOD_TICKS && BEAM_MIDPOINT_TICKS < BEAM_PERIOD_TICKS);
 
 /// The parameters the world gives the drone.
+///
+/// The arena's walls (`world.arena.walls`, the `mission.walls` bitmask) are not handed over yet: the
+/// firmware has no such parameter, so the drone flies every world as if all four sides were walled.
 pub fn mission_params(world: &World) -> MissionParams {
+    // WALLS HAND-OVER: write `world.arena.walls` here (`mission.walls`, south 1, east 2, north 4, west 8)
+    // once `MissionParams` carries it; this is the only place the simulator tells the drone about its room.
     MissionParams {
         arena_m: (world.arena.size[0], world.arena.size[1]),
         start_m: (world.mission.start[0], world.mission.start[1]),
@@ -427,10 +434,14 @@ pub fn mission_params(world: &World) -> MissionParams {
 
 /// Fly one world. Fails only if the flight stack's configuration is invalid.
 pub fn run(world: &World, options: &RunOptions) -> Result<RunResult, String> {
+    // The movers walk: the run flies its own copy of the world, stepped every millisecond.
+    let mut world = world.clone();
+    let has_movers = !world.movers.is_empty();
+    let mut left_arena = false;
     let wall = Instant::now();
     let seed = options.seed;
-    let mut drone = SimDrone::new(world, seed, &options.faults)?;
-    let mut params = mission_params(world);
+    let mut drone = SimDrone::new(&world, seed, &options.faults)?;
+    let mut params = mission_params(&world);
     params.mode = options.mode;
     if let Some(t) = options.hover_time_s {
         params.hover_time_s = t;
@@ -477,7 +488,10 @@ pub fn run(world: &World, options: &RunOptions) -> Result<RunResult, String> {
         if tick.is_multiple_of(LINK_PACKET_PERIOD_MS) && link_silent_tick.is_none_or(|t| tick < t) {
             drone.core.on_radio_packet(tick * 1000);
         }
-        let new_duty = drone.step(world);
+        if has_movers {
+            world.step_movers(0.001, drone.quad.position());
+        }
+        let new_duty = drone.step(&world);
         if let Some(note) = drone.core.take_mission_note() {
             if options.verbose {
                 eprintln!("{:8.3} s  console: {note}", tick as f64 * 1e-3);
@@ -510,6 +524,11 @@ pub fn run(world: &World, options: &RunOptions) -> Result<RunResult, String> {
         } else {
             score.grounded();
         }
+        if world.arena.left_through_open_side(p[0], p[1]) {
+            left_arena = true;
+            ended_at = Some(tick);
+            break;
+        }
         if on_ground && !was_on_ground && started {
             score.pending_landing = Some(tick);
         }
@@ -519,7 +538,7 @@ pub fn run(world: &World, options: &RunOptions) -> Result<RunResult, String> {
             && duty == MotorDuty::default()
             && tick >= t0 + 200
         {
-            score.land(world, p);
+            score.land(&world, p);
         }
         if !on_ground {
             score.pending_landing = None;
@@ -628,7 +647,7 @@ pub fn run(world: &World, options: &RunOptions) -> Result<RunResult, String> {
             if let Some(t0) = score.pending_landing
                 && tick >= t0 + 200
             {
-                score.land(world, p);
+                score.land(&world, p);
             }
             if score.pending_landing.is_none() || start_refused {
                 ended_at = Some(tick);
@@ -654,6 +673,8 @@ pub fn run(world: &World, options: &RunOptions) -> Result<RunResult, String> {
     };
     let (outcome, reason) = if score.collisions > 0 {
         ("crashed", Some("collision"))
+    } else if left_arena {
+        ("aborted", Some("left_arena"))
     } else if start_refused {
         ("aborted", Some("start_refused"))
     } else if ended_at.is_none() {
@@ -739,7 +760,7 @@ pub fn run(world: &World, options: &RunOptions) -> Result<RunResult, String> {
         }),
         explore: (options.mode == MissionMode::Explore).then(|| {
             let stats = mission.stats();
-            let (free_known, occupied_correct) = map_truth(world, grid, params.height_m);
+            let (free_known, occupied_correct) = map_truth(&world, grid, params.height_m);
             ExploreReport {
                 coverage_target: params.coverage_target,
                 coverage: stats.coverage,

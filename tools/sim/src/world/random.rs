@@ -25,7 +25,7 @@ const PAD_SIZE: [f32; 2] = [0.3, 0.3];
 const PAD_HEIGHT: f32 = 0.1;
 
 /// Round to whole centimetres.
-fn cm(v: f32) -> f32 {
+pub(super) fn cm(v: f32) -> f32 {
     (v * 100.0).round() / 100.0
 }
 
@@ -35,13 +35,13 @@ fn cells5(v: f32) -> f32 {
 }
 
 /// What obstacles must stay away from.
-struct KeepOut {
-    points: Vec<[f32; 2]>,
-    pads: Vec<([f32; 2], [f32; 2])>,
+pub(super) struct KeepOut {
+    pub(super) points: Vec<[f32; 2]>,
+    pub(super) pads: Vec<([f32; 2], [f32; 2])>,
 }
 
 impl KeepOut {
-    fn allows_rect(&self, r: ([f32; 2], [f32; 2])) -> bool {
+    pub(super) fn allows_rect(&self, r: ([f32; 2], [f32; 2])) -> bool {
         self.points.iter().all(|&p| rect_point_distance(r, p) >= KEEP_OUT_M)
             && self.pads.iter().all(|&p| rect_rect_distance(r, p) >= KEEP_OUT_M)
     }
@@ -64,6 +64,7 @@ fn pad_near(rng: &mut SmallRng, nominal: [f32; 2], offset: (f32, f32), arena: [f
         center,
         size: PAD_SIZE,
         height: PAD_HEIGHT,
+        yaw_deg: 0.0,
     }
 }
 
@@ -186,6 +187,7 @@ fn walls_with_gaps(
                     min: [x, 0.0],
                     max: [cm(x + t), gy],
                     height: ceiling,
+                    yaw_deg: 0.0,
                 });
             }
             if gy + gap < h - 0.05 {
@@ -193,6 +195,7 @@ fn walls_with_gaps(
                     min: [x, gy + gap],
                     max: [cm(x + t), h],
                     height: ceiling,
+                    yaw_deg: 0.0,
                 });
             }
             if segments.iter().all(|b| keep.allows_rect(b.footprint())) {
@@ -225,6 +228,7 @@ fn scatter_boxes(
                 min,
                 max: [cm(min[0] + size[0]).min(w), cm(min[1] + size[1]).min(h)],
                 height: obstacle_height(rng, ceiling),
+                yaw_deg: 0.0,
             };
             if keep.allows_rect(b.footprint()) {
                 out.push(b);
@@ -246,16 +250,24 @@ fn generated_world(
 ) -> World {
     World {
         name: format!("random-{seed}"),
-        arena: Arena { size, ceiling },
+        arena: Arena {
+            size,
+            ceiling,
+            walls: super::ALL_WALLS,
+        },
         mission: Mission {
             start,
             goal,
             height: DEFAULT_HEIGHT_M,
             speed: DEFAULT_SPEED_MPS,
+            placed: None,
         },
         pads: vec![home, goal_pad],
         boxes,
         cylinders,
+        polygons: Vec::new(),
+        movers: Vec::new(),
+        floor: Vec::new(),
         sim: SimSettings {
             seed,
             time_limit: DEFAULT_TIME_LIMIT_S,
@@ -308,6 +320,7 @@ fn obstacle_next_to(rng: &mut SmallRng, pad: &Pad, gap: f32, ceiling: f32) -> (O
             min,
             max,
             height: obstacle_height(rng, ceiling),
+            yaw_deg: 0.0,
         };
         (Some(b), None)
     }
@@ -356,6 +369,7 @@ fn candidate_wide(rng: &mut SmallRng, seed: u64) -> World {
             center: c,
             size: PAD_SIZE,
             height: PAD_HEIGHT,
+            yaw_deg: 0.0,
         }
     } else {
         pad_near(rng, goal, (0.05, 0.35), [w, h])
@@ -396,12 +410,14 @@ fn candidate_wide(rng: &mut SmallRng, seed: u64) -> World {
                     min: [xa, gap],
                     max: [cm(xa + t), h],
                     height: ceiling,
+                    yaw_deg: 0.0,
                 }
             } else {
                 BoxObstacle {
                     min: [xa, 0.0],
                     max: [cm(xa + t), cm(h - gap)],
                     height: ceiling,
+                    yaw_deg: 0.0,
                 }
             };
             if keep.allows_rect(b.footprint()) {
@@ -496,6 +512,9 @@ pub enum Generator {
     Wide,
     /// The generator up to issue 14 (its seeds give the same worlds as before, for the older figures).
     Classic,
+    /// Rooms as people have them, over the firmware's whole range of arenas: open sides, tables, shelves,
+    /// sofas, turned boxes, polygons, walkers, poor floor patches, pads of every size, hand placement.
+    Rooms,
 }
 
 impl World {
@@ -519,6 +538,13 @@ impl World {
             let w = match generator {
                 Generator::Classic => candidate(&mut rng, seed),
                 Generator::Wide => candidate_wide(&mut rng, seed),
+                Generator::Rooms => {
+                    let w = super::rooms::candidate(&mut rng, seed);
+                    if super::rooms::fair(&w) {
+                        return w;
+                    }
+                    continue;
+                }
             };
             let start_room = generator == Generator::Classic || w.start_leaves_room_beside_home_pad();
             if start_room && w.check().is_ok() && w.is_solvable(SOLVABILITY_INFLATION_M) {

@@ -5,7 +5,7 @@
 //! Job: describe every parameter once. The TOC (type byte, names, CRC), the generic write checks (unknown id,
 //! read-only, type, range: [`ParamEntry::check`]), the console line of a refusal and the README's parameter
 //! table ([`write_param_table`]) all derive from the declaration; the store adds only what a declaration
-//! cannot say (a goal inside the arena, the start rules). Ids are the table's indices, and the `ID_*`
+//! cannot say (a goal inside the arena, an arena the map holds, the start rules). Ids are the table's indices, and the `ID_*`
 //! constants are looked up in the table at compile time ([`param_id`]), so they cannot drift from it.
 //!
 //! Non-goals: no wire protocol (that is [`super::param`]), no EEPROM layout (that is
@@ -53,6 +53,7 @@ use crate::mission::{
     MissionParams, StartRefusal,
 };
 use crate::nav::avoidance::{AvoidanceMethod, SpeedClamp};
+use crate::nav::map::GridShape;
 use crate::system::persistent_params::{PendingWrite, PersistentParams, param_key};
 use crate::system::version;
 
@@ -432,7 +433,8 @@ pub enum Refusal {
     DeckMissing,
     /// A start while a mission runs.
     AlreadyRunning,
-    /// A start with an arena the map cannot hold.
+    /// A start with an arena the map cannot hold, or an `arenaX`/`arenaY` write that would make one (not
+    /// finite and positive, or more cells than the map has with the other side in effect).
     BadArena,
     /// Outside the range its declaration gives (the console line names the range).
     OutOfRange,
@@ -865,6 +867,11 @@ pub const PARAM_TABLE: &[ParamEntry] = &[
         "",
         "1 when the firmware's tracked sources differed from that commit at build time (stock)",
     ),
+    // The room (appended: the ids above stay). Checked against the map's capacity with the other side in
+    // effect; refused while a mission runs (the grid is shaped at the start).
+    ParamEntry::declare("mission", "arenaX", ParamType::F32, 0, Range::Any, "m", "arena size along x, from the west wall (x = 0) to the east; the map must hold arenaX × arenaY").persistent(),
+    ParamEntry::declare("mission", "arenaY", ParamType::F32, 0, Range::Any, "m", "arena size along y, from the south wall (y = 0) to the north; the map must hold arenaX × arenaY").persistent(),
+    ParamEntry::declare("mission", "walls", ParamType::U8, 0, Range::Closed(0.0, 15.0), "", "which sides are walls: south (y = 0) 1, east 2, north 4, west (x = 0) 8; an open side is a geofence 0.3 m inside it").persistent(),
 ];
 
 /// Id of `mission.start` (uint8).
@@ -907,6 +914,12 @@ pub const ID_FW_REVISION0: u16 = param_id(PARAM_TABLE, "firmware", "revision0");
 pub const ID_FW_REVISION1: u16 = param_id(PARAM_TABLE, "firmware", "revision1");
 /// Id of `firmware.modified` (uint8, read-only).
 pub const ID_FW_MODIFIED: u16 = param_id(PARAM_TABLE, "firmware", "modified");
+/// Id of `mission.arenaX` (float, m, persistent).
+pub const ID_ARENA_X: u16 = param_id(PARAM_TABLE, "mission", "arenaX");
+/// Id of `mission.arenaY` (float, m, persistent).
+pub const ID_ARENA_Y: u16 = param_id(PARAM_TABLE, "mission", "arenaY");
+/// Id of `mission.walls` (uint8 bitmask, persistent).
+pub const ID_WALLS: u16 = param_id(PARAM_TABLE, "mission", "walls");
 
 /// Writes the README's parameter table for `table`: one Markdown row per declaration.
 pub fn write_param_table(out: &mut impl core::fmt::Write, table: &[ParamEntry]) -> core::fmt::Result {
@@ -1105,7 +1118,7 @@ pub struct MissionParamState {
     /// `mission.start`: 1 while a mission runs (set by the radio), back to 0 when it ends (set by the firmware,
     /// which then queues a VALUE_UPDATED).
     pub start: u8,
-    /// Positions, height, speed and the arena size (not a parameter).
+    /// Positions, height, speed, the arena's size and walls.
     pub params: MissionParams,
     /// The drone is flying: a start is refused.
     pub flying: bool,
@@ -1245,6 +1258,18 @@ impl MissionParamState {
             ID_HOVER_TIME => self.params.hover_time_s = v,
             ID_COVERAGE => self.params.coverage_target = v,
             ID_LINK_TIMEOUT => self.link_loss.timeout_s = v,
+            ID_ARENA_X | ID_ARENA_Y if self.start != 0 => return Err(Refusal::AlreadyRunning),
+            ID_ARENA_X | ID_ARENA_Y => {
+                let arena = if id == ID_ARENA_X {
+                    (v, p.arena_m.1)
+                } else {
+                    (p.arena_m.0, v)
+                };
+                if GridShape::for_arena(arena.0, arena.1, self.capacity_cells).is_none() {
+                    return Err(Refusal::BadArena);
+                }
+                self.params.arena_m = arena;
+            }
             _ => return Err(Refusal::UnknownId),
         }
         Ok(())
@@ -1264,6 +1289,8 @@ impl MissionParamState {
             ID_MODE if self.start != 0 => return Err(Refusal::AlreadyRunning),
             ID_MODE => self.params.mode = MissionMode::from_code(v).ok_or(Refusal::OutOfRange)?,
             ID_LINK_LOSS => self.link_loss.policy = LinkLossPolicy::from_code(v).ok_or(Refusal::OutOfRange)?,
+            ID_WALLS if self.start != 0 => return Err(Refusal::AlreadyRunning),
+            ID_WALLS => self.params.walls = v,
             _ => return Err(Refusal::UnknownId),
         }
         Ok(())
@@ -1300,6 +1327,9 @@ impl ParamStore for MissionParamState {
             ID_FW_REVISION0 => Value::U32(version::REVISION0),
             ID_FW_REVISION1 => Value::U16(version::REVISION1),
             ID_FW_MODIFIED => Value::U8(version::MODIFIED),
+            ID_ARENA_X => Value::F32(p.arena_m.0),
+            ID_ARENA_Y => Value::F32(p.arena_m.1),
+            ID_WALLS => Value::U8(p.walls),
             // The other deck.* entries: decks cfnav never drives.
             _ if PARAM_TABLE.get(usize::from(id))?.group == "deck" => flag(false),
             _ => return None,

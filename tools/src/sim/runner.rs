@@ -13,6 +13,9 @@ use std::time::Instant;
 use cfnav::drivers::vl53l1x::RangingConfig;
 use cfnav::mission::link_loss::LinkLossConfig;
 use cfnav::mission::{ExploreEnd, MissionMode, MissionParams, MissionState};
+use cfnav::radio::crtp::{CrtpPacket, Service};
+use cfnav::radio::param::{CH_WRITE, PORT_PARAM, ParamService};
+use cfnav::radio::registry::{ID_ARENA_X, ID_ARENA_Y, ID_WALLS, MissionParamState};
 use cfnav::stack::{BEAM_MIDPOINT_US, FlightConfig, FlightCore, ZRANGE_MIDPOINT_US};
 use cfnav::types::{MotorDuty, MultiRangerSample, RangeReading};
 use rand::rngs::SmallRng;
@@ -411,10 +414,22 @@ const Z_MIDPOINT_TICKS: u64 = ZRANGE_MIDPOINT_US / 1000;
 const BEAM_MIDPOINT_TICKS: u64 = BEAM_MIDPOINT_US / 1000;
 const _: () = assert!(Z_MIDPOINT_TICKS < Z_PERIOD_TICKS && BEAM_MIDPOINT_TICKS < BEAM_PERIOD_TICKS);
 
-/// The parameters the world gives the drone.
+/// The parameters the world gives the drone: its start, goal, height and speed as the power-on values,
+/// and its room (`mission.arenaX`, `arenaY`, `walls`) written over the radio before the start, as a user
+/// does ([`room_params`]). A room the map cannot hold keeps the world's size, which the start then refuses
+/// (`BadArena`), as the drone refuses it.
 pub fn mission_params(world: &World) -> MissionParams {
-    MissionParams {
+    room_params(world).unwrap_or_else(|_| MissionParams {
         arena_m: (world.arena.size[0], world.arena.size[1]),
+        walls: world_walls(world),
+        ..power_on_params(world)
+    })
+}
+
+/// The world's start, goal, height and speed on the seed's arena: what the drone holds before the room is
+/// written.
+pub fn power_on_params(world: &World) -> MissionParams {
+    MissionParams {
         start_m: (world.mission.start[0], world.mission.start[1]),
         goal_m: (world.mission.goal[0], world.mission.goal[1]),
         height_m: world.mission.height,
@@ -423,12 +438,72 @@ pub fn mission_params(world: &World) -> MissionParams {
     }
 }
 
+/// The world's `mission.walls` bitmask. The world format has no open sides yet: every side is a wall.
+pub fn world_walls(_world: &World) -> u8 {
+    cfnav::mission::ALL_WALLS
+}
+
+/// The parameter writes (port 2, channel 2) that give the drone a room: `mission.arenaX`, `arenaY`, `arenaX`
+/// again (a write is checked with the other side in effect, so growing x may need y first), `walls`.
+pub fn room_writes(size_m: (f32, f32), walls: u8) -> [CrtpPacket; 4] {
+    let f = |id: u16, v: f32| {
+        let mut data = id.to_le_bytes().to_vec();
+        data.extend_from_slice(&v.to_le_bytes());
+        CrtpPacket::new(PORT_PARAM, CH_WRITE, &data).expect("7 bytes fit a packet")
+    };
+    let w = ID_WALLS.to_le_bytes();
+    [
+        f(ID_ARENA_X, size_m.0),
+        f(ID_ARENA_Y, size_m.1),
+        f(ID_ARENA_X, size_m.0),
+        CrtpPacket::new(PORT_PARAM, CH_WRITE, &[w[0], w[1], walls]).expect("3 bytes fit a packet"),
+    ]
+}
+
+/// Writes the room into a parameter service as a client does ([`room_writes`]); the console lines of the
+/// writes that stay refused as the error.
+pub fn write_room(service: &mut ParamService<MissionParamState>, size_m: (f32, f32), walls: u8) -> Result<(), String> {
+    for p in room_writes(size_m, walls) {
+        let _echo = service.handle(&p);
+    }
+    let mut lines = String::new();
+    while let Some(note) = service.take_refusal() {
+        lines.push_str(ParamService::<MissionParamState>::console_line(&note).as_str());
+    }
+    // The first arenaX write may be refused and the second taken: what counts is the room held now.
+    let p = service.store().params;
+    if p.arena_m == size_m && p.walls == walls {
+        Ok(())
+    } else {
+        Err(lines)
+    }
+}
+
+/// [`power_on_params`] with the world's room written over the radio; the refusals' console lines if the
+/// drone would not take it.
+pub fn room_params(world: &World) -> Result<MissionParams, String> {
+    let mut service = ParamService::new(MissionParamState::new(power_on_params(world), SIM_CELLS));
+    write_room(
+        &mut service,
+        (world.arena.size[0], world.arena.size[1]),
+        world_walls(world),
+    )?;
+    Ok(service.store().params)
+}
+
 /// Fly one world. Fails only if the flight stack's configuration is invalid.
 pub fn run(world: &World, options: &RunOptions) -> Result<RunResult, String> {
     let wall = Instant::now();
     let seed = options.seed;
     let mut drone = SimDrone::new(world, seed, &options.faults)?;
-    let mut params = mission_params(world);
+    let room = room_params(world);
+    if let (Err(lines), true) = (&room, options.verbose) {
+        eprint!("{lines}");
+    }
+    let mut params = match &room {
+        Ok(p) => *p,
+        Err(_) => mission_params(world),
+    };
     params.mode = options.mode;
     if let Some(t) = options.hover_time_s {
         params.hover_time_s = t;
@@ -464,9 +539,9 @@ pub fn run(world: &World, options: &RunOptions) -> Result<RunResult, String> {
 
     while tick < total_ticks {
         if tick == trigger_tick {
-            match drone.core.start_mission(params) {
-                Ok(()) => started = true,
-                Err(_) => start_refused = true,
+            match room.as_ref().map(|_| drone.core.start_mission(params)) {
+                Ok(Ok(())) => started = true,
+                Ok(Err(_)) | Err(_) => start_refused = true,
             }
         }
         if Some(tick) == abort_tick {
@@ -670,6 +745,7 @@ pub fn run(world: &World, options: &RunOptions) -> Result<RunResult, String> {
             MissionState::LinkLost => ("aborted", Some("link_lost")),
             MissionState::LinkLostHome => ("aborted", Some("link_lost_home")),
             MissionState::RangerLost => ("aborted", Some("ranger_lost")),
+            MissionState::LeftArena => ("aborted", Some("left_arena")),
             _ => ("aborted", Some("unknown")),
         }
     };

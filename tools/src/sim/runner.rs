@@ -962,3 +962,32 @@ impl Score {
         });
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// The room reaches the drone through the parameter service: the default world's 6 × 3 m walled box
+    /// is what the drone holds after the writes; an arena the simulator's map cannot hold is refused with
+    /// the drone's console line, and the start is then refused (`BadArena`) as on the drone.
+    #[test]
+    fn the_world_s_room_is_written_as_parameters() {
+        let world = World::default_world();
+        let p = room_params(&world).unwrap();
+        assert_eq!((p.arena_m, p.walls), ((6.0, 3.0), cfnav::mission::ALL_WALLS));
+        assert_eq!(p, mission_params(&world));
+        let mut big = world.clone();
+        // 10 × 5 m = 200 × 100 cells, more than the simulator's 128 × 64.
+        big.arena.size = [10.0, 5.0];
+        let lines = room_params(&big).unwrap_err();
+        assert!(
+            lines.contains("param mission.arenaX refused: arena too large for the map"),
+            "{lines}"
+        );
+        assert_eq!(mission_params(&big).arena_m, (10.0, 5.0));
+        // A narrower room that needs y first: 8 × 1 m (160 × 20 cells) fits, 8 × 3 m does not.
+        let mut long = world.clone();
+        long.arena.size = [8.0, 1.0];
+        assert_eq!(room_params(&long).unwrap().arena_m, (8.0, 1.0));
+    }
+}

@@ -616,6 +616,7 @@ impl<const CELLS: usize, const QUEUE: usize> Navigator<CELLS, QUEUE> {
             height: i32::from(shape.height),
             cell_m: CELL_SIZE_M,
             arena_m: params.arena_m,
+            walls: params.walls,
         };
         // (The ray cast asks only cells inside the grid.)
         let cell = |x: i32, y: i32| Cell::new(x as u16, y as u16);

@@ -299,3 +299,70 @@ fn a_blind_descent_stops_the_motors_after_its_time_bound() {
     assert_eq!(m.state(), MissionState::EstimatorFault);
     assert_eq!(m.tick(now + 20_000, &blind, &inputs), Setpoint::Stop);
 }
+
+/// Open sides (`mission.walls`): the grid blocks the cells within the geofence (0.3 m, 6 cells) of an
+/// open side, one cell more than the inflation (0.25 m, 5 cells) that a wall gets; an estimate past an
+/// open side's edge lands where it is and ends `LeftArena`, while past a walled side (an estimate error
+/// the walls' fixes will pull back) it does not.
+#[test]
+fn an_open_side_is_a_geofence_and_crossing_it_ends_the_mission() {
+    use cfnav::mission::{ALL_WALLS, GEOFENCE_M, WALL_WEST};
+    use cfnav::nav::map::{CELL_SIZE_M, Cell};
+    let open_west = MissionParams {
+        walls: ALL_WALLS & !WALL_WEST,
+        ..MissionParams::SEED
+    };
+    let fence_cells = (GEOFENCE_M / CELL_SIZE_M).round() as u16;
+    assert_eq!(fence_cells, 6);
+    let mut walled = mission();
+    walled.start(MissionParams::SEED).unwrap();
+    let mut open = mission();
+    open.start(open_west).unwrap();
+    let row = 30;
+    for x in 0..8u16 {
+        // Distance from the cell's centre to the west side.
+        let centre = (f32::from(x) + 0.5) * CELL_SIZE_M;
+        let c = Cell::new(x, row);
+        assert_eq!(open.grid().is_blocked(c), centre < GEOFENCE_M, "open, column {x}");
+        assert_eq!(walled.grid().is_blocked(c), x < 5, "walled, column {x}");
+        // The east side is a wall in both.
+        let e = Cell::new(119 - x, row);
+        assert_eq!(
+            open.grid().is_blocked(e),
+            walled.grid().is_blocked(e),
+            "east, column {}",
+            119 - x
+        );
+    }
+
+    let inputs = armed();
+    let fly = |params: MissionParams, x: f32, y: f32| {
+        let mut m = mission();
+        m.start(params).unwrap();
+        m.tick(20_000, &at(0.6, 1.3, 0.0), &inputs);
+        m.tick(40_000, &at(0.6, 1.3, 0.3), &inputs);
+        m.tick(60_000, &at(x, y, 0.3), &inputs);
+        m
+    };
+    let mut m = fly(open_west, -0.02, 1.3);
+    assert_eq!(m.state(), MissionState::EmergencyLanding);
+    m.tick(80_000, &at(-0.02, 1.3, 0.0), &MissionInputs { landed: true, ..inputs });
+    assert_eq!(m.state(), MissionState::LeftArena);
+    assert_eq!(m.state().code(), 210);
+    assert!(m.state().is_final());
+    // Inside the open edge (within the fence, but not past the edge), or past a walled side: flying on.
+    for (params, x, y) in [
+        (open_west, 0.05, 1.3),
+        (MissionParams::SEED, -0.02, 1.3),
+        (open_west, 0.6, -0.02),
+    ] {
+        let m = fly(params, x, y);
+        assert_ne!(
+            m.state(),
+            MissionState::EmergencyLanding,
+            "walls {} at ({x}, {y})",
+            params.walls
+        );
+        assert!(!m.state().is_final());
+    }
+}

@@ -112,8 +112,12 @@ pub const COVERAGE_RANGE: (f32, f32) = (0.05, 1.0);
 /// The mission's parameters (the `mission.*` radio parameters and the arena).
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct MissionParams {
-    /// Arena size, m (x, y): the grid the drone maps.
+    /// Arena size, m (x, y): the grid the drone maps (`mission.arenaX`, `mission.arenaY`).
     pub arena_m: (f32, f32),
+    /// Which sides of the arena are walls (`mission.walls`): [`WALL_SOUTH`] | [`WALL_EAST`] |
+    /// [`WALL_NORTH`] | [`WALL_WEST`]; a side without its bit is open (nothing stands on the arena's
+    /// edge there: the map fixes do not measure against it, and the drone keeps [`GEOFENCE_M`] from it).
+    pub walls: u8,
     /// Where the drone stands at power-on (the home pad), m.
     pub start_m: (f32, f32),
     /// The nominal goal, m.
@@ -131,6 +135,32 @@ pub struct MissionParams {
     pub coverage_target: f32,
 }
 
+/// `mission.walls` bit: the south wall, y = 0.
+pub const WALL_SOUTH: u8 = 1;
+/// `mission.walls` bit: the east wall, x = arena x.
+pub const WALL_EAST: u8 = 2;
+/// `mission.walls` bit: the north wall, y = arena y.
+pub const WALL_NORTH: u8 = 4;
+/// `mission.walls` bit: the west wall, x = 0.
+pub const WALL_WEST: u8 = 8;
+/// A walled box: every side a wall (the default).
+pub const ALL_WALLS: u8 = WALL_SOUTH | WALL_EAST | WALL_NORTH | WALL_WEST;
+/// How far the drone keeps inside an open side of the arena, m: the planner's goal and paths stay this far
+/// from it, the reactive layer pushes back inside it, and an estimate beyond the open edge ends the
+/// mission (land where it is).
+pub const GEOFENCE_M: f32 = 0.3;
+
+/// The `mission.walls` bit of the side a ray leaves the arena through: along x (`axis` 0) or y (1),
+/// towards the far side (`positive`) or the origin.
+pub const fn wall_bit(axis: usize, positive: bool) -> u8 {
+    match (axis, positive) {
+        (0, true) => WALL_EAST,
+        (0, false) => WALL_WEST,
+        (_, true) => WALL_NORTH,
+        (_, false) => WALL_SOUTH,
+    }
+}
+
 /// Minimum height in flight phases (`docs/radio.md`, the supervisor's floor too).
 pub const MIN_HEIGHT_M: f32 = 0.2;
 /// Highest cruise height accepted, m.
@@ -142,6 +172,7 @@ impl MissionParams {
     /// The seed scenario's values.
     pub const SEED: Self = Self {
         arena_m: (6.0, 3.0),
+        walls: ALL_WALLS,
         start_m: (0.6, 1.3),
         goal_m: (5.0, 1.5),
         height_m: 0.5,

@@ -37,6 +37,10 @@
 //!   actual velocity by more than the sweep's amplitude.
 //!   A nominal goal inside the inflated margin of something mapped is replaced by the nearest free cell
 //!   within 0.3 m (the search starts there).
+//! - **Open sides** (`mission.walls` without a side's bit): the grid blocks the cells within
+//!   [`GEOFENCE_M`] of that side instead of the wall's inflation, so goals and paths stay 0.3 m inside it;
+//!   the reactive layer sees each beam shortened to where it crosses the open edge (a virtual wall); an
+//!   estimate past the edge lands where it is and ends with [`MissionState::LeftArena`].
 //! - **No path**: once per leg, plan again with [`MissionConfig::narrow_inflation_radius_m`] and fly at
 //!   [`MissionConfig::narrow_speed_m_s`]; if that fails too, hover and keep mapping (false obstacles clear,
 //!   the plan repairs itself) for [`MissionConfig::no_path_wait_s`]; then land where it is and end with
@@ -90,6 +94,10 @@
 
 use core::ptr::addr_of_mut;
 
+/// Open sides nearer than this along a beam are a virtual reading for the reactive layer, m (the
+/// Multi-ranger's reach).
+const FENCE_RANGE_M: f32 = 4.0;
+
 use heapless::Vec;
 
 pub mod config;
@@ -105,8 +113,9 @@ mod search;
 pub mod start;
 
 pub use config::{
-    COVERAGE_RANGE, HOVER_TIME_RANGE_S, MAX_HEIGHT_M, MAX_SPEED_M_S, MIN_HEIGHT_M, MissionConfig, MissionConfigError,
-    MissionInputs, MissionMode, MissionParams, StartRefusal, write_mode_table,
+    ALL_WALLS, COVERAGE_RANGE, GEOFENCE_M, HOVER_TIME_RANGE_S, MAX_HEIGHT_M, MAX_SPEED_M_S, MIN_HEIGHT_M,
+    MissionConfig, MissionConfigError, MissionInputs, MissionMode, MissionParams, StartRefusal, WALL_EAST, WALL_NORTH,
+    WALL_SOUTH, WALL_WEST, wall_bit, write_mode_table,
 };
 pub use explore::{ExploreEnd, MissionNote};
 pub use start::{HOME_TOLERANCE_M, PositionRefusal};
@@ -117,7 +126,7 @@ use crate::math::{body_to_arena, wrap_angle};
 use crate::nav::avoidance::{AvoidanceConfig, RangerReadings, ReactiveAvoidance};
 use crate::nav::dstar::DStarLite;
 use crate::nav::grid::{ChangedCells, OccupancyGrid};
-use crate::nav::map::{Cell, GridShape};
+use crate::nav::map::{CELL_SIZE_M, Cell, GridShape};
 use crate::types::{Micros, MultiRangerSample, RangeReading, Setpoint, StateEstimate};
 
 /// The `mission.state` codes (`docs/radio.md`): 0 idle, 1..99 phases, 100 completed, ≥ 200 ended without
@@ -186,6 +195,9 @@ pub enum MissionState {
     LinkLostHome = 208,
     /// The Multi-ranger stopped reporting in flight ([`ranger_watch`]): landed where it was.
     RangerLost = 209,
+    /// The estimate crossed an open side of the arena (`mission.walls`, [`GEOFENCE_M`]): landed where it
+    /// was.
+    LeftArena = 210,
 }
 
 impl MissionState {
@@ -587,6 +599,9 @@ impl<const CELLS: usize, const QUEUE: usize> Mission<CELLS, QUEUE> {
             return Err(StartRefusal::AlreadyRunning);
         }
         let shape = params.validate(CELLS)?;
+        // An open side is no wall: the planner keeps the geofence from it instead (at least the inflation).
+        let fence_cells = libm::ceilf(GEOFENCE_M / CELL_SIZE_M - 1e-3) as u8;
+        self.grid.set_open_sides(!params.walls & ALL_WALLS, fence_cells);
         if !self.grid.reset(shape, self.full_inflation_cells()) {
             return Err(StartRefusal::BadArena);
         }
@@ -747,6 +762,17 @@ impl<const CELLS: usize, const QUEUE: usize> Mission<CELLS, QUEUE> {
         }
     }
 
+    /// Whether the estimate `(x, y)` lies beyond an open side of the arena (past its edge: the planner
+    /// keeps [`GEOFENCE_M`] inside it, so only a drift or an avoidance push gets there).
+    fn beyond_open_side(&self, x: f32, y: f32) -> bool {
+        let (w, h) = self.params.arena_m;
+        let open = |bit: u8| self.params.walls & bit == 0;
+        (open(WALL_WEST) && x < 0.0)
+            || (open(WALL_EAST) && x > w)
+            || (open(WALL_SOUTH) && y < 0.0)
+            || (open(WALL_NORTH) && y > h)
+    }
+
     /// Whether the pad this leg flies to, not yet located, may lie under a drone at `p`: within
     /// [`search::PAD_REACH_M`] of the leg's nominal point (the goal pad lies within 0.35 m of the nominal
     /// goal, the home pad within 0.35 m of the take-off point, which need not be on it).
@@ -851,6 +877,42 @@ impl<const CELLS: usize, const QUEUE: usize> Mission<CELLS, QUEUE> {
             return p;
         }
         q
+    }
+
+    /// The readings the reactive layer sees: each beam's range, shortened to where the beam crosses an
+    /// open side of the arena (a virtual wall on an edge nothing stands on, so avoidance pushes back from
+    /// it as from a wall; within the ranger's 4 m). With every side a wall: the readings as measured.
+    pub(crate) fn fenced_ranges(&self, state: &StateEstimate) -> RangerReadings {
+        let open = !self.params.walls & ALL_WALLS;
+        if open == 0 {
+            return self.last_ranges;
+        }
+        let (x, y) = (state.position_m[0], state.position_m[1]);
+        let (w, h) = self.params.arena_m;
+        let (sn, cs) = (libm::sinf(state.attitude_rad[2]), libm::cosf(state.attitude_rad[2]));
+        let r = &self.last_ranges;
+        let mut out = [r.front, r.back, r.left, r.right];
+        for (k, (bx, by)) in MultiRangerSample::HORIZONTAL_BEAMS_BODY.iter().enumerate() {
+            let u = (cs * bx - sn * by, sn * bx + cs * by);
+            let mut edge = f32::INFINITY;
+            if open & WALL_EAST != 0 && u.0 > 1e-3 {
+                edge = edge.min((w - x) / u.0);
+            }
+            if open & WALL_WEST != 0 && u.0 < -1e-3 {
+                edge = edge.min(-x / u.0);
+            }
+            if open & WALL_NORTH != 0 && u.1 > 1e-3 {
+                edge = edge.min((h - y) / u.1);
+            }
+            if open & WALL_SOUTH != 0 && u.1 < -1e-3 {
+                edge = edge.min(-y / u.1);
+            }
+            if edge.is_finite() && edge <= FENCE_RANGE_M {
+                let edge = edge.max(0.0);
+                out[k] = Some(out[k].map_or(edge, |m| m.min(edge)));
+            }
+        }
+        RangerReadings::new(out[0], out[1], out[2], out[3])
     }
 
     /// A Multi-ranger reading (10 Hz): map it while flying, keep it for avoidance.
@@ -968,6 +1030,10 @@ impl<const CELLS: usize, const QUEUE: usize> Mission<CELLS, QUEUE> {
                 self.blind_descent_until = Some(now.saturating_add(self.blind_descent_bound_us()));
             } else if inputs.battery_low && !matches!(self.phase, Phase::EmergencyLand { .. } | Phase::Land { .. }) {
                 self.land_where_it_is(state, MissionState::BatteryLow);
+            } else if self.beyond_open_side(x, y)
+                && !matches!(self.phase, Phase::EmergencyLand { .. } | Phase::Land { .. })
+            {
+                self.land_where_it_is(state, MissionState::LeftArena);
             }
         }
 

@@ -471,7 +471,7 @@ impl<const CELLS: usize, const QUEUE: usize> Mission<CELLS, QUEUE> {
         };
         let cmd = self
             .avoidance
-            .step(&self.last_ranges, state.attitude_rad[2], dvx, dvy, dt_s);
+            .step(&self.fenced_ranges(state), state.attitude_rad[2], dvx, dvy, dt_s);
         // The avoidance smooths its command over 0.2 s, and at its least speed still moves towards a return:
         // a post the map missed, read 17 cm ahead, is met 0.2 s later. The live beams
         // bound the command itself, as on a search line.

@@ -29,7 +29,7 @@
 //!
 //! # Memory
 //!
-//! Exactly one byte per cell plus 12 bytes of scalars (shape 4, config 6, radius 1, padding 1):
+//! Exactly one byte per cell plus 12 bytes of scalars (shape 4, config 6, radius 1, open sides 1):
 //! `size_of::<OccupancyGrid<CELLS>>() == CELLS + 12` for even `CELLS` (7 212 bytes for the 120 × 60 seed
 //! arena, 8 204 bytes for the 128 × 64 large arena). Each cell byte is
 //!
@@ -242,6 +242,9 @@ pub struct OccupancyGrid<const CELLS: usize> {
     shape: GridShape,
     config: GridConfig,
     inflation_radius: u8,
+    /// The arena's open sides (low nibble, `mission.walls` bits) and the geofence in cells (high nibble):
+    /// within that many cells of an open side a cell is blocked, as within the inflation radius of a wall.
+    border: u8,
 }
 
 // The byte count promised in the module documentation.
@@ -258,7 +261,21 @@ impl<const CELLS: usize> OccupancyGrid<CELLS> {
             shape: GridShape { width: 0, height: 0 },
             config: GridConfig::DEFAULT,
             inflation_radius: 0,
+            border: 0,
         }
+    }
+
+    /// From the next reset, the sides in `open_sides` (`mission.walls` bits: south 1, east 2, north 4,
+    /// west 8) are no walls: the cells within `fence_cells` (at most 15; at least the inflation radius
+    /// applies) of such a side are blocked instead, a geofence the planner does not cross. Cells outside
+    /// the grid stay blocked either way.
+    pub fn set_open_sides(&mut self, open_sides: u8, fence_cells: u8) {
+        self.border = (open_sides & 0x0F) | (fence_cells.min(15) << 4);
+    }
+
+    /// The open sides set by [`Self::set_open_sides`] (`mission.walls` bits).
+    pub fn open_sides(&self) -> u8 {
+        self.border & 0x0F
     }
 
     /// Clears the grid to `shape` with every cell unknown (log-odds 0, not occupied), keeping the current
@@ -586,15 +603,19 @@ impl<const CELLS: usize> OccupancyGrid<CELLS> {
     }
 
     /// Whether a wall cell (row −1, row h, column −1 or column w) lies within the inflation radius of an
-    /// in-grid cell. The nearest wall cell is straight across the nearest edge, so the Euclidean test
-    /// reduces to the distance to that edge; corner wall cells are never nearer.
+    /// in-grid cell, or an open side within the geofence ([`Self::set_open_sides`]). The nearest wall
+    /// cell is straight across the nearest edge, so the Euclidean test reduces to the distance to that
+    /// edge; corner wall cells are never nearer.
     #[inline]
     fn wall_within_radius(&self, x: i32, y: i32) -> bool {
-        let to_wall = (x + 1)
-            .min(y + 1)
-            .min(i32::from(self.shape.width) - x)
-            .min(i32::from(self.shape.height) - y);
-        to_wall <= i32::from(self.inflation_radius)
+        let r = i32::from(self.inflation_radius);
+        let fence = r.max(i32::from(self.border >> 4));
+        let reach = |bit: u8| if self.border & bit != 0 { fence } else { r };
+        // `mission.walls` bits: south 1, east 2, north 4, west 8.
+        x < reach(8)
+            || y < reach(1)
+            || i32::from(self.shape.width) - x <= reach(2)
+            || i32::from(self.shape.height) - y <= reach(4)
     }
 
     /// Adds `delta` to a cell's log-odds (clamped) and applies the hysteresis.

@@ -191,25 +191,43 @@ impl<S: ParamStore> ParamService<S> {
 
     /// Boot: the records read from the EEPROM become the stored ones, and each value is applied through
     /// the same checks as a radio write; one of no parameter here, of another type, not persistent, or
-    /// refused by the checks (a refusal note, for the console) is ignored. Call before any client connects.
+    /// refused by the checks (a refusal note, for the console) is ignored. A value refused in the first
+    /// pass is tried once more after the others, without a note the first time: one may be checked against
+    /// another that comes later (`mission.arenaX` against the `arenaY` in effect). Call before any client
+    /// connects.
     pub fn load_persistent(&mut self, stored: PersistentParams) -> LoadSummary {
         let mut summary = LoadSummary::default();
-        for record in stored.records() {
-            let found = S::TABLE
-                .iter()
-                .enumerate()
-                .find(|(_, e)| crate::system::persistent_params::param_key(e.group, e.name) == record.key);
-            let Some((i, e)) = found.filter(|(_, e)| e.is_persistent() && e.ty.param_code() == record.type_code) else {
-                summary.unknown += 1;
-                continue;
-            };
-            let Ok(id) = u16::try_from(i) else {
-                summary.unknown += 1;
-                continue;
-            };
-            match self.apply(id, e.ty, &record.value[..e.ty.size()]) {
-                Some(Ok(())) => summary.applied += 1,
-                _ => summary.refused += 1,
+        let mut retry = [false; crate::system::persistent_params::MAX_RECORDS];
+        for pass in 0..2 {
+            for (k, record) in stored.records().enumerate() {
+                if pass == 1 && !retry.get(k).copied().unwrap_or(false) {
+                    continue;
+                }
+                let found = S::TABLE
+                    .iter()
+                    .enumerate()
+                    .find(|(_, e)| crate::system::persistent_params::param_key(e.group, e.name) == record.key);
+                let Some((i, e)) = found.filter(|(_, e)| e.is_persistent() && e.ty.param_code() == record.type_code)
+                else {
+                    summary.unknown += u16::from(pass == 0);
+                    continue;
+                };
+                let Ok(id) = u16::try_from(i) else {
+                    summary.unknown += u16::from(pass == 0);
+                    continue;
+                };
+                let bytes = &record.value[..e.ty.size()];
+                let first_try = pass == 0 && k < retry.len();
+                let result = if first_try {
+                    Value::from_le(e.ty, bytes).map(|v| e.check(v).and_then(|()| self.store.write(id, v)))
+                } else {
+                    self.apply(id, e.ty, bytes)
+                };
+                match result {
+                    Some(Ok(())) => summary.applied += 1,
+                    _ if first_try => retry[k] = true,
+                    _ => summary.refused += 1,
+                }
             }
         }
         self.store.set_persistent(stored);

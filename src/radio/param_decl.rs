@@ -220,7 +220,8 @@ pub enum Refusal {
     DeckMissing,
     /// A start while a mission runs.
     AlreadyRunning,
-    /// A start with an arena the map cannot hold.
+    /// A start with an arena the map cannot hold, or an `arenaX`/`arenaY` write that would make one (not
+    /// finite and positive, or more cells than the map has with the other side in effect).
     BadArena,
     /// Outside the range its declaration gives (the console line names the range).
     OutOfRange,

@@ -19,15 +19,16 @@
 
 use crate::mission::link_loss::{LinkLossConfig, LinkLossPolicy};
 use crate::mission::{MissionMode, MissionParams, StartRefusal};
+use crate::nav::map::GridShape;
 use crate::radio::param_decl::{ParamEntry, ParamStore, Refusal};
 use crate::radio::toc::Value;
 use crate::system::persistent_params::{PendingWrite, PersistentParams, param_key};
 use crate::system::version;
 
 use super::param_table::{
-    ID_CONTROLLER, ID_COVERAGE, ID_DECK_FLOW2, ID_DECK_MULTIRANGER, ID_EN_HIGH_LEVEL, ID_FW_MODIFIED, ID_FW_REVISION0,
-    ID_FW_REVISION1, ID_GOAL_X, ID_GOAL_Y, ID_HEIGHT, ID_HOVER_TIME, ID_LINK_LOSS, ID_LINK_TIMEOUT, ID_MODE,
-    ID_RESET_ESTIMATION, ID_SPEED, ID_START, ID_START_X, ID_START_Y, PARAM_TABLE,
+    ID_ARENA_X, ID_ARENA_Y, ID_CONTROLLER, ID_COVERAGE, ID_DECK_FLOW2, ID_DECK_MULTIRANGER, ID_EN_HIGH_LEVEL,
+    ID_FW_MODIFIED, ID_FW_REVISION0, ID_FW_REVISION1, ID_GOAL_X, ID_GOAL_Y, ID_HEIGHT, ID_HOVER_TIME, ID_LINK_LOSS,
+    ID_LINK_TIMEOUT, ID_MODE, ID_RESET_ESTIMATION, ID_SPEED, ID_START, ID_START_X, ID_START_Y, ID_WALLS, PARAM_TABLE,
 };
 use super::tuning::{Tuning, field_addr, tune_read, tune_write};
 
@@ -37,7 +38,7 @@ pub struct MissionParamState {
     /// `mission.start`: 1 while a mission runs (set by the radio), back to 0 when it ends (set by the firmware,
     /// which then queues a VALUE_UPDATED).
     pub start: u8,
-    /// Positions, height, speed and the arena size (not a parameter).
+    /// Positions, height, speed, the arena's size and walls.
     pub params: MissionParams,
     /// The drone is flying: a start is refused.
     pub flying: bool,
@@ -177,6 +178,18 @@ impl MissionParamState {
             ID_HOVER_TIME => self.params.hover_time_s = v,
             ID_COVERAGE => self.params.coverage_target = v,
             ID_LINK_TIMEOUT => self.link_loss.timeout_s = v,
+            ID_ARENA_X | ID_ARENA_Y if self.start != 0 => return Err(Refusal::AlreadyRunning),
+            ID_ARENA_X | ID_ARENA_Y => {
+                let arena = if id == ID_ARENA_X {
+                    (v, p.arena_m.1)
+                } else {
+                    (p.arena_m.0, v)
+                };
+                if GridShape::for_arena(arena.0, arena.1, self.capacity_cells).is_none() {
+                    return Err(Refusal::BadArena);
+                }
+                self.params.arena_m = arena;
+            }
             _ => return Err(Refusal::UnknownId),
         }
         Ok(())
@@ -196,6 +209,8 @@ impl MissionParamState {
             ID_MODE if self.start != 0 => return Err(Refusal::AlreadyRunning),
             ID_MODE => self.params.mode = MissionMode::from_code(v).ok_or(Refusal::OutOfRange)?,
             ID_LINK_LOSS => self.link_loss.policy = LinkLossPolicy::from_code(v).ok_or(Refusal::OutOfRange)?,
+            ID_WALLS if self.start != 0 => return Err(Refusal::AlreadyRunning),
+            ID_WALLS => self.params.walls = v,
             _ => return Err(Refusal::UnknownId),
         }
         Ok(())
@@ -232,6 +247,9 @@ impl ParamStore for MissionParamState {
             ID_FW_REVISION0 => Value::U32(version::REVISION0),
             ID_FW_REVISION1 => Value::U16(version::REVISION1),
             ID_FW_MODIFIED => Value::U8(version::MODIFIED),
+            ID_ARENA_X => Value::F32(p.arena_m.0),
+            ID_ARENA_Y => Value::F32(p.arena_m.1),
+            ID_WALLS => Value::U8(p.walls),
             // The other deck.* entries: decks cfnav never drives.
             _ if PARAM_TABLE.get(usize::from(id))?.group == "deck" => flag(false),
             _ => return None,

@@ -371,6 +371,11 @@ pub const PARAM_TABLE: &[ParamEntry] = &[
         "",
         "1 when the firmware's tracked sources differed from that commit at build time (stock)",
     ),
+    // The room (appended: the ids above stay). Checked against the map's capacity with the other side in
+    // effect; refused while a mission runs (the grid is shaped at the start).
+    ParamEntry::declare("mission", "arenaX", ParamType::F32, 0, Range::Any, "m", "arena size along x, from the west wall (x = 0) to the east; the map must hold arenaX × arenaY").persistent(),
+    ParamEntry::declare("mission", "arenaY", ParamType::F32, 0, Range::Any, "m", "arena size along y, from the south wall (y = 0) to the north; the map must hold arenaX × arenaY").persistent(),
+    ParamEntry::declare("mission", "walls", ParamType::U8, 0, Range::Closed(0.0, 15.0), "", "which sides are walls: south (y = 0) 1, east 2, north 4, west (x = 0) 8; an open side is a geofence 0.3 m inside it").persistent(),
 ];
 
 /// Id of `mission.start` (uint8).
@@ -413,3 +418,9 @@ pub const ID_FW_REVISION0: u16 = param_id(PARAM_TABLE, "firmware", "revision0");
 pub const ID_FW_REVISION1: u16 = param_id(PARAM_TABLE, "firmware", "revision1");
 /// Id of `firmware.modified` (uint8, read-only).
 pub const ID_FW_MODIFIED: u16 = param_id(PARAM_TABLE, "firmware", "modified");
+/// Id of `mission.arenaX` (float, m, persistent).
+pub const ID_ARENA_X: u16 = param_id(PARAM_TABLE, "mission", "arenaX");
+/// Id of `mission.arenaY` (float, m, persistent).
+pub const ID_ARENA_Y: u16 = param_id(PARAM_TABLE, "mission", "arenaY");
+/// Id of `mission.walls` (uint8 bitmask, persistent).
+pub const ID_WALLS: u16 = param_id(PARAM_TABLE, "mission", "walls");

@@ -92,6 +92,7 @@ fn arena() -> RayGrid {
         height: H,
         cell_m: CELL_SIZE_M,
         arena_m: (W as f32 * CELL_SIZE_M, H as f32 * CELL_SIZE_M),
+        walls: cfnav::mission::ALL_WALLS,
     }
 }
 
@@ -414,6 +415,7 @@ fn a_new_landmark_replaces_an_unsettled_one_first() {
         height: 1000,
         cell_m: CELL_SIZE_M,
         arena_m: (6.0, 50.0),
+        walls: cfnav::mission::ALL_WALLS,
     };
     let face = |x: i32, _y: i32| x == 40;
     let spacing = 8;
@@ -696,4 +698,108 @@ fn map_fixes_stop_the_drift_over_a_mission() {
     assert!(rms_on <= 0.035, "with the map fixes the mean RMS is {rms_on}");
     assert!(late_on <= 0.06, "with the map fixes the late error is {late_on}");
     assert!(rms_off > 0.035 || late_off > 0.06, "without: {rms_off} / {late_off}");
+}
+
+/// Open sides (`mission.walls`): for every bitmask, a ray that leaves the empty arena through a side with
+/// its bit is a wall hit at the oracle's distance, and one through an open side reaches nothing; a
+/// confirmed cell along an open side is an obstacle like any other (no wall's trace to skip), while along
+/// a wall it is skipped for the exact wall.
+#[test]
+fn open_sides_give_no_wall_and_keep_their_border_cells() {
+    use cfnav::mission::wall_bit;
+    let s = f64::from(CELL_SIZE_M);
+    let size = (f64::from(W) * s, f64::from(H) * s);
+    let mut hits = [0u32; 2];
+    for walls in 0..16u8 {
+        let grid = RayGrid { walls, ..arena() };
+        for k in 0..72 {
+            let angle = f64::from(k) * std::f64::consts::TAU / 72.0 + 0.01;
+            let u = (angle.cos(), angle.sin());
+            for &(ox, oy) in &[(0.4, 0.3), (1.5, 1.0), (2.7, 1.7)] {
+                let hit = ray_cast(&grid, (ox as f32, oy as f32), (u.0 as f32, u.1 as f32), 3.5, |_, _| {
+                    false
+                });
+                let (t, axis) = ray_walls((ox, oy), u, size);
+                let positive = [u.0, u.1][axis] > 0.0;
+                let wall = walls & wall_bit(axis, positive) != 0;
+                match hit {
+                    Some(h) => {
+                        assert!(wall && t < 3.5, "mask {walls}: hit {h:?} through an open side");
+                        assert!(h.wall && (f64::from(h.distance_m) - t).abs() < 1e-3, "{h:?} vs {t}");
+                        hits[0] += 1;
+                    }
+                    None => {
+                        assert!(!wall || t >= 3.5, "mask {walls}: no hit at {t} m on a wall");
+                        hits[1] += 1;
+                    }
+                }
+            }
+        }
+    }
+    assert!(hits[0] > 1000 && hits[1] > 1000, "both cases exercised: {hits:?}");
+    // The last column (x = 2.95–3.0 m) holds a confirmed cell in row 20: square to the east side.
+    let border = |x: i32, y: i32| x == W - 1 && y == 20;
+    let o = (2.0, 20.5 * CELL_SIZE_M);
+    let walled = ray_cast(&arena(), o, (1.0, 0.0), 2.0, border).unwrap();
+    assert!(
+        walled.wall && (walled.distance_m - 1.0).abs() < 1e-4,
+        "wall trace skipped: {walled:?}"
+    );
+    let open_east = RayGrid {
+        walls: 15 & !wall_bit(0, true),
+        ..arena()
+    };
+    let cell = ray_cast(&open_east, o, (1.0, 0.0), 2.0, border).unwrap();
+    assert!(
+        !cell.wall && cell.cell == (W - 1, 20) && (cell.distance_m - 0.95).abs() < 1e-4,
+        "{cell:?}"
+    );
+}
+
+/// Localization uses only the walls that exist: behind an open east side, 5 cm beyond the arena's edge,
+/// stands something the beam reads (a skirting board, the next room's furniture). Told the east side is a
+/// wall, the front beam gives a fix 5 cm off that the estimator fuses (a pull on the estimate towards −x);
+/// told it is open, that beam gives no fix, the other three walls' fixes are unchanged, and the estimate
+/// does not move.
+#[test]
+fn a_missing_wall_gives_no_fix_and_does_not_pull_the_estimate() {
+    let (x, y) = (1.0f32, 1.0f32);
+    let walled = arena();
+    let open_east = RayGrid {
+        walls: 15 & !cfnav::mission::WALL_EAST,
+        ..arena()
+    };
+    let mut sample = exact_sweep(&walled, &[], (x, y), 0.0);
+    // The arena ends at x = 3 m; the surface the front beam meets is at 3.05 m.
+    sample.front_m = Some(3.05 - x);
+    let cast = |grid: &RayGrid| {
+        cast_fixes(
+            grid,
+            &sample,
+            [x, y],
+            0.0,
+            &mut Landmarks::new(),
+            |_, _| false,
+            |_, _| false,
+        )
+    };
+    let (all, open) = (cast(&walled), cast(&open_east));
+    let wrong = all.fixes[0].expect("against the supposed east wall");
+    assert!((wrong.measured_m - wrong.expected_m - 0.05).abs() < 1e-4, "{wrong:?}");
+    assert!(open.fixes[0].is_none(), "{:?}", open.fixes[0]);
+    assert_eq!(&all.fixes[1..], &open.fixes[1..], "the other walls' fixes");
+    assert!(open.fixes[1..].iter().all(Option::is_some));
+    // Through the estimator (at (1, 1), yaw 0, airborne): only the supposed wall moves x.
+    let shift = |fixes| {
+        let mut est = airborne_estimator(EstimatorConfig::default());
+        let before = est.state().position_m;
+        est.on_map_fixes(&fixes);
+        let d = est.diagnostics();
+        (est.state().position_m[0] - before[0], d.map_fused, d.map_rejected)
+    };
+    let (pulled, fused_all, _) = shift(all);
+    let (kept, fused_open, rejected_open) = shift(open);
+    assert!(pulled < -0.005, "the supposed wall pulls x by {pulled}");
+    assert_eq!((fused_all, fused_open, rejected_open), (4, 3, 0));
+    assert!(kept.abs() < 1e-5, "no east wall, no pull along x: {kept}");
 }

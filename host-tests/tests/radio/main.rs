@@ -11,6 +11,7 @@ mod log;
 mod map_mem;
 mod modes;
 mod param;
+mod room;
 mod stock;
 mod supervisor_port;
 mod tuning;

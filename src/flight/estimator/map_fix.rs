@@ -17,8 +17,10 @@
 //!   scalar measurement `d_n = c − p·n` (Jacobian `−n` on x, y), gated at `map_fix_gate_sigma`.
 //!
 //! Surfaces. *The arena's walls* are known exactly (the mission's `arena_m`: planes x = 0, x = X, y = 0,
-//! y = Y); a mapped cell within half a cell of a wall is that wall's own trace and is skipped, so the ray
-//! reaches the exact wall. *An obstacle's surface* is a [`Landmark`]: the ray cast finds its first
+//! y = Y, those of them `mission.walls` names); a mapped cell within half a cell of a wall is that wall's
+//! own trace and is skipped, so the ray reaches the exact wall. An open side is no surface: a ray that
+//! reaches it gives no fix (whatever the beam met lies outside the map), and the cells along it count
+//! as any other. *An obstacle's surface* is a [`Landmark`]: the ray cast finds its first
 //! confirmed cell and the face the ray entered by (x or y); a cell is used only if one of its two
 //! neighbours along that face is occupied too (a straight piece of surface, not the corner of a box or a
 //! thin cylinder, whose faces the grid cannot tell), and a face's last cell (one such neighbour, not both)
@@ -139,7 +141,8 @@ pub struct RayHit {
 }
 
 /// The grid a ray walks: `width × height` cells of `cell_m`, covering `[0, width·cell) × [0, height·cell)`,
-/// inside an arena whose walls are the planes x = 0, x = `arena_m.0`, y = 0, y = `arena_m.1`.
+/// inside an arena whose sides are the planes x = 0, x = `arena_m.0`, y = 0, y = `arena_m.1`, each a wall
+/// only if `walls` has its bit (`crate::mission::WALL_SOUTH` …).
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct RayGrid {
     /// Columns.
@@ -150,11 +153,15 @@ pub struct RayGrid {
     pub cell_m: f32,
     /// The arena's size, m.
     pub arena_m: (f32, f32),
+    /// Which sides are walls (`mission.walls`: south 1, east 2, north 4, west 8). An open side measures
+    /// nothing: a ray that reaches it ends there without a hit, and the cells along it are ordinary cells
+    /// (no wall's trace to skip).
+    pub walls: u8,
 }
 
 /// Walks the ray from `origin` (m) along the unit vector `dir` for at most `max_m` and returns the first
 /// cell for which `confirmed(column, row)` holds (the cell containing the origin excluded), or the arena's
-/// wall if the ray meets it first, or `None`. Amanatides–Woo: every cell the ray crosses is visited once, in
+/// wall if the ray meets it first, or `None` (also when the ray leaves the arena through an open side). Amanatides–Woo: every cell the ray crosses is visited once, in
 /// order, at most `2·max_m/cell + 2` of them. Cells outside `grid` are never asked. Non-finite input, an
 /// origin outside the arena or a zero direction give `None`.
 pub fn ray_cast(
@@ -187,6 +194,9 @@ pub fn ray_cast(
     };
     let (twx, twy) = (along(ox, ux, ax), along(oy, uy, ay));
     let (t_wall, wall_axis) = if twx <= twy { (twx, 0) } else { (twy, 1) };
+    let has = |axis: usize, positive: bool| grid.walls & crate::mission::wall_bit(axis, positive) != 0;
+    // The side the ray leaves through is open: nothing stands there to measure.
+    let wall_there = has(wall_axis, if wall_axis == 0 { ux > 0.0 } else { uy > 0.0 });
     let wall_hit = |cell: (i32, i32)| {
         let (u, far) = if wall_axis == 0 { (ux, ax) } else { (uy, ay) };
         RayHit {
@@ -235,12 +245,15 @@ pub fn ray_cast(
         if cx < 0 || cy < 0 || cx >= grid.width || cy >= grid.height {
             // Out of the grid: at the wall when the grid ends there (the walk's summed steps may land a
             // rounding error short of `t_wall`); otherwise (a grid smaller than the arena) nothing is known.
-            let at_wall = t_enter >= t_wall - 0.5 * s && t_wall <= max_m;
+            let at_wall = t_enter >= t_wall - 0.5 * s && t_wall <= max_m && wall_there;
             return at_wall.then(|| wall_hit((cx, cy)));
         }
         // A cell within half a cell of a wall is that wall's own trace: the exact wall replaces it.
         let (lo_x, lo_y) = (cx as f32 * s, cy as f32 * s);
-        let trace = lo_x <= 0.5 * s || lo_y <= 0.5 * s || lo_x + s >= ax - 0.5 * s || lo_y + s >= ay - 0.5 * s;
+        let trace = (lo_x <= 0.5 * s && has(0, false))
+            || (lo_y <= 0.5 * s && has(1, false))
+            || (lo_x + s >= ax - 0.5 * s && has(0, true))
+            || (lo_y + s >= ay - 0.5 * s && has(1, true));
         if trace || !confirmed(cx, cy) {
             continue;
         }
@@ -254,7 +267,7 @@ pub fn ray_cast(
             cell: (cx, cy),
         });
     }
-    (t_wall <= max_m).then(|| wall_hit((cx, cy)))
+    (t_wall <= max_m && wall_there).then(|| wall_hit((cx, cy)))
 }
 
 /// One beam's fix: the distance to a surface measured along its normal.

@@ -54,6 +54,7 @@ pub fn map_fix_bench(meter: &mut impl Meter) -> Result<(), ()> {
         height: 60,
         cell_m: CELL_SIZE_M,
         arena_m: (6.0, 3.0),
+        walls: cfnav::mission::ALL_WALLS,
     };
     let (x, y, yaw) = (2.0f32, 1.5f32, 0.2f32);
     // cos(0.2 rad).

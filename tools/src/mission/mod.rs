@@ -88,6 +88,14 @@ pub struct StartArgs {
     /// estimate is re-anchored there).
     #[arg(long, value_name = "X,Y", value_parser = parse_xy, allow_hyphen_values = true)]
     pub start: Option<(f32, f32)>,
+    /// The room: arena size along x and y, m (mission.arenaX/arenaY), written before the positions (which
+    /// the drone checks against the arena in effect).
+    #[arg(long, value_name = "X,Y", value_parser = parse_xy, allow_hyphen_values = true)]
+    pub arena: Option<(f32, f32)>,
+    /// Which sides of the arena are walls (mission.walls): a bitmask, south (y = 0) 1, east 2, north 4,
+    /// west (x = 0) 8; 15 a walled box, 0 an open floor.
+    #[arg(long, value_name = "MASK", value_parser = clap::value_parser!(u8).range(0..=15))]
+    pub walls: Option<u8>,
     /// Cruise height, m (mission.height).
     #[arg(long, value_name = "M", value_parser = parse_finite, allow_hyphen_values = true)]
     pub height: Option<f32>,
@@ -150,10 +158,25 @@ pub fn parse_xy(s: &str) -> Result<(f32, f32), String> {
     }
 }
 
-/// The parameter writes `args` asks for, in the order they are written (the goal last, so a refused start
-/// position is reported before it).
-pub fn requested_writes(args: &StartArgs) -> Vec<(&'static str, f32)> {
+/// The parameter writes `args` asks for, in the order they are written: the room first (the side that
+/// shrinks before the other, so that each write holds no more cells than the arena in effect or the one
+/// asked for: the drone checks a side against the other side in effect; `arena_y_now` is the drone's
+/// `mission.arenaY`), then the start, height, speed, and the goal last (so a refused start position is
+/// reported before it). Every value is a float but `mission.walls` ([`wire_value`]).
+pub fn requested_writes(args: &StartArgs, arena_y_now: Option<f32>) -> Vec<(&'static str, f32)> {
     let mut w = Vec::new();
+    if let Some((x, y)) = args.arena {
+        if arena_y_now.is_some_and(|now| y < now) {
+            w.push(("mission.arenaY", y));
+            w.push(("mission.arenaX", x));
+        } else {
+            w.push(("mission.arenaX", x));
+            w.push(("mission.arenaY", y));
+        }
+    }
+    if let Some(m) = args.walls {
+        w.push(("mission.walls", f32::from(m)));
+    }
     if let Some((x, y)) = args.start {
         w.push(("mission.startX", x));
         w.push(("mission.startY", y));
@@ -169,6 +192,16 @@ pub fn requested_writes(args: &StartArgs) -> Vec<(&'static str, f32)> {
         w.push(("mission.goalY", y));
     }
     w
+}
+
+/// The value written for `name`: `mission.walls` is a uint8 (the parser bounds it to 0..=15, exact in
+/// an f32), every other mission parameter a float.
+pub fn wire_value(name: &str, v: f32) -> Value {
+    if name == "mission.walls" {
+        Value::U8(v as u8)
+    } else {
+        Value::F32(v)
+    }
 }
 
 /// Runs `cfnav mission …`.
@@ -431,7 +464,13 @@ async fn connect_and_prepare(args: &StartArgs, printer: &Printer) -> Result<Sess
     // What the drone must offer.
     let params = cf.param.names();
     let logs = cf.log.names();
-    let writes = requested_writes(args);
+    let arena_y_now = if args.arena.is_some() && params.iter().any(|p| p == "mission.arenaY") {
+        let v: Value = with_timeout("mission.arenaY", cf.param.get("mission.arenaY")).await?;
+        Some(v.to_f64_lossy() as f32)
+    } else {
+        None
+    };
+    let writes = requested_writes(args, arena_y_now);
     for name in std::iter::once(PARAM_START).chain(writes.iter().map(|(n, _)| *n)) {
         if !params.iter().any(|p| p == name) {
             return Err(Failure(format!(
@@ -458,6 +497,9 @@ async fn connect_and_prepare(args: &StartArgs, printer: &Printer) -> Result<Sess
     // The values in effect (read once: a refused write leaves them so).
     let mut current = HashMap::new();
     for name in [
+        "mission.arenaX",
+        "mission.arenaY",
+        "mission.walls",
         "mission.startX",
         "mission.startY",
         "mission.goalX",
@@ -472,7 +514,12 @@ async fn connect_and_prepare(args: &StartArgs, printer: &Printer) -> Result<Sess
     }
     let show = |n: &str| current.get(n).map_or("?".to_string(), |v| format!("{v:.2}"));
     printer.line(&format!(
-        "on the drone: start ({}, {})  goal ({}, {})  height {} m  speed {} m/s",
+        "on the drone: arena {} × {} m (walls {})  start ({}, {})  goal ({}, {})  height {} m  speed {} m/s",
+        show("mission.arenaX"),
+        show("mission.arenaY"),
+        current
+            .get("mission.walls")
+            .map_or("?".to_string(), |v| format!("{v:.0}")),
         show("mission.startX"),
         show("mission.startY"),
         show("mission.goalX"),
@@ -482,7 +529,7 @@ async fn connect_and_prepare(args: &StartArgs, printer: &Printer) -> Result<Sess
     ));
 
     for (name, value) in writes {
-        match tokio::time::timeout(ECHO_TIMEOUT, cf.param.set(name, Value::F32(value))).await {
+        match tokio::time::timeout(ECHO_TIMEOUT, cf.param.set(name, wire_value(name, value))).await {
             Ok(Ok(())) => printer.line(&format!("set {name} = {value:.3}: accepted (echo {value:.3})")),
             Ok(Err(crazyflie_lib::Error::ParamError(msg))) if msg.starts_with("Error setting parameter") => {
                 // crazyflie-lib saw an echo that is not the value written: the firmware refused it and
@@ -878,7 +925,7 @@ mod tests {
         assert_eq!(a.goal, Some((5.0, 1.5)));
         assert_eq!(a.start, Some((0.6, 1.3)));
         assert_eq!(
-            requested_writes(&a),
+            requested_writes(&a, None),
             vec![
                 ("mission.startX", 0.6),
                 ("mission.startY", 1.3),
@@ -891,7 +938,43 @@ mod tests {
         // Negative numbers are values (the drone refuses them, not the parser).
         let a = parse_start(&["mission", "start", "--uri", "u", "--goal", "-1,2"]).unwrap();
         assert_eq!(a.goal, Some((-1.0, 2.0)));
-        assert!(requested_writes(&parse_start(&["mission", "start", "--uri", "u"]).unwrap()).is_empty());
+        assert!(requested_writes(&parse_start(&["mission", "start", "--uri", "u"]).unwrap(), None).is_empty());
+    }
+
+    #[test]
+    fn the_room_is_written_first_the_shrinking_side_before_the_other() {
+        let a = parse_start(&[
+            "mission", "start", "--uri", "u", "--arena", "8,2", "--walls", "5", "--goal", "7,1",
+        ])
+        .unwrap();
+        assert_eq!(a.arena, Some((8.0, 2.0)));
+        assert_eq!(a.walls, Some(5));
+        // y shrinks from 3 to 2: it goes first, so 8 × 3 m is never asked of the drone.
+        assert_eq!(
+            requested_writes(&a, Some(3.0)),
+            vec![
+                ("mission.arenaY", 2.0),
+                ("mission.arenaX", 8.0),
+                ("mission.walls", 5.0),
+                ("mission.goalX", 7.0),
+                ("mission.goalY", 1.0),
+            ]
+        );
+        // y grows: x first (x alone never holds more cells than the room asked for).
+        let a = parse_start(&["mission", "start", "--uri", "u", "--arena", "4,4"]).unwrap();
+        assert_eq!(
+            requested_writes(&a, Some(3.0)),
+            vec![("mission.arenaX", 4.0), ("mission.arenaY", 4.0)]
+        );
+        assert!(matches!(wire_value("mission.walls", 5.0), Value::U8(5)));
+        assert!(matches!(wire_value("mission.arenaX", 5.0), Value::F32(v) if v == 5.0));
+        for bad in ["16", "-1", "x"] {
+            assert!(
+                parse_start(&["mission", "start", "--uri", "u", "--walls", bad]).is_err(),
+                "{bad}"
+            );
+        }
+        assert!(parse_start(&["mission", "start", "--uri", "u", "--arena", "8"]).is_err());
     }
 
     #[test]

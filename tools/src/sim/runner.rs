@@ -13,6 +13,10 @@ use std::time::Instant;
 use cfnav::drivers::vl53l1x::RangingConfig;
 use cfnav::mission::link_loss::LinkLossConfig;
 use cfnav::mission::{ExploreEnd, MissionMode, MissionParams, MissionState};
+use cfnav::radio::crtp::{CrtpPacket, Service};
+use cfnav::radio::param::{CH_WRITE, PORT_PARAM, ParamService};
+use cfnav::radio_binding::param_state::MissionParamState;
+use cfnav::radio_binding::param_table::{ID_ARENA_X, ID_ARENA_Y, ID_WALLS};
 use cfnav::stack::{BEAM_MIDPOINT_US, FlightConfig, FlightCore, ZRANGE_MIDPOINT_US};
 use cfnav::types::{MotorDuty, MultiRangerSample, RangeReading};
 use rand::rngs::SmallRng;
@@ -415,21 +419,81 @@ const Z_MIDPOINT_TICKS: u64 = ZRANGE_MIDPOINT_US / 1000;
 const BEAM_MIDPOINT_TICKS: u64 = BEAM_MIDPOINT_US / 1000;
 const _: () = assert!(Z_MIDPOINT_TICKS < Z_PERIOD_TICKS && BEAM_MIDPOINT_TICKS < BEAM_PERIOD_TICKS);
 
-/// The parameters the world gives the drone.
-///
-/// The arena's walls (`world.arena.walls`, the `mission.walls` bitmask) are not handed over yet: the
-/// firmware has no such parameter, so the drone flies every world as if all four sides were walled.
+/// The parameters the world gives the drone: its start, goal, height and speed as the power-on values,
+/// and its room (`mission.arenaX`, `arenaY`, `walls`) written over the radio before the start, as a user
+/// does ([`room_params`]). A room the map cannot hold keeps the world's size, which the start then refuses
+/// (`BadArena`), as the drone refuses it.
 pub fn mission_params(world: &World) -> MissionParams {
-    // WALLS HAND-OVER: write `world.arena.walls` here (`mission.walls`, south 1, east 2, north 4, west 8)
-    // once `MissionParams` carries it; this is the only place the simulator tells the drone about its room.
-    MissionParams {
+    room_params(world).unwrap_or_else(|_| MissionParams {
         arena_m: (world.arena.size[0], world.arena.size[1]),
+        walls: world_walls(world),
+        ..power_on_params(world)
+    })
+}
+
+/// The world's start, goal, height and speed on the seed's arena: what the drone holds before the room is
+/// written.
+pub fn power_on_params(world: &World) -> MissionParams {
+    MissionParams {
         start_m: (world.mission.start[0], world.mission.start[1]),
         goal_m: (world.mission.goal[0], world.mission.goal[1]),
         height_m: world.mission.height,
         speed_m_s: world.mission.speed,
         ..MissionParams::SEED
     }
+}
+
+/// The world's `mission.walls` bitmask (`[arena] walls`, south 1, east 2, north 4, west 8).
+pub fn world_walls(world: &World) -> u8 {
+    world.arena.walls
+}
+
+/// The parameter writes (port 2, channel 2) that give the drone a room: `mission.arenaX`, `arenaY`, `arenaX`
+/// again (a write is checked with the other side in effect, so growing x may need y first), `walls`.
+pub fn room_writes(size_m: (f32, f32), walls: u8) -> [CrtpPacket; 4] {
+    let f = |id: u16, v: f32| {
+        let mut data = id.to_le_bytes().to_vec();
+        data.extend_from_slice(&v.to_le_bytes());
+        CrtpPacket::new(PORT_PARAM, CH_WRITE, &data).expect("7 bytes fit a packet")
+    };
+    let w = ID_WALLS.to_le_bytes();
+    [
+        f(ID_ARENA_X, size_m.0),
+        f(ID_ARENA_Y, size_m.1),
+        f(ID_ARENA_X, size_m.0),
+        CrtpPacket::new(PORT_PARAM, CH_WRITE, &[w[0], w[1], walls]).expect("3 bytes fit a packet"),
+    ]
+}
+
+/// Writes the room into a parameter service as a client does ([`room_writes`]); the console lines of the
+/// writes that stay refused as the error.
+pub fn write_room(service: &mut ParamService<MissionParamState>, size_m: (f32, f32), walls: u8) -> Result<(), String> {
+    for p in room_writes(size_m, walls) {
+        let _echo = service.handle(&p);
+    }
+    let mut lines = String::new();
+    while let Some(note) = service.take_refusal() {
+        lines.push_str(ParamService::<MissionParamState>::console_line(&note).as_str());
+    }
+    // The first arenaX write may be refused and the second taken: what counts is the room held now.
+    let p = service.store().params;
+    if p.arena_m == size_m && p.walls == walls {
+        Ok(())
+    } else {
+        Err(lines)
+    }
+}
+
+/// [`power_on_params`] with the world's room written over the radio; the refusals' console lines if the
+/// drone would not take it.
+pub fn room_params(world: &World) -> Result<MissionParams, String> {
+    let mut service = ParamService::new(MissionParamState::new(power_on_params(world), SIM_CELLS));
+    write_room(
+        &mut service,
+        (world.arena.size[0], world.arena.size[1]),
+        world_walls(world),
+    )?;
+    Ok(service.store().params)
 }
 
 /// Fly one world. Fails only if the flight stack's configuration is invalid.
@@ -441,7 +505,14 @@ pub fn run(world: &World, options: &RunOptions) -> Result<RunResult, String> {
     let wall = Instant::now();
     let seed = options.seed;
     let mut drone = SimDrone::new(&world, seed, &options.faults)?;
-    let mut params = mission_params(&world);
+    let room = room_params(&world);
+    if let (Err(lines), true) = (&room, options.verbose) {
+        eprint!("{lines}");
+    }
+    let mut params = match &room {
+        Ok(p) => *p,
+        Err(_) => mission_params(&world),
+    };
     params.mode = options.mode;
     if let Some(t) = options.hover_time_s {
         params.hover_time_s = t;
@@ -477,9 +548,9 @@ pub fn run(world: &World, options: &RunOptions) -> Result<RunResult, String> {
 
     while tick < total_ticks {
         if tick == trigger_tick {
-            match drone.core.start_mission(params) {
-                Ok(()) => started = true,
-                Err(_) => start_refused = true,
+            match room.as_ref().map(|_| drone.core.start_mission(params)) {
+                Ok(Ok(())) => started = true,
+                Ok(Err(_)) | Err(_) => start_refused = true,
             }
         }
         if Some(tick) == abort_tick {
@@ -693,6 +764,7 @@ pub fn run(world: &World, options: &RunOptions) -> Result<RunResult, String> {
             MissionState::LinkLost => ("aborted", Some("link_lost")),
             MissionState::LinkLostHome => ("aborted", Some("link_lost_home")),
             MissionState::RangerLost => ("aborted", Some("ranger_lost")),
+            MissionState::LeftArena => ("aborted", Some("left_arena")),
             _ => ("aborted", Some("unknown")),
         }
     };
@@ -907,5 +979,34 @@ impl Score {
             error_m: (c[0] - p[0]).hypot(c[1] - p[1]),
             on_pad,
         });
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// The room reaches the drone through the parameter service: the default world's 6 × 3 m walled box
+    /// is what the drone holds after the writes; an arena the simulator's map cannot hold is refused with
+    /// the drone's console line, and the start is then refused (`BadArena`) as on the drone.
+    #[test]
+    fn the_world_s_room_is_written_as_parameters() {
+        let world = World::default_world();
+        let p = room_params(&world).unwrap();
+        assert_eq!((p.arena_m, p.walls), ((6.0, 3.0), cfnav::mission::ALL_WALLS));
+        assert_eq!(p, mission_params(&world));
+        let mut big = world.clone();
+        // 10 × 5 m = 200 × 100 cells, more than the simulator's 128 × 64.
+        big.arena.size = [10.0, 5.0];
+        let lines = room_params(&big).unwrap_err();
+        assert!(
+            lines.contains("param mission.arenaX refused: arena too large for the map"),
+            "{lines}"
+        );
+        assert_eq!(mission_params(&big).arena_m, (10.0, 5.0));
+        // A narrower room that needs y first: 8 × 1 m (160 × 20 cells) fits, 8 × 3 m does not.
+        let mut long = world.clone();
+        long.arena.size = [8.0, 1.0];
+        assert_eq!(room_params(&long).unwrap().arena_m, (8.0, 1.0));
     }
 }

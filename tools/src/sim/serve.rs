@@ -74,7 +74,7 @@ use cfnav::stack::HighLevelError;
 use cfnav::system::persistent_params::{PersistentParams, REGION_LEN, REGION_START};
 use cfnav::types::{RangeReading, Setpoint};
 
-use super::runner::{Faults, SIM_CELLS, SimDrone, mission_params};
+use super::runner::{Faults, SIM_CELLS, SimDrone, power_on_params, world_walls, write_room};
 use cfnav_sim::world::World;
 
 /// Simulated milliseconds run at most between two polls of the socket.
@@ -261,7 +261,7 @@ impl Radio {
         // The sim's flight core auto-arms and has no supervisor reset.
         let mut ep = Endpoint::new(
             FIRMWARE_TAG,
-            MissionParamState::new(mission_params(world), SIM_CELLS).with_tuning(tuning),
+            MissionParamState::new(power_on_params(world), SIM_CELLS).with_tuning(tuning),
             SupervisorPortConfig {
                 auto_arm: true,
                 can_recover: false,
@@ -699,6 +699,11 @@ pub fn serve(
     let mut radio = Radio::new(Downlink::Udp(downlink), world, param_store)?;
     radio.map_json = map_json.map(Path::to_path_buf);
     radio.load_persistent(&mut drone);
+    // The world's room reaches the drone as a user gives it: parameter writes after boot, before any start
+    // (so it wins over a room stored in the EEPROM file).
+    let size = (world.arena.size[0], world.arena.size[1]);
+    write_room(&mut radio.ep.param, size, world_walls(world))
+        .map_err(|lines| format!("the drone refused the world's room: {}", lines.trim_end()))?;
     eprintln!(
         "serving CRTP on udp://127.0.0.1:{port} ({} at {speed}× real time); write mission.start = 1 to fly",
         world.name

@@ -149,8 +149,9 @@ fn stop(children: &mut Vec<(String, Child)>) {
 
 /// Runs the `lines` from `root`, printing each; the number of lines run, or every failure (one line each,
 /// with its place in `file`). After a failure the rest of that block is left out (its lines may need the
-/// failed one) and the next block runs.
-pub fn run(file: &str, lines: &[Line], root: &Path) -> Result<usize, String> {
+/// failed one) and the next block runs. A foreground line equal to one of `already` (commands an earlier
+/// step of the same CI run ran, verbatim, and saw exit 0) is counted as run, not run again.
+pub fn run(file: &str, lines: &[Line], root: &Path, already: &[String]) -> Result<usize, String> {
     use std::os::unix::process::CommandExt;
     let mut background: Vec<(String, Child)> = Vec::new();
     let mut ran = 0;
@@ -166,6 +167,10 @@ pub fn run(file: &str, lines: &[Line], root: &Path) -> Result<usize, String> {
         let mut failure = None;
         match action(&line.text) {
             Action::Skip => println!("{at}: skipped (needs the hardware): {}", line.text),
+            Action::Run(cmd) if already.iter().any(|a| a == cmd.trim()) => {
+                println!("{at}: $ {cmd}  (an earlier step of this run ran it verbatim: exit 0)");
+                ran += 1;
+            }
             Action::Run(cmd) => {
                 println!("{at}: $ {cmd}");
                 let status = bash(&cmd, root).status().map_err(|e| format!("{at}: bash: {e}"))?;
@@ -295,7 +300,7 @@ mod tests {
         let dir = scratch("pass");
         let lines = sh_lines(FIXTURE);
         // true, sleep &, test/touch: three lines run, two skipped.
-        assert_eq!(run("README.md", &lines, &dir), Ok(3));
+        assert_eq!(run("README.md", &lines, &dir, &[]), Ok(3));
         assert!(dir.join("marker").exists(), "the line ran from the given root");
         let sleeping = Command::new("pgrep").args(["-f", "^sleep 30$"]).output().unwrap();
         assert!(sleeping.stdout.is_empty(), "the background `sleep 30` was not stopped");
@@ -306,7 +311,7 @@ mod tests {
     fn a_failing_line_fails_with_its_line_number() {
         let dir = scratch("fail");
         let text = "```sh\ntrue\nexit 3\ntouch never\n```\n\n```sh\ntouch next\nfalse\n```\n";
-        let err = run("README.md", &sh_lines(text), &dir).unwrap_err();
+        let err = run("README.md", &sh_lines(text), &dir, &[]).unwrap_err();
         let failures: Vec<&str> = err.lines().collect();
         assert_eq!(failures.len(), 2, "{err}");
         assert!(failures[0].starts_with("README.md:3: `exit 3` exited"), "{err}");
@@ -323,8 +328,22 @@ mod tests {
     fn a_server_that_dies_before_answering_fails() {
         let dir = scratch("serve");
         let text = "```sh\nbash -c 'exit 1' sim --serve --port 19998 &\ntrue\n```\n";
-        let err = run("README.md", &sh_lines(text), &dir).unwrap_err();
+        let err = run("README.md", &sh_lines(text), &dir, &[]).unwrap_err();
         assert!(err.contains("before it answered"), "{err}");
+        std::fs::remove_dir_all(&dir).unwrap();
+    }
+
+    #[test]
+    fn a_line_an_earlier_step_ran_verbatim_is_not_run_twice() {
+        let dir = scratch("already");
+        let text = "```sh\ntouch once\ntouch twice\n```\n";
+        let already = ["touch once".to_string()];
+        assert_eq!(run("README.md", &sh_lines(text), &dir, &already), Ok(2));
+        assert!(
+            !dir.join("once").exists(),
+            "a command an earlier step ran is counted, not run again"
+        );
+        assert!(dir.join("twice").exists(), "every other line runs");
         std::fs::remove_dir_all(&dir).unwrap();
     }
 }

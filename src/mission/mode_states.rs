@@ -42,6 +42,7 @@ const ROUND_TRIP: &[MissionState] = &[
     S::LinkLost,
     S::LinkLostHome,
     S::RangerLost,
+    S::LeftArena,
 ];
 
 /// The states of the hover test (`mission.mode = 1`): climb (10), hold (50), land at the take-off point
@@ -62,6 +63,7 @@ const HOVER_TEST: &[MissionState] = &[
     S::LinkLost,
     S::LinkLostHome,
     S::RangerLost,
+    S::LeftArena,
 ];
 
 /// The states of the exploration (`mission.mode = 2`): climb (10), explore (60, 61), then the round trip's
@@ -90,6 +92,7 @@ const EXPLORE: &[MissionState] = &[
     S::LinkLost,
     S::LinkLostHome,
     S::RangerLost,
+    S::LeftArena,
 ];
 
 /// Each mode with the states it may reach, in `mission.mode` order.

@@ -791,12 +791,23 @@ fn hover_test_after_manual_flights_lands_where_it_took_off() {
 
 /// Shrunk from a generated run (`CFNAV_SEQUENCES=3000`): position setpoints lift the drone off the home
 /// pad towards (0.3, 0.3), stop setpoints drop it beside the pad, and a high-level take-off to 0.3 m comes
-/// 20 cm above the floor, before the impact. The estimated height then falls (−0.08 m on the floor, −0.7 m
-/// 0.8 s later) while the body climbs, and the take-off's hold at 0.3 m drives it into the ceiling and the
-/// wall at y = 3 m. The estimator's surface tracker and height gate do not recover from the impact; until
-/// they do this test fails, so it runs only on request (`--ignored`).
+/// 20 cm above the floor, before the impact.
+///
+/// What the simulator's truth shows: the body hits the floor at 1.80 m/s (t ≈ 1.78 s) and stops in one
+/// tick; the accelerometer clips at ±24 g for that sample, so the IMU sees 0.24 m/s of it and the filter
+/// keeps −1.56 m/s (σ_vz 0.01 m/s) while the body rests. The estimator counts as airborne (the take-off
+/// asked for thrust), so no rest update corrects it. The surface tracker sees the implied surface drift at
+/// 1.56 m/s, far beyond what σ_vz explains, takes it for a surface moving (a blurred step) and waits up to
+/// 4 × `max_transition`; the height runs 1 m below the floor while the take-off's hold climbs the body into
+/// the ceiling and the wall at y = 3 m. Raising σ_vz on a clipped sample to the speed before it makes this
+/// test pass and keeps the simulator's worlds completing, but fails
+/// `commander::a_stop_setpoint_in_the_air_falls_and_the_estimate_follows` (seed 3: the height estimate
+/// 3.4 m off after the motors-off fall's impact) and `commander::rpyt_setpoints_fly_attitude_and_thrust`
+/// (seed 2: the held height leaves its ±0.2 m band, down to 0.70 m from 2.49 m), even when only the vertical
+/// std is raised. Until
+/// the fix keeps those, this test runs only on request (`--ignored`).
 #[test]
-#[ignore = "fails: the estimate's height diverges after a take-off during a fall's impact (see the doc)"]
+#[ignore = "fails: an impact clips the accelerometer and the vertical velocity stays wrong (see the doc)"]
 fn a_take_off_right_after_a_stop_stays_in_the_arena() {
     let actions = [
         Action::Setpoints {

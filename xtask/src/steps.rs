@@ -144,6 +144,11 @@ pub const STEPS: &[Step] = &[
         about: "the map on the PC: cfnav map and cflib's memory API",
         run: e2e_map,
     },
+    Step {
+        name: "e2e-sequence",
+        about: "cflib flies by hand, then the hover test lands where it took off; a round trip off its pad",
+        run: e2e_sequence,
+    },
 ];
 
 /// The steps that own an expected file (`cargo xtask bless NAME`).
@@ -1138,6 +1143,28 @@ fn e2e_persistent(ci: &mut Ci) -> Result<(), String> {
             &cfnav,
             "--port",
             "19853",
+        ],
+    )
+}
+
+fn e2e_sequence(ci: &mut Ci) -> Result<(), String> {
+    // One connection, what a user does in turn: HighLevelCommander and MotionCommander flights, then the
+    // hover test (it must land at its take-off point, state 100, only hover states seen); a round trip
+    // started off the home pad is refused, then flown from the pad. The script starts its own simulator.
+    let cfnav = ci.release_cfnav();
+    ci.run("cargo", &["build", "-q", "--release", "-p", "cfnav-tools"])?;
+    ci.run(
+        "timeout",
+        &[
+            "300",
+            "python3",
+            "tools/e2e/cflib_sequence.py",
+            "--sim",
+            &cfnav,
+            "--port",
+            "19858",
+            "--out",
+            "target/e2e-sequence",
         ],
     )
 }

@@ -37,7 +37,7 @@ use std::sync::Mutex;
 
 use rsemu::bus::i2c::{Ack, Address, Direction, I2cSlave};
 
-/// The expander's 7-bit address (crazyflie-hardware.md §5.5; `cfnav::drivers::pca95x4::DEFAULT_ADDRESS`).
+/// The expander's 7-bit address (docs/hardware.md §2; `cfnav::drivers::pca95x4::DEFAULT_ADDRESS`).
 pub const EXPANDER_ADDRESS: u8 = 0x20;
 /// A VL53L1x's address after power-up.
 pub const VL53_DEFAULT_ADDRESS: u8 = 0x29;

@@ -14,7 +14,7 @@
 //! write-cycle timing in the EEPROM.
 //!
 //! Units: raw chip counts. Sources: Bosch BMI088 datasheet (BST-BMI088-DS001) §5.3 (accelerometer register
-//! map: ACC_CHIP_ID 0x1E, reset values), §6 (gyroscope: GYRO_CHIP_ID 0x0F); crazyflie-hardware.md §1.5 (the
+//! map: ACC_CHIP_ID 0x1E, reset values), §6 (gyroscope: GYRO_CHIP_ID 0x0F); docs/hardware.md §1 (the
 //! EEPROM and the config block layout); the register constants are the firmware's own
 //! (`cfnav::drivers::bmi088::reg`).
 
@@ -323,7 +323,7 @@ struct EepromState {
 /// 24AA64: 8 KiB.
 pub const EEPROM_SIZE: usize = 8192;
 
-/// A valid config block (crazyflie-hardware.md §1.5): version 1, channel 80, 2 Mbit/s, no trim,
+/// A valid config block (docs/hardware.md §1): version 1, channel 80, 2 Mbit/s, no trim,
 /// address 0xE7E7E7E7E7, and the byte-sum checksum.
 pub fn default_config_block() -> Vec<u8> {
     let mut b = Vec::new();

@@ -154,7 +154,7 @@ struct Args {
     /// `trace` lines.
     #[arg(long)]
     trace: bool,
-    /// With --mission: also write the run in `cfnav sim --json`'s format (interfaces.md §4: world, seed,
+    /// With --mission: also write the run in `cfnav sim --json`'s format (docs/formats.md (report format): world, seed,
     /// outcome, reason, mission time, collisions, clearance, landings, distance, virtual and wall time;
     /// `replans` is null, the planner's count stays inside the image), so a script reads both the same way.
     #[arg(long, requires = "mission", value_name = "FILE")]
@@ -188,7 +188,7 @@ fn positive_speed(text: &str) -> std::result::Result<f64, String> {
     }
 }
 
-/// A run in `cfnav sim --json`'s format (interfaces.md §4).
+/// A run in `cfnav sim --json`'s format (docs/formats.md, report format).
 #[derive(Debug, Serialize)]
 struct SimReport<'a> {
     world: &'a str,
@@ -1181,7 +1181,7 @@ mod sim_report_tests {
         };
         let v = serde_json::to_value(SimReport::of("default", 1, &m, 56.6, 1152.0)).unwrap();
         let keys: Vec<&str> = v.as_object().unwrap().keys().map(String::as_str).collect();
-        // interfaces.md §4's one-run object, then the end state the image logged.
+        // docs/formats.md (report format)'s one-run object, then the end state the image logged.
         for k in [
             "world",
             "seed",

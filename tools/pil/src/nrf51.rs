@@ -7,7 +7,7 @@
 //! Non-goals: ESB timing, safelink (the nRF handles it alone; the image ignores header bits 2–3), one-wire
 //! memories, power switching, P2P, BLE. Units: virtual time in ns.
 //!
-//! Facts (`/work/shared/reference/crazyflie-hardware.md`, from bitcraze/crazyflie2-nrf-firmware `src/main.c`):
+//! Facts (docs/hardware.md, from bitcraze/crazyflie2-nrf-firmware `src/main.c`):
 //! * §3.3: RADIO_CHANNEL/DATARATE/ADDRESS/POWER are echoed; RADIO_READY is acknowledged with the same type
 //!   (len 0) and the ESB receiver stays off until it arrives; SYS_NRF_VERSION is answered with a NUL-terminated
 //!   "tag (platform)" string.

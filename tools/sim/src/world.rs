@@ -1,11 +1,11 @@
-//! The simulator's world: world files (shared/spec/interfaces.md §3), the built-in default world, random
+//! The simulator's world: world files (docs/formats.md, world files), the built-in default world, random
 //! worlds, and the geometry the simulator needs (ray casts for the rangers, the body's clearance for
 //! collisions, the surface under the drone, the pads).
 //!
 //! # World files
 //!
 //! TOML, in metres, in the arena frame (origin at the arena's lower-left corner on the floor, z up). The
-//! fields are those of interfaces.md §3; unknown fields are errors. Defaults and limits:
+//! fields are those of docs/formats.md (world files); unknown fields are errors. Defaults and limits:
 //!
 //! | field | default | accepted |
 //! |---|---|---|
@@ -35,7 +35,7 @@
 //! | `[sensors]`, `[disturbances]` | the simulator's own | every key optional; keys, units and ranges in [`super::stress`] |
 //!
 //! `sim.expect` says how a run of the world should end: `"completed"` names the report's `outcome`, any other
-//! value its `reason` (interfaces.md §4). Failure worlds shipped in `worlds/` also carry a `fail-` file-name
+//! value its `reason` (docs/formats.md, report format). Failure worlds shipped in `worlds/` also carry a `fail-` file-name
 //! prefix so that scripts can tell them apart without parsing them.
 //!
 //! Errors are one line: `FILE: line N: FIELD: what was wrong; what was expected` (the line and field when
@@ -50,7 +50,7 @@
 //!
 //! # Shipped worlds (`worlds/`)
 //!
-//! `default` (= [`World::default_world`]), `two-walls` (the interfaces.md §3 example), `slalom`, `boxes`,
+//! `default` (= [`World::default_world`]), `two-walls` (the docs/formats.md (world files) example), `slalom`, `boxes`,
 //! `corridor`, `cylinders`, `low-box`, `far-pads`; failure worlds `fail-enclosed-goal` and `fail-narrow-gap`
 //! (`expect = "no_path"`). Each file's header comment says what it tests.
 //!
@@ -140,7 +140,7 @@ impl Stress {
     }
 }
 
-/// Radius of the drone's body disc: touching an obstacle with it is a collision (interfaces.md §3).
+/// Radius of the drone's body disc: touching an obstacle with it is a collision (docs/formats.md, world files).
 pub const BODY_RADIUS_M: f32 = 0.06;
 /// Largest arena the firmware maps (`cfnav::nav::map`'s widest and deepest grid at 5 cm cells), metres.
 pub const MAX_ARENA_M: [f32; 2] = [

@@ -1,4 +1,4 @@
-//! A scripted radio host inside the emulator (issue 15, milestone 2): cflib's connect sequence as a fixed
+//! A scripted radio host inside the emulator: cflib's connect sequence as a fixed
 //! list of CRTP requests, each sent when the previous one was answered (cflib waits for every TOC answer the
 //! same way), all on **virtual** time, so a run is deterministic and reproduces what a real cflib did over UDP
 //! without the wall clock.

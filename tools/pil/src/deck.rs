@@ -2,7 +2,7 @@
 //! whose pins hold the XSHUT lines of five VL53L1x rangers) and the Flow deck v2's VL53L1x height ranger
 //! (no XSHUT: powered from power-on), as one [`I2cSlave`] so the expander's pins can power the rangers.
 //!
-//! Job (issue 15 milestone 3): answer the image's bring-up and reads the way the chips do, with ranges the
+//! Job: answer the image's bring-up and reads the way the chips do, with ranges the
 //! host sets from the simulator's world ([`DeckSensors::set_ranges`]) and time the host advances
 //! ([`DeckSensors::advance`]).
 //!

@@ -1,4 +1,4 @@
-//! A hover test without cflib (issue 15 milestone 3): the scripted CRTP parameter writes the nRF51 model
+//! A hover test without cflib: the scripted CRTP parameter writes the nRF51 model
 //! injects at a virtual time ([`Script`]), and the judge of the flight on the simulator's truth
 //! ([`HoverJudge`]), plus the image's own load figures from its defmt log ([`LoadLine`]).
 //!

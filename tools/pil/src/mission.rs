@@ -1,4 +1,4 @@
-//! The round trip in the emulator (issue 15 milestone 4, `--mission`): the judge of the flight on the
+//! The round trip in the emulator (`--mission`): the judge of the flight on the
 //! simulator's truth, scored the way `cfnav sim` scores it (`tools/src/sim/runner.rs` `Score`), so that the
 //! two reports can be compared line by line (`tools/pil/compare_sitl.py`).
 //!

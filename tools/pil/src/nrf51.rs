@@ -1,4 +1,4 @@
-//! The nRF51 end of the syslink (issue 15, milestone 2): what the radio chip answers the image over USART6.
+//! The nRF51 end of the syslink: what the radio chip answers the image over USART6.
 //!
 //! Job: given each syslink packet the image sends and the virtual time, say what the nRF51 firmware sends
 //! back; after PM_BATTERY_AUTOUPDATE, produce its periodic PM_BATTERY_STATE and RADIO_RSSI packets; forward

@@ -1,4 +1,4 @@
-//! The simulator's physics behind the emulated sensors (issue 15 milestone 3): the same rigid body, motors,
+//! The simulator's physics behind the emulated sensors: the same rigid body, motors,
 //! battery, world geometry and sensor noise models as `cfnav sim` (the `cfnav_sim` crate,
 //! `tools/sim/src/{physics,sensors,world,stress}.rs`), stepped in the emulator's virtual time.
 //!

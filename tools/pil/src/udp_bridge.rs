@@ -1,4 +1,4 @@
-//! The radio host as a UDP socket (issue 15, milestone 2): cflib's `udp://` link talks to the emulated image
+//! The radio host as a UDP socket: cflib's `udp://` link talks to the emulated image
 //! as it does to `cfnav sim --serve`.
 //!
 //! Job: bind a UDP socket, take datagrams without blocking (one datagram = one CRTP packet `[header, data…]`,

@@ -61,7 +61,7 @@
 //! and [`World::is_solvable`] with [`SOLVABILITY_INFLATION_M`], otherwise the generator draws again from
 //! the same random stream, so a seed always gives the same world.
 //!
-//! [`World::random`] (`wide`, the default since issue 14) draws what real arenas have: a 4–6.4 × 2–3.2 m
+//! [`World::random`] (`wide`, the default) draws what real arenas have: a 4–6.4 × 2–3.2 m
 //! arena ([`WIDE_ARENA_MIN_M`]..[`WIDE_ARENA_MAX_M`]); the take-off point 0.5–0.9 m from one end and the
 //! nominal goal 0.5–0.9 m from the other; the home pad under the take-off point (within 5 cm) or, one world
 //! in six, beside it (0.25–0.35 m, the drone starting on the floor [`START_PAD_GAP_M`] or more from its sides); the goal pad 0.05–0.35 m from the

@@ -35,7 +35,7 @@ pub struct SimArgs {
     /// tables) to every world flown: each key FILE sets replaces the world's own (docs/formats.md (commands, world files)).
     #[arg(long, value_name = "FILE")]
     pub stress: Option<PathBuf>,
-    /// The random-world generator of --random and --random-world: `wide` (issue 14, the default) or
+    /// The random-world generator of --random and --random-world: `wide` (the default) or
     /// `classic` (the worlds of the figures before it, seed for seed).
     #[arg(long, value_enum, default_value_t = Generator::Wide)]
     pub generator: Generator,

@@ -31,7 +31,7 @@
 //!
 //! Console (port 0): refusal notes and these messages go through [`ConsoleService`] and are sent at once.
 //!
-//! Tuning and persistent parameters (issue 13 part 4): an accepted tuning write is handed to the flight core
+//! Tuning and persistent parameters: an accepted tuning write is handed to the flight core
 //! at once (`FlightCore::set_tuning`). `--param-store FILE` is the drone's 8 KB EEPROM as a file (created
 //! blank, 0xFF, when missing): at start the persistent records are read from it and applied through the
 //! same checks as a radio write; `persistent_store`/`persistent_clear` write their slot into it (the whole

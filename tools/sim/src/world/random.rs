@@ -506,7 +506,7 @@ fn open_world(seed: u64) -> World {
 /// Which random generator `--random` uses.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq, clap::ValueEnum)]
 pub enum Generator {
-    /// The widened generator (issue 14): 4 × 2 to 6.4 × 3.2 m arenas, pads next to walls and obstacles,
+    /// The widened generator: 4 × 2 to 6.4 × 3.2 m arenas, pads next to walls and obstacles,
     /// forests of thin cylinders around the goal, zig-zag corridors, goal pads up to 0.35 m off.
     #[default]
     Wide,

@@ -720,7 +720,7 @@ fn flying_off_the_home_pad_keeps_the_vertical_velocity() {
 
 /// The estimator learns the flow's scale error from the arena's walls (its module docs, "Flow scale"),
 /// judged against the simulator's own: the default world flown with `flow_scale_error` −0.05, 0 and +0.05
-/// (the docs/formats.md (world files) example's magnitude), noise seeds 1–3. When the drone lands home (≈ 12 m flown
+/// (the magnitude of the world-file example in docs/formats.md), noise seeds 1–3. When the drone lands home (≈ 12 m flown
 /// past walls) the held scale error lies within 2.5 percentage points of the truth and within 2.5 of its
 /// own std, that std has come down from the prior's 0.05 to under 0.02, and per seed the +5 % flight holds
 /// at least 6 points more than the −5 % one: it was learnt, not left at 0. (Measured: held −4.3 to −3.4,

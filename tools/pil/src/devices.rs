@@ -1,16 +1,16 @@
 //! Device models on the emulated Crazyflie's buses, written against rsemu's public [`I2cSlave`] trait and
 //! attached to the machine's named buses ("sensors" = I2C3, "deck" = I2C1) from outside the emulator crate.
 //!
-//! Job (milestone 1): answer what the boot reads, the way the chips do. The BMI088 (I2C3, accelerometer 0x18,
+//! Job: answer what the boot reads, the way the chips do. The BMI088 (I2C3, accelerometer 0x18,
 //! gyroscope 0x69) with its chip ids, reset values, soft reset, data-ready status bits and a level,
 //! motionless sample; the deck EEPROM (I2C1, 0x50, 24AA64: 8 KiB, two address bytes) holding a valid config
 //! block. Nothing else answers on the deck bus (no Multi-ranger, no Flow deck: their probes see NACKs).
 //!
-//! Fault injection ([`Faults`]): the BMI088 that does not acknowledge the soft-reset command byte (issue 12
-//! item 2: it resets at once and NACKs), and a sensor bus where no device acknowledges anything (an IMU that
+//! Fault injection ([`Faults`]): the BMI088 that does not acknowledge the soft-reset command byte (a real
+//! part can: it resets at once and NACKs), and a sensor bus where no device acknowledges anything (an IMU that
 //! is not there, as the I2C master sees it). A bus whose SDA is held low by a slave is `crate::stuck`.
 //!
-//! Non-goals: no physics yet (milestone 3 feeds the simulator's truth), no data-ready pulses on PC14, no
+//! Non-goals: no physics (`physics.rs` feeds the simulator's truth), no data-ready pulses on PC14, no
 //! write-cycle timing in the EEPROM.
 //!
 //! Units: raw chip counts. Sources: Bosch BMI088 datasheet (BST-BMI088-DS001) §5.3 (accelerometer register

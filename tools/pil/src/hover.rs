@@ -96,7 +96,7 @@ impl Script {
         }
     }
 
-    /// The round trip (`--mission`, milestone 4): `mission.mode` = 0, the world's start, goal, height and
+    /// The round trip (`--mission`): `mission.mode` = 0, the world's start, goal, height and
     /// speed (as `cfnav sim` gives them, `mission_params`), then `mission.start` = 1. The arena size has no
     /// parameter: the image's default (6 × 3 m, the default world's) is what it flies.
     pub fn round_trip(world: &cfnav_sim::world::World) -> Self {

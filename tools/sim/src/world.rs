@@ -50,7 +50,7 @@
 //!
 //! # Shipped worlds (`worlds/`)
 //!
-//! `default` (= [`World::default_world`]), `two-walls` (the docs/formats.md (world files) example), `slalom`, `boxes`,
+//! `default` (= [`World::default_world`]), `two-walls` (the world-file example of docs/formats.md), `slalom`, `boxes`,
 //! `corridor`, `cylinders`, `low-box`, `far-pads`; failure worlds `fail-enclosed-goal` and `fail-narrow-gap`
 //! (`expect = "no_path"`). Each file's header comment says what it tests.
 //!
@@ -74,7 +74,7 @@
 //! and up to three boxes and three cylinders anywhere. Everything keeps [`KEEP_OUT_M`] from the take-off
 //! point and the home pad; the walls and the free obstacles keep it from the goal end too.
 //!
-//! [`World::random_classic`] (`classic`) is the generator of the figures before issue 14, kept seed for seed:
+//! [`World::random_classic`] (`classic`) is the older generator of the earlier figures, kept seed for seed:
 //! a 4.5–6 × 2.4–3 m arena, the home pad within 5 cm of the take-off point and the goal pad 5–30 cm from the
 //! nominal goal, one to three walls with a 0.6–1 m gap, up to four boxes and four cylinders 1 m tall up to
 //! the ceiling, every obstacle [`KEEP_OUT_M`] from the pads, the take-off point and the nominal goal.

@@ -1,7 +1,7 @@
 //! Fuzz target: arbitrary bytes from the nRF51 UART into the syslink decoder.
 //!
 //! Checks: no panic; every decoded packet re-encodes to a frame that decodes to the same packet (framing and
-//! checksum of `crazyflie-hardware.md` §3); RADIO_RAW payloads parse as CRTP or are refused; battery packets
+//! checksum of docs/hardware.md §4); RADIO_RAW payloads parse as CRTP or are refused; battery packets
 //! parse or are refused; the decoder's counters only grow.
 #![no_main]
 

@@ -1,4 +1,4 @@
-//! Shared helpers for the host tests: small std-side maps and independent oracles.
+//! Shared code for the host tests: small std-side maps and independent oracles.
 //! The tests themselves live in `tests/`.
 
 pub mod oracle;

@@ -1,5 +1,5 @@
 //! Independent oracles for the planner tests: a plain std map and a textbook Dijkstra written from the
-//! movement rules of `shared/spec/interfaces.md` §2, sharing no code with `cfnav::nav::dstar`.
+//! movement rules of docs/formats.md (map format), sharing no code with `cfnav::nav::dstar`.
 
 use std::cmp::Reverse;
 use std::collections::BinaryHeap;

@@ -1,7 +1,7 @@
 //! The flight stack split as the MCU runs it: [`Stabilizer`] (interrupt priority) and [`Navigator`] (thread
 //! mode) exchange only small `Copy` messages. Checks the message contract: start refusals leave everything
 //! unchanged, a start re-anchors the estimate and silences the commander hold, the idle mission does not
-//! overwrite a fresh commander setpoint (2 s hold, `crazyflie-hardware.md` §10.1), the commander gating, and
+//! overwrite a fresh commander setpoint (2 s hold, docs/hardware.md §4), the commander gating, and
 //! that [`FlightCore`] behaves exactly like the two parts wired by hand with messages delivered at once.
 
 use cfnav::mission::{HOME_TOLERANCE_M, MissionMode, MissionParams, MissionState, PositionRefusal};

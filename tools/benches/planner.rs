@@ -101,7 +101,7 @@ fn scenario(text: &str) -> Scenario {
     let (start, goal) = (map.start, map.goal);
     let report = replay(map, SENSE_RADIUS).expect("replay");
     assert_eq!(report.status, "reached");
-    // The first plan is made after the first sense (interfaces.md §2): it starts from that belief.
+    // The first plan is made after the first sense (docs/formats.md, map format): it starts from that belief.
     for &c in &report.steps[0].changed_cells {
         initial.set(c, truth.is_blocked(i32::from(c.x), i32::from(c.y)));
     }

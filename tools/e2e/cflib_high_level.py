@@ -8,7 +8,7 @@ Steps: connect (SyncCrazyflie), log stateEstimate.x/y/z at 10 Hz, take off to 0.
 current heading), go_to +0.5 m in x (relative, smooth) in 2.5 s, go_to back (absolute, linear) in 2.5 s, land
 in 2 s, stop. After each step the logged estimate must be within 10 cm of the target (z after landing below
 0.15 m). Exit 0 iff every check passes. Uses only port 8 and logging: no parameter cflib's MotionCommander
-helpers write (kalman.resetEstimation, stabilizer.controller), which cfnav does not declare yet.
+classes write (kalman.resetEstimation, stabilizer.controller), which cfnav does not declare yet.
 """
 
 import argparse

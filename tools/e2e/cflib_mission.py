@@ -4,7 +4,7 @@
 Start the simulator first:   cargo run --release -p cfnav-tools -- sim --serve --port 19850 --speed 20
 Then:                        python3 tools/e2e/cflib_mission.py [--uri udp://127.0.0.1:19850] [--goal X,Y]
 
-Steps (interfaces.md §5): connect with SyncCrazyflie and wait until fully connected, list the TOCs, set
+Steps (docs/radio.md): connect with SyncCrazyflie and wait until fully connected, list the TOCs, set
 mission.goalX/goalY (the values the simulator reports, i.e. the world's, unless --goal is given), check that an
 out-of-arena goalX is refused (the value read back is unchanged), log mission.state and stateEstimate.x/y/z at
 10 Hz, write mission.start = 1 and wait for mission.state >= 100. Exit status 0 iff mission.state == 100.

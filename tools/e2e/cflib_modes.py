@@ -1,5 +1,5 @@
 #!/usr/bin/env python3
-"""Mission modes, link loss and bad writes end to end (issue 13 parts 3 and 5, "bad writes refused"):
+"""Mission modes, link loss and bad writes end to end:
 unmodified cflib (PyPI) against `cfnav sim --serve`, a fresh simulator for each case, judged on what cflib logs
 and on the simulator's truth (its stderr, tools/e2e/sim_truth.py; never sent over the radio).
 

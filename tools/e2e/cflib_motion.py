@@ -1,6 +1,6 @@
 #!/usr/bin/env python3
 """End-to-end: cflib's MotionCommander and PositionHlCommander (default and controller=PID) against
-`cfnav sim --serve` (issue 13 parts 1-2), judged on the logged stateEstimate.
+`cfnav sim --serve`, judged on the logged stateEstimate.
 
 Start the simulator first (real time: the commanders pace themselves with sleeps):
     cargo run --release -p cfnav-tools -- sim --serve --port 19854 --speed 1

@@ -1,5 +1,5 @@
 #!/usr/bin/env python3
-"""End-to-end, issue 15 milestone 2: unmodified cflib connects to the *emulated firmware image* (cfnav-pil).
+"""End-to-end: unmodified cflib connects to the *emulated firmware image* (cfnav-pil).
 
 Usage: cflib_pil.py --pil target/debug/cfnav-pil --elf target/thumbv7em-none-eabihf/release/firmware
                     [--port 19860] [--timeout 230] [--samples 5] [--json target/pil/cflib.json]
@@ -19,8 +19,8 @@ Prints what it saw with wall times. Exit 0 iff every step passed; 1 on any failu
 cfnav-pil's virtual-time budget (--virtual-seconds, passed as --serve-seconds) starts at cflib's first request,
 not at boot, so cflib's wall-clock pacing cannot race it; the wall-clock limit is --timeout.
 
---reduced (what CI ran until session 8, docs/pil.md milestone 2, while the image could still crash under the
-full connect; the crash was the emulator losing ITSTATE on exception entry): cflib's own UdpDriver, unmodified,
+--reduced (a shorter connect, kept for bisecting an emulator fault such as the loss of ITSTATE on
+exception entry that once crashed the image under the full connect, docs/pil.md): cflib's own UdpDriver, unmodified,
 asks the link source, the protocol version, the log and param TOC infos, walks the param TOC to
 mission.startX, writes 1.25 and reads it back; cfnav-pil then runs 3 s virtual past the first request and must
 show the "ready" LEDs with no IWDG reset. CI runs the full form now.

@@ -1,5 +1,5 @@
 #!/usr/bin/env python3
-"""The low-level commander end to end (issue 13 part 6): unmodified cflib (PyPI) against a fresh
+"""The low-level commander end to end: unmodified cflib (PyPI) against a fresh
 `cfnav sim --serve` in real time, judged on what cflib logs and on the simulator's truth (its stderr,
 tools/e2e/sim_truth.py; never sent over the radio).
 

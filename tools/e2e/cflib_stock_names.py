@@ -1,5 +1,5 @@
 #!/usr/bin/env python3
-"""cflib without the GUI against `cfnav sim --serve`: the stock names cfclient and cflib's helpers use.
+"""cflib without the GUI against `cfnav sim --serve`: the stock names cfclient and cflib's own classes use.
 
 Unmodified cflib (PyPI) checks, each printed as it passes, exit 1 on the first failure:
 1. every `deck.*` name the stock cfclient reads is in the parameter TOC, read-only; bcFlow2 and

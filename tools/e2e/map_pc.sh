@@ -1,5 +1,5 @@
 #!/usr/bin/env bash
-# The map on the PC, end to end (issue 13 part 7): a mission on `cfnav sim --serve --map-json`, the map
+# The map on the PC, end to end: a mission on `cfnav sim --serve --map-json`, the map
 # downloaded with `cfnav map` once while the drone flies and once after it has landed, each compared cell for
 # cell with the simulator's own map of the same moment (compare_map.py), the plot drawn, and cflib's memory
 # API listing and reading the same map unmodified (cflib_map.py).

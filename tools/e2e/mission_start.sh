@@ -4,7 +4,7 @@
 #   bash tools/e2e/mission_start.sh            # builds the release binary first
 #   CFNAV_BIN=path/to/cfnav PORT=19851 bash tools/e2e/mission_start.sh
 #
-# Checks (interfaces.md §1, §5):
+# Checks (docs/formats.md (commands), docs/radio.md):
 #   1. a goal outside the arena is refused: exit 2, the refusal named, the drone's console reason printed;
 #   2. a mission to (5.0, 1.5) completes: exit 0, the progress ends with final state 100 (the flight completes
 #      about nine times in ten, so one more flight on a fresh simulator is allowed);
@@ -42,7 +42,7 @@ stop_server() {
 }
 trap stop_server EXIT
 
-# Starts a fresh simulator on $PORT and waits until it answers the 0xFF probe (cflib's scan, crtp-over-udp.md §1).
+# Starts a fresh simulator on $PORT and waits until it answers the 0xFF probe (cflib's scan, docs/radio.md).
 start_server() {
   stop_server
   serve_n=$((serve_n + 1))

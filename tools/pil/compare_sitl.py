@@ -1,5 +1,5 @@
 #!/usr/bin/env python3
-"""Compare the emulated image's round trip with the SITL's (issue 15 milestone 4, docs/pil.md).
+"""Compare the emulated image's round trip with the SITL's (docs/pil.md).
 
 Usage:
     python3 tools/pil/compare_sitl.py PIL.json SITL.json [--max-time-diff S] [--max-landing-err M]

@@ -1,5 +1,5 @@
 #!/usr/bin/env bash
-# The nightly-length processor-in-the-loop job (issue 15 milestone 4, docs/pil.md): the unmodified firmware
+# The nightly-length processor-in-the-loop job (docs/pil.md): the unmodified firmware
 # image flies the default world's round trip in the emulator on each noise seed given, and each run is compared
 # with the SITL's run of the same world and seed (tools/pil/compare_sitl.py). Too long for CI (≈ 65 s virtual
 # per seed, ≈ 10 min wall on an idle core); run it from a clone that has run .ci/run once (the toolchain and

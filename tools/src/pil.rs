@@ -1,4 +1,4 @@
-//! `cfnav pil`: the unmodified firmware image on the emulated Crazyflie (processor in the loop, issue 15;
+//! `cfnav pil`: the unmodified firmware image on the emulated Crazyflie (processor in the loop,
 //! docs/pil.md). The emulator is its own binary, `cfnav-pil`, built by `bash tools/pil/cargo.sh build`
 //! (its own cargo workspace: it builds a patched rsemu); this subcommand finds it beside `cfnav` (or in the
 //! sibling `debug`/`release` directory of the same target directory, or at `$CFNAV_PIL`) and runs it with

@@ -1,6 +1,6 @@
 //! BMI088 driver against recorded I2C traffic (embedded-hal-mock) written from the Bosch BMI088 datasheet
 //! (BST-BMI088-DS001 §5 register map) and the stock Crazyflie configuration (crazyflie-firmware
-//! sensors_bmi088_bmp3xx.c, crazyflie-hardware.md §8.1): full init, a data read converted with the
+//! sensors_bmi088_bmp3xx.c, docs/hardware.md §2): full init, a data read converted with the
 //! datasheet's scale formulas, and every failure path (NACK, wrong id, ACC_ERR_REG, config read-back,
 //! data-ready timeout).
 

@@ -1,6 +1,6 @@
 //! Multi-ranger bring-up and reads against recorded I2C traffic.
 //!
-//! Expected order and wiring from crazyflie-hardware.md §5.5 (stock `multiranger.c`): expander PCA95x4 at
+//! Expected order and wiring from docs/hardware.md §2 (stock `multiranger.c`): expander PCA95x4 at
 //! 0x20 (output register 1, configuration register 3), XSHUT on P0 up, P1 back, P2 right, P4 front, P6 left,
 //! bring-up order front, back, up, left, right, every sensor first at 0x29 and moved with register 0x0001;
 //! addresses 0x6B.. after the Flow deck's z-ranger at 0x6A. VL53L1x register traffic as in

@@ -2,7 +2,7 @@
 //!
 //! Expected bytes from the NXP PCA9534/PCA9554 register map (command byte 0 input, 1 output, 2 polarity,
 //! 3 configuration with 1 = input; power-on output 0xFF) and the Multi-ranger wiring of
-//! crazyflie-hardware.md §5.5 (expander at 0x20, XSHUT on P0, P1, P2, P4, P6).
+//! docs/hardware.md §2 (expander at 0x20, XSHUT on P0, P1, P2, P4, P6).
 
 use super::NACK;
 use cfnav::drivers::DriverError;

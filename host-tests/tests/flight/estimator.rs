@@ -3,7 +3,7 @@
 //! Truth: smooth trajectories (quintic smoothstep velocity ramps, so acceleration and tilt are continuous)
 //! for a drag-free quadrotor: the thrust, and with it the accelerometer, points along body z, the tilt is
 //! what the acceleration needs (`tan θ = a/g`), the heading is commanded separately. Body rates come from
-//! the Euler-angle rates (central differences). Sensors, per types.rs and crazyflie-hardware.md §9:
+//! the Euler-angle rates (central differences). Sensors, per types.rs and docs/hardware.md §2:
 //! * IMU at 1 kHz: gyro = ω + bias + N(0, 0.005 rad/s), accel = f + N(0, 0.05 m/s²);
 //! * flow at 100 Hz: the stock model's pixels accumulated over the 10 ms at 1 kHz from the true body
 //!   velocity, rates and height of the camera above the surface *where its axis hits*, × 10 counts, plus

@@ -1,4 +1,4 @@
-//! Heading from the arena's walls (`cfnav::flight::estimator::map_fix`, "Heading"; issue 14 item 2): the
+//! Heading from the arena's walls (`cfnav::flight::estimator::map_fix`, "Heading"): the
 //! map fixes against the arena's exact walls carry their Jacobian on the heading, so two beams on one wall
 //! (or one beam over consecutive sweeps as the drone moves) correct the yaw. Oracle: the simulator's true
 //! yaw. The drift is made the way a real drone gets it: a gyro bias that changes after the at-rest
@@ -108,22 +108,12 @@ fn wall_fixes_hold_the_heading_against_a_gyro_drift() {
     // Measured (seeds 3, 7, 11): with 2.0–3.3° and 3.1–3.9 cm, without 6.2–10.8° and 12–66 cm. The heading
     // error with the fixes is a lag (the filter has no gyro-bias state: each fix removes part of what the
     // unknown bias turned since the last one), bounded; without them it is the bias integrated.
-    // Since the pad search turns a beam onto unobserved regions (session 8), the flights' paths differ:
-    // with 2.5–3.9° and 3.3–4.6 cm, without 5.2–8.4° and 11–20 cm (seed 3 without: 5.2°, was ≥ 6.2°);
-    // the yaw bounds moved from 3.7° / 5.7° to 4.3° / 4.9°, still separating every run with the fixes
-    // from every run without them. The two-crossing lock (session 9) shortens each search by a line, so
-    // the flights are ≈ 4 s shorter and the bias has less time to act: with 2.9–3.9° and 3.0–3.3 cm,
-    // without 5.5–8.4° and 9.3–19.9 cm (seed 3 without: 9.3 cm, was ≥ 11 cm); the position bound without
-    // moved from 10 cm to 8 cm, plus an explicit "every run with below every run without".
-    // Since navigation looks at unseen space 0.22 m beside the path (session 19) the flights slow down and
-    // turn more in the obstacle corridor: with 2.5–3.7° and 3.9–7.4 cm, without 5.0–5.4° and 11.1–13.1 cm.
-    // The late position error with the fixes peaks in that corridor on seed 3 (7.4 cm, yaw error ≈ 1°
-    // there: flow drift between wall fixes, not heading), so its bound moved from 6 cm to 8 cm, the issue's
-    // bound for the default mission's maximum; every run with still sits below every run without.
-    // Since corridor faces become landmarks (session 24: one earlier hit locates a face, wider joins,
-    // settled landmarks kept), obstacle faces hold the position better with and without the heading term:
-    // with 2.2–3.0° and 2.7–3.9 cm, without 4.5–6.0° and 8.6–11.9 cm. The yaw bound without moved from
-    // 4.9° to 4.3°, equal to the bound with: one threshold still separates every run.
+    // The flights' paths depend on the whole mission (the pad search turning a beam onto unobserved
+    // regions, the two-crossing lock, the look at unseen space beside the path, corridor faces as
+    // landmarks), so the bounds are set to separate every run with the fixes from every run without them,
+    // not to one path. The late position error with the fixes peaks in the obstacle corridor on seed 3
+    // (yaw error ≈ 1° there: flow drift between wall fixes, not heading), so its bound is 8 cm, the
+    // default mission's maximum. One yaw threshold (4.3°) separates every run with from every run without.
     assert!(
         worst_on.0 <= 0.075,
         "with the heading fixes the late yaw error reaches {}",
@@ -151,10 +141,9 @@ fn wall_fixes_hold_the_heading_against_a_gyro_drift() {
         worst_on.1,
         worst_off.1
     );
-    // Since a thin post in the swept corridor counts as unobserved (session 26) the flights slow once more
-    // beside the corridor's posts, which leaves the bias less distance to act on: with 1.7–3.8° and
-    // 2.3–4.5 cm, without 4.9–6.7° and 6.7–17.4 cm (seed 3 without: 6.7 cm, was ≥ 8.6 cm). The position
-    // bound without moved from 8 cm to 6 cm; the bound with stays the issue's 8 cm.
+    // The flights slow beside the corridor's thin posts (counted as unobserved), which leaves the bias
+    // less distance to act on: measured with 1.7–3.8° and 2.3–4.5 cm, without 4.9–6.7° and 6.7–17.4 cm.
+    // So the position bound without is 6 cm; the bound with is the default mission's 8 cm.
     assert!(
         worst_off.1 > 0.06,
         "without them the position error stays at {}",

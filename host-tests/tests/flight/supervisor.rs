@@ -1,5 +1,5 @@
 //! Supervisor tests: arming, the setpoint watchdog, tumble detection, touchdown, battery, the minimum-height
-//! helper; each rule at its timing boundary (1 ms ticks), latching, garbage inputs.
+//! check; each rule at its timing boundary (1 ms ticks), latching, garbage inputs.
 
 use cfnav::flight::supervisor::{
     Reason, Supervisor, SupervisorConfig, SupervisorFlags, SupervisorInput, SupervisorOutput, SupervisorState,
@@ -661,7 +661,7 @@ fn garbage_battery_readings_are_ignored() {
 }
 
 // ---------------------------------------------------------------------------------------------------------
-// Helpers, time, misc.
+// Builders, time, misc.
 // ---------------------------------------------------------------------------------------------------------
 
 #[test]

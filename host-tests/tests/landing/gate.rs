@@ -2,7 +2,7 @@
 //! flat floor, a drone hovering at 0.5 m whose *true* position is given, and the downward range it would
 //! read there (ray straight down, 3 mm noise, some tilt). The oracle of a safe descent is the geometry:
 //! the body's centre over the pad's top lands on it; a centre outside the pad but within the body radius
-//! (0.06 m) of its side touches that side (interfaces.md §3).
+//! (0.06 m) of its side touches that side (docs/formats.md, world files).
 
 use cfnav::landing::gate::{self, Clearance, DECIDING_READINGS, SurfaceVotes, Target, Verdict};
 use rand::rngs::SmallRng;

@@ -1,5 +1,5 @@
-//! The radio codecs: syslink framing (`crazyflie-hardware.md` §3) and CRTP packets, router and the link and
-//! platform services (§4.1–4.4, §4.9, `crtp-over-udp.md` §1–§2), checked against the byte-exact traces in the
+//! The radio codecs: syslink framing (docs/hardware.md §4) and CRTP packets, router and the link and
+//! platform services (docs/hardware.md §4, docs/radio.md), checked against the byte-exact traces in the
 //! reference documents, independent oracles written here, and seeded random streams.
 
 use super::{hex, wire};
@@ -24,7 +24,7 @@ fn router() -> Router<4> {
 }
 
 // ---------------------------------------------------------------------------------------------------------
-// CRTP: the connect sequence (crtp-over-udp.md §2 steps 0–2 and its probe trace; hardware §4.9 steps 1–2)
+// CRTP: the connect sequence (docs/radio.md, connect sequence and probe trace; docs/hardware.md §4)
 // ---------------------------------------------------------------------------------------------------------
 
 #[test]
@@ -88,7 +88,7 @@ fn platform_firmware_version_and_device_type_name() {
 #[test]
 fn link_echo_sink_and_unknowns() {
     let mut r = router();
-    // cflib's latency ping: 15/0 [00 + f64] echoed unchanged (§4.3, crtp-over-udp.md §2 step 9).
+    // cflib's latency ping: 15/0 [00 + f64] echoed unchanged (docs/hardware.md §4, docs/radio.md).
     let mut ping = vec![0xFC, 0x00];
     ping.extend_from_slice(&1_700_000_000.25f64.to_le_bytes());
     let reply = r.handle_uplink(&ping, &mut []).unwrap();

@@ -1,6 +1,6 @@
 //! The commander ports (3 RPYT, 7 generic setpoints and meta commands): packets are built here byte by byte
 //! the way cflib 0.1.34 `cflib/crazyflie/commander.py` packs them (struct layouts written out below), decoded
-//! by the service, and checked against the firmware rules of `crazyflie-hardware.md` §4.8 (signs, thrust
+//! by the service, and checked against the firmware rules of docs/hardware.md §4 (signs, thrust
 //! limits, thrust lock) and `crtp_commander_generic.c` (types, packed sizes, legacy yaw negation).
 
 use cfnav::radio::commander::{

@@ -1,5 +1,5 @@
 //! The console service (port 0 channel 0): text is cut into packets the way the stock console does
-//! (`crazyflie-hardware.md` §4.2: "text chunks ≤ 30 bytes, no terminator"; `console.c` sends a packet when it
+//! (docs/hardware.md §4: "text chunks ≤ 30 bytes, no terminator"; `console.c` sends a packet when it
 //! is full or after a newline), packets come out in order one per call, and a full queue drops whole lines
 //! and counts them. The oracle for line acceptance is written here from that rule: a line of L bytes plus
 //! its newline needs ⌈(L + 1) / 30⌉ packets and is queued only if that many places are free.

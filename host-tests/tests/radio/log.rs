@@ -1,5 +1,5 @@
-//! The log-variable table and the log service, port 5 (`crazyflie-hardware.md` §4.6 and §4.9 steps 3–4,
-//! `crtp-over-udp.md` §2 steps 3–5 and its probe trace, `interfaces.md` §5): byte-exact replies against the
+//! The log-variable table and the log service, port 5 (docs/hardware.md §4 and its connect sequence,
+//! docs/radio.md, connect sequence and probe trace): byte-exact replies against the
 //! trace, the flight table's TOC, block limits and error codes, the stock type conversion, period 0, the data
 //! schedule with its 24-bit timestamp, the TOC CRC, and a seeded random-bytes loop.
 
@@ -163,7 +163,7 @@ fn timestamp_schedule_survives_clock_wrap() {
 }
 
 // ---------------------------------------------------------------------------------------------------------
-// The flight table (interfaces.md §5).
+// The flight table (docs/radio.md).
 // ---------------------------------------------------------------------------------------------------------
 
 type Flight = LogService<FlightLogState>;
@@ -183,7 +183,7 @@ fn flight_table_has_the_required_variables() {
         ("range", "zrange", LogType::U16, ID_RANGE_ZRANGE),
         ("pm", "vbat", LogType::F32, ID_VBAT),
     ];
-    // interfaces.md §5's variables keep ids 0..=10; the table goes on after them.
+    // docs/radio.md's variables keep ids 0..=10; the table goes on after them.
     assert_eq!(
         &LOG_TABLE[..want.len()]
             .iter()

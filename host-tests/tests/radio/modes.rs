@@ -1,4 +1,4 @@
-//! The mission-mode parameters (`mission.mode`, `.hoverTime`, `.coverage`, issue 13 part 3) over the
+//! The mission-mode parameters (`mission.mode`, `.hoverTime`, `.coverage`) over the
 //! parameter service: declared ranges, the refusal of any change while a mission runs (the echo carries the
 //! value in effect, the state is unchanged, a console line says why), the defaults, and what a start passes
 //! on to the mission.

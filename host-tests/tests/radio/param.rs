@@ -1,5 +1,5 @@
-//! The parameter registry and service, port 2 (`crazyflie-hardware.md` §4.5 and §4.9 steps 6–8,
-//! `crtp-over-udp.md` §2 steps 7, 8, 10 and its probe trace, `interfaces.md` §5): byte-exact replies against
+//! The parameter registry and service, port 2 (docs/hardware.md §4 and its connect sequence,
+//! docs/radio.md, connect sequence and probe trace): byte-exact replies against
 //! the trace, the connect sequence through the router, the refusal rule, set-by-name, VALUE_UPDATED, the TOC
 //! CRC, and a seeded random-bytes loop.
 
@@ -131,7 +131,7 @@ fn trace_state() -> MissionParamState {
 }
 
 // ---------------------------------------------------------------------------------------------------------
-// Byte-exact replies (crtp-over-udp.md §2 probe trace)
+// Byte-exact replies (docs/radio.md probe trace)
 // ---------------------------------------------------------------------------------------------------------
 
 #[test]
@@ -265,7 +265,7 @@ fn write_errors_change_nothing() {
 }
 
 // ---------------------------------------------------------------------------------------------------------
-// The connect sequence (hardware §4.9 steps 6–8; crtp-over-udp.md §2 steps 7, 8, 10) through the router
+// The connect sequence (docs/hardware.md §4; docs/radio.md, connect sequence) through the router
 // ---------------------------------------------------------------------------------------------------------
 
 #[test]
@@ -302,7 +302,7 @@ fn connect_sequence_param_steps_through_the_router() {
         toc.push((id, ty, name));
     }
     let names: Vec<&str> = toc.iter().map(|t| t.2.as_str()).collect();
-    // interfaces.md §5's parameters keep ids 0..=6.
+    // docs/radio.md's parameters keep ids 0..=6.
     assert_eq!(
         names[..7],
         [
@@ -344,7 +344,7 @@ fn connect_sequence_param_steps_through_the_router() {
 }
 
 // ---------------------------------------------------------------------------------------------------------
-// Refusals (interfaces.md §5)
+// Refusals (docs/radio.md)
 // ---------------------------------------------------------------------------------------------------------
 
 /// Sends a write, checks the echo carries the value in effect, the state is unchanged and the reason (also
@@ -576,7 +576,7 @@ fn set_by_name_sets_refuses_and_reports() {
 #[test]
 fn extended_type_v2() {
     let mut s = ParamService::new(TestStore::new());
-    // `[7, id u16]` → `[7, id u16, 0, ext_type]` (hardware §4.5; crtp-over-udp.md §2 step 8b).
+    // `[7, id u16]` → `[7, id u16, 0, ext_type]` (docs/hardware.md §4; docs/radio.md, connect sequence).
     assert_eq!(send(&mut s, &hex("2F 07 02 00")), Some(hex("2F 07 02 00 00 01")));
     assert_eq!(send(&mut s, &hex("2F 07 00 00")), Some(hex("2F 07 00 00 00 00")));
     assert_eq!(send(&mut s, &hex("2F 07 09 00")), Some(hex("2F 07 09 00 02")));
@@ -603,7 +603,7 @@ fn firmware_changes_queue_value_updated() {
     m.store_mut().params.goal_m.0 = 3.0;
     assert!(m.notify(ID_GOAL_X));
     assert!(!m.notify(PARAM_TABLE.len() as u16), "unknown id");
-    // `[1, id u16, value]` on 2/3 (crtp-over-udp.md §2 "Firmware-side param change").
+    // `[1, id u16, value]` on 2/3 (docs/radio.md "Firmware-side param change").
     let p = m.next_notification().unwrap();
     assert_eq!(wire(&p), hex("2F 01 00 00 00"));
     router.enqueue(p).unwrap();
@@ -718,7 +718,7 @@ fn crc_changes_when_the_table_changes_and_differs_from_a_log_crc() {
     let copy = PARAM_TABLE.to_vec();
     assert_eq!(toc_crc(&copy), base);
 
-    // The log TOC's CRC for the very same entries must differ (cflib's cache key, crtp-over-udp.md §2).
+    // The log TOC's CRC for the very same entries must differ (cflib's cache key, docs/radio.md).
     for table in [PARAM_TABLE, TEST_TABLE, TRACE_TABLE] {
         let p = toc_crc(table);
         assert_ne!(p, stock_style_crc(table));

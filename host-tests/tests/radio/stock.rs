@@ -1,4 +1,4 @@
-//! The stock parameter names cfclient and cflib use (issue 13 part 1): every `deck.*` name the stock cfclient
+//! The stock parameter names cfclient and cflib use: every `deck.*` name the stock cfclient
 //! 2026.8.1 reads, `kalman.resetEstimation` (cflib's `MotionCommander`), `stabilizer.controller`
 //! (`PositionHlCommander(controller=PID)`), `commander.enHighLevel`, the default-value request cfclient sends
 //! when a parameter is selected, and the tables of docs/params.md and docs/logs.md generated from the

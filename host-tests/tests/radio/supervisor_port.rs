@@ -1,6 +1,6 @@
 //! The supervisor port 9: requests built the way cflib 0.1.34 `cflib/crazyflie/supervisor.py` builds them
 //! (`pk.data = [CMD_GET_STATE_BITFIELD]`, `(CMD_ARM_SYSTEM, do_arm)`, `(CMD_RECOVER_SYSTEM,)`, …), replies
-//! checked against the stock layouts of `crazyflie-hardware.md` §4.10 (`crtp_supervisor.c`: reply command =
+//! checked against the stock layouts of docs/hardware.md §4 (`crtp_supervisor.c`: reply command =
 //! `0x80 | cmd`, bitfield u16 little-endian, arm reply `[success, isArmed]`, recover reply
 //! `[success, recovered]`) and the emergency-stop watchdog rule of §10.1 (1000 ms after the first keepalive).
 
@@ -26,7 +26,7 @@ const BIT_IS_CRASHED: u32 = 7;
 const BIT_HL_CONTROL_ACTIVE: u32 = 8;
 const BIT_HL_TRAJ_FINISHED: u32 = 9;
 const BIT_HL_CONTROL_DISABLED: u32 = 10;
-const BIT_DECK_FAULT: u32 = 11; // firmware only (crazyflie-hardware.md §4.10); cflib 0.1.34 has no name for it
+const BIT_DECK_FAULT: u32 = 11; // firmware only (docs/hardware.md §4); cflib 0.1.34 has no name for it
 const CMD_GET_STATE_BITFIELD: u8 = 0x0C;
 const CMD_ARM_SYSTEM: u8 = 0x01;
 const CMD_RECOVER_SYSTEM: u8 = 0x02;

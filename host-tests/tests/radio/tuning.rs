@@ -1,4 +1,4 @@
-//! The tuning parameters and the persistent-parameter commands (issue 13 part 4): writes land in the
+//! The tuning parameters and the persistent-parameter commands: writes land in the
 //! flight configuration they name, bad ones are refused with a console line and change nothing; misc 3/4/5
 //! answer byte for byte as stock `param_logic.c` (and cflib `param.py` decodes), with the EEPROM write done
 //! by the caller before the answer; stored values come back at boot through the radio's checks.

@@ -1,4 +1,4 @@
-//! Zero collisions (issue 14): motions near obstacles also respect what the Multi-ranger's beams read now,
+//! Zero collisions: motions near obstacles also respect what the Multi-ranger's beams read now,
 //! not only the map in the estimate frame. Judged on the simulator's truth (the runner's collision count and
 //! minimum clearance of the body disc, `world.clearance − BODY_RADIUS_M`), on worlds in which the code before
 //! each change touched an obstacle: generated worlds of the training seeds (`cfnav sim --random 200 --seed S`,
@@ -281,22 +281,22 @@ fn a_wall_end_or_a_post_hit_once_below_the_threshold_is_still_looked_at() {
 
 #[test]
 fn a_post_the_map_missed_ahead_bounds_the_navigation_by_the_live_beams() {
-    // Generated world 188 000 679 (held-out seeds of session 21): a post of 5 cm radius on the first leg's
+    // Generated world 188 000 679 (a held-out seed): a post of 5 cm radius on the first leg's
     // straight path. A grazing sweep left it as one sub-threshold hit among cells beams had crossed (no
     // unobserved region), and when the front beam read it at 17, 13 and 10 cm the reactive avoidance, which
-    // smooths over 0.2 s and keeps 0.1 m/s at its danger distance, still closed on it: main of then touched
-    // it (−3 mm). The live beams now bound the navigation's command too (stop distance 0.13 m).
+    // smooths over 0.2 s and keeps 0.1 m/s at its danger distance, still would close on it and touch
+    // it (−3 mm). So the live beams also bound the navigation's command too (stop distance 0.13 m).
     completes_without_contact([World::random(188_000_679)]);
 }
 
 #[test]
 fn a_wall_end_grazed_into_single_misses_around_a_hit_is_still_looked_at() {
-    // Stressed generated worlds 217 000 740 and 224 000 694 (seeds 210-229, first flown in session 22). In
-    // both the path rounded a wall's end at cruise height. Beams grazing the end had left its cells as one
-    // miss each (-3) around a hit and a miss (5): to the unobserved-region test they were seen free, so the
-    // drone passed at 0.3-0.45 m/s, met the end with the front beam 13-25 cm away and touched it (-5 and
-    // -14 mm). Next to such a contested cell a cell now needs two net misses to count as seen.
-    // Since the flow scale became a state (session 25), 217 000 740 at its own noise seed ends with no path
+    // Stressed generated worlds 217 000 740 and 224 000 694 (from seeds 210-229). In
+    // both the path rounds a wall's end at cruise height. Beams grazing the end leave its cells as one
+    // miss each (-3) around a hit and a miss (5): taken as seen free by the unobserved-region test, the
+    // drone would pass at 0.3-0.45 m/s, meet the end with the front beam 13-25 cm away and touch it (-5 and
+    // -14 mm). So next to such a contested cell a cell needs two net misses to count as seen.
+    // With the flow scale as an estimator state, 217 000 740 at its own noise seed ends with no path
     // at 15.5 s, before the wall's end, 18 cm from anything (an estimate 5 cm off closed a gap): that run
     // must still touch nothing, and the world's noise seeds 1-3, which all round the end, must complete.
     let report = fly(&stressed(World::random(217_000_740)));
@@ -314,29 +314,29 @@ fn a_wall_end_grazed_into_single_misses_around_a_hit_is_still_looked_at() {
 
 #[test]
 fn a_look_along_a_beam_that_returns_nothing_gives_way_to_the_sweep() {
-    // Generated world 306 000 918 (held-out seeds of session 25, default settings): the first leg runs west
+    // Generated world 306 000 918 (a held-out seed, default settings): the first leg runs west
     // along y = 1.22 m from (5.09, 1.22), with nothing for the front beam to return from within its 4 m, and
-    // a box's corner 4 cm beside the path, 1 m ahead. Every cell ahead was unobserved, so the drone slowed
-    // and pointed its front beam at the nearest one, on the path itself: a beam with no return maps nothing,
-    // the cells stayed unobserved, and the side beams met the box only when abeam of it: main of then
-    // touched the corner (-13 mm). A look whose beam returns nothing two sweeps in a row now gives way to
+    // a box's corner 4 cm beside the path, 1 m ahead. Every cell ahead is unobserved, so the drone slows
+    // and points its front beam at the nearest one, on the path itself: a beam with no return maps nothing,
+    // the cells stay unobserved, and the side beams would meet the box only when abeam of it, touching the
+    // corner (-13 mm). So a look whose beam returns nothing two sweeps in a row gives way to
     // the heading sweep for one period, which turns the front beam onto the box's face.
-    // Generated world 252 000 829 (held-out seeds of session 23, default settings; touched by every build
-    // since): during the take-off turn the look pointed the front beam north-west into more than 4 m of open
-    // space (no return, twice); the drone then flew the straight first leg at 0.45 m/s and met a 5 cm post
-    // 10 cm beside it (-10 mm). With the sweep instead it flies that leg at 0.2-0.3 m/s and passes 9 cm clear.
+    // Generated world 252 000 829 (a held-out seed, default settings): during
+    // the take-off turn the look points the front beam north-west into more than 4 m of open space (no
+    // return, twice); flying the straight first leg at 0.45 m/s the drone would meet a 5 cm post 10 cm
+    // beside it (-10 mm). With the sweep instead it flies that leg at 0.2-0.3 m/s and passes 9 cm clear.
     completes_without_contact([World::random(306_000_918), World::random(252_000_829)]);
 }
 
 #[test]
 fn a_thin_post_in_the_swept_corridor_is_looked_at_before_the_drone_passes() {
-    // Generated world 314 001 008 (seeds of session 25, default settings): a search line ends 0.3 m from the
+    // Generated world 314 001 008 (default settings): a search line ends 0.3 m from the
     // west wall and the next one turns south at 0.5 m/s; a post about 10 cm across stands 6 cm beside it, with every beam
-    // pointing elsewhere. The beams had swept the cells around the post free, so its unseen 2 x 2 cells had
+    // pointing elsewhere. The beams sweep the cells around the post free, so its unseen 2 x 2 cells have
     // three unseen neighbours each, not the five of an unobserved region: taken for a gap between beam
-    // traces, they slowed nothing (-45 mm). Stressed world 334 001 007: the return leg flew at a similar post
-    // at 0.47 m/s the same way (-0.8 mm). Within 0.12 m of the path (the width the body sweeps) three such
-    // neighbours now make a cell unobserved.
+    // traces, they would slow nothing (-45 mm). Stressed world 334 001 007: the return leg flies at a similar
+    // post at 0.47 m/s the same way (-0.8 mm). So within 0.12 m of the path (the width the body sweeps) three
+    // such neighbours make a cell unobserved.
     completes_without_contact([World::random(314_001_008), stressed(World::random(334_001_007))]);
 }
 

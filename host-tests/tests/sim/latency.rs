@@ -47,8 +47,8 @@ fn along_track_error(seed: u64) -> (f64, f64) {
 /// ahead of where the wall is, and every sweep's map fixes pull the estimate back by as much: the estimate
 /// trails the truth. Measured over seeds 1–4 without the backdating: mean along-track error −6.7, −5.8,
 /// −10.5 and −0.7 mm (RMS 11–21 mm); with it: +1.8, −1.1, −1.0, −1.3 mm (RMS 8–11 mm).
-/// One seed's mean moves by a few millimetres with the path flown (session 15: a surface-tracker fix
-/// changed the paths, and seed 2 went from +2.2 to +4.7 mm, seed 5 from −2.3 to −2.9 mm), so the test judges
+/// One seed's mean moves by a few millimetres with the path flown (a change to the
+/// surface tracker alone moved seed 2 by 2.5 mm), so the test judges
 /// the average over seeds 1–8 (within ±3 mm; the trailing code's seeds 1–4 average −5.9 mm) and, per seed,
 /// only trailing (no seed's mean below −4 mm).
 #[test]

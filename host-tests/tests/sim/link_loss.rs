@@ -1,4 +1,4 @@
-//! The link-loss policy (issue 13 part 5, `cfnav::mission::link_loss`) flown in the simulator: the simulated
+//! The link-loss policy (`cfnav::mission::link_loss`) flown in the simulator: the simulated
 //! link delivers a packet every 10 ms until `--link-loss-at`, then nothing. Judged on the simulator's truth
 //! (where the drone was when the timeout fired, where it came to rest, which pad it landed on).
 

@@ -283,11 +283,11 @@ fn default_world_completes_and_the_estimator_stays_close_to_the_truth() {
     assert!(median_time <= 60.0, "median mission time {median_time} s");
 }
 
-/// Issue 14: the default world's round trip takes at most 55 s on its own noise seed (7) and as the median
+/// The default world's round trip takes at most 55 s on its own noise seed (7) and as the median
 /// of noise seeds 1–12, with both landings on their pads. Before the goal leg's first search line was steered
 /// onto (`src/mission/search.rs`, `line_carrot`) it took 58.0 s and 55.75 s: joined 5 cm off that line and
 /// flown straight at its far end, the first line passed the goal pad's edge, found nothing, and the next
-/// line cost ~3 s (BENCHMARKS.md §5, "Mission time (session 12, mtime)").
+/// line cost ~3 s (BENCHMARKS.md §5, mission time).
 #[test]
 fn default_world_mission_time_is_at_most_55_s() {
     let world = World::default_world();
@@ -498,7 +498,7 @@ fn runs_are_deterministic_for_a_seed() {
     );
 }
 
-/// An abort near a pad (issue 13): the landing where the drone is follows the link-loss policy's rule (one
+/// An abort near a pad: the landing where the drone is follows the link-loss policy's rule (one
 /// function, `Mission::land_where_it_is`): within 0.3 m of a pad whose centre the mission knows (the home
 /// pad, a pad once locked), or approaching / descending onto a pad, it lands on that pad's centre instead of
 /// across its rim. Aborts through the default mission (trigger at 1 s): just after take-off beside the home
@@ -618,22 +618,9 @@ fn an_abort_anywhere_in_a_pad_search_lands_on_the_pad_or_clear_of_it() {
 /// pad not located, it lands on the nearest floor spot clear of wherever that pad can be, as on the outbound
 /// leg near the goal.
 /// The start voltage is what puts the low battery in that phase, and it moves with any change of the
-/// flight: first 3.9 V (`worlds/stress-keys/battery_start_v.toml`); with the 0.22 m look beside the path
-/// (session 19) 3.887 V; with the nearest-cell look, its beam held, and the pad search's records moved with
-/// the map fixes' jumps (session 20), 3.8912 V (battery low 21.0 s into the home search with the drone's
-/// centre over the pad; of 3.8900–3.8980 V in 0.2 mV steps, only 3.8904 V gives the scene too); with the
-/// live beams bounding the navigation (session 22), 3.8926 V (low 21.2 s into the home search; of
-/// 3.8800–3.9000 V in 0.2 mV steps, seven others from 3.8872 to 3.8980 V give the scene too); with
-/// contested cells keeping their neighbours unobserved (session 23), 3.8938 V (low 21.2 s into the home
-/// search; five others from 3.8868 to 3.8970 V give the scene too); with corridor faces as landmarks
-/// (session 24), 3.8926 V (low 19.7 s into the home search; of 3.8800–3.9000 V in 0.2 mV steps, nine
-/// others from 3.8858 to 3.8998 V give the scene too); with the flow scale as a state of the estimator
-/// (session 25), 3.8940 V (low 16.2 s into the home search; of 3.8800–3.9000 V in 0.2 mV steps, seven
-/// others from 3.8872 to 3.8976 V give the scene too); with a thin post in the swept corridor counted as
-/// unobserved (session 26, branch `corridor`), 3.8924 V (low 16.4 s into the home search; of 3.8800–3.9000 V
-/// in 0.2 mV steps, 3.8886, 3.8894, 3.8928, 3.8932 and 3.8934 V give the scene too); with the grid's graze
-/// rule (session 31), 3.8938 V (of 3.8800–3.9000 V in 0.2 mV steps, 3.8894, 3.8914, 3.8942, 3.8956, 3.8964,
-/// 3.8970 and 3.8982 V give the scene too, and none gives it with a landing against the pad). The test
+/// flight; it is found by a scan of 3.8800–3.9000 V in 0.2 mV steps. With the current flight it is
+/// 3.8938 V (3.8894, 3.8914, 3.8942, 3.8956, 3.8964, 3.8970 and 3.8982 V give the scene too, and none
+/// gives it with a landing against the pad). The test
 /// checks the scene itself, so a flight change that moves it fails here rather than passing on a different
 /// scene.
 #[test]
@@ -733,7 +720,7 @@ fn flying_off_the_home_pad_keeps_the_vertical_velocity() {
 
 /// The estimator learns the flow's scale error from the arena's walls (its module docs, "Flow scale"),
 /// judged against the simulator's own: the default world flown with `flow_scale_error` −0.05, 0 and +0.05
-/// (the interfaces.md §3 example's magnitude), noise seeds 1–3. When the drone lands home (≈ 12 m flown
+/// (the magnitude of the world-file example in docs/formats.md), noise seeds 1–3. When the drone lands home (≈ 12 m flown
 /// past walls) the held scale error lies within 2.5 percentage points of the truth and within 2.5 of its
 /// own std, that std has come down from the prior's 0.05 to under 0.02, and per seed the +5 % flight holds
 /// at least 6 points more than the −5 % one: it was learnt, not left at 0. (Measured: held −4.3 to −3.4,

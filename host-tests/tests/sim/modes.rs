@@ -1,4 +1,4 @@
-//! The mission modes in the simulator (issue 13 part 3), judged on the simulator's truth: the hover test
+//! The mission modes in the simulator, judged on the simulator's truth: the hover test
 //! holds over its take-off point for `mission.hoverTime` and lands there, on several noise seeds; the
 //! exploration maps the shipped worlds to the coverage target (or until no frontier is left) and lands on
 //! the home pad; the round trip is still the default mode.
@@ -173,7 +173,7 @@ fn the_safety_rules_still_end_the_modes() {
     assert_eq!((r.reason, r.collisions), (Some("battery"), 0));
 }
 
-/// Explore's battery reserve (issue 13): a battery that lasts a fraction of what exploring the whole arena
+/// Explore's battery reserve: a battery that lasts a fraction of what exploring the whole arena
 /// (`mission.coverage = 1`: until no frontier is left) takes. Without the reserve the supervisor's
 /// battery-low latch lands the drone wherever it is (state 203, the round trip's rule); with it, the drone
 /// measures its discharge, turns home while the battery still covers the way, finds the home pad and lands
@@ -245,7 +245,7 @@ fn explore_turns_home_on_its_battery_reserve_and_lands_on_the_home_pad() {
     }
 }
 
-/// Explore's narrow-margin fallback (issue 13): the `gap` world's only opening (0.5 m) is closed at the full
+/// Explore's narrow-margin fallback: the `gap` world's only opening (0.5 m) is closed at the full
 /// inflation margin (0.25 m) and open at the narrow one (0.15 m). At the full margin no frontier beyond the
 /// wall is reachable; the exploration retries with the narrow margin before ending, so it maps the far
 /// half too, then flies home and lands on the home pad.

@@ -1,4 +1,4 @@
-//! Pad search and landing in clutter (issue 14, part 4), judged on the simulator's truth: generated worlds
+//! Pad search and landing in clutter, judged on the simulator's truth: generated worlds
 //! (the widened generator, tuning seeds 7 000 000 + k of `--random 200 --seed 7`) in which the code before
 //! the descent gate came down at the goal pad's edge and touched its side, or did not find a pad next to a
 //! wall. The oracle is the world's geometry: the gap between the goal pad and the nearest wall or obstacle,
@@ -70,13 +70,12 @@ fn pads_beside_walls_and_obstacles_are_found_and_landed_on() {
     //
     // The first pad sits in a pocket (a wall 0.15 m below it, a cylinder 0.17 m beside it), where a search
     // line can hardly cross it, and whether a crossing locks depends on the noise: on its own noise seed
-    // and seeds 1–60, 58 of 61 runs find it, before and after the level calibration alike (session 17;
-    // the others end safely, state 202, clear of the pad). So it flies its own seed and seeds 1–40: at
+    // and seeds 1–60, 58 of 61 runs find it, with the level calibration (the others end safely, state 202, clear of the pad). So it flies its own seed and seeds 1–40: at
     // least 90 % must complete (38 of 41 did), and every run must stay clear of everything and land on a
-    // pad or clear of it (the code before the level calibration touched the cylinder on seed 33).
+    // pad or clear of it (without the level calibration the drone touches the cylinder on seed 33).
     for seed in [7_000_051u64, 7_000_112] {
-        // 7 000 112 is the world the generator drew before starts beside the home pad kept 3 cm
-        // (`START_PAD_GAP_M`, session 19: its start is 2 cm clear), kept as it was in a file.
+        // 7 000 112 is kept in a file as an older generator drew it: its start is 2 cm clear of the home
+        // pad, closer than the 3 cm the generator now keeps (`START_PAD_GAP_M`).
         let world = if seed == 7_000_112 {
             World::from_toml_str(include_str!("worlds/random-7000112.toml"), "random-7000112.toml")
                 .expect("the kept world loads")
@@ -149,15 +148,15 @@ fn default_world_with_goal_pad(name: &str, pad: [f32; 2], goal: [f32; 2]) -> Wor
 #[test]
 fn a_pad_against_a_wall_or_in_a_corner_is_found_and_landed_on() {
     // The goal pad 0.1 m from the east wall, and 0.11 m from both walls of the north-east corner: the
-    // search lines towards a wall stop 0.18 m from it, on the pad, so no line sees the far side. Before
-    // the half crossings (`PadDetector::line_ended`) the corner pad was not found on any of these noise
-    // seeds (state 202, the drone came to rest 0.9-1.2 m off it) and `wallS` seed 2 neither; now each
+    // search lines towards a wall stop 0.18 m from it, on the pad, so no line sees the far side. Without
+    // the half crossings (`PadDetector::line_ended`) the corner pad is not found on any of these noise
+    // seeds (state 202, the drone comes to rest 0.9-1.2 m off it) and `wallS` seed 2 neither; with them each
     // lands on the pad's top, within 8 cm of its centre, without touching anything. Oracle: the world's
     // geometry (the gap below) and the runner's truth. The bound is not met by luck on these seeds: over
-    // noise seeds 1–60 (session 23) the goal landing is within 3.7 cm in `corner` and 7.8 cm in `wallS`
+    // noise seeds 1–60 the goal landing is within 3.7 cm in `corner` and 7.8 cm in `wallS`
     // (median 1.8, p95 4.8 cm; one seed above 6 cm). The worst is seed 4: the estimate is 8-9 cm off in x
     // when the search starts (it grew by 6 cm over 2 s of fast heading swings with no fix in x), and the
-    // lock is made with it; main of session 22 landed that seed 5.0 cm off from the same error.
+    // lock is made with it.
     let cases = [
         ("corner", [5.74, 2.74], [5.50, 2.60], [2u64, 3, 4]),
         ("wallS", [3.5, 0.26], [3.45, 0.5], [2, 3, 4]),
@@ -202,8 +201,8 @@ fn pads_boxed_in_by_a_wall_and_an_obstacle_are_found() {
     ];
     // Each world on its own noise seed and five others: a boxed-in pad's search is chaotic (a few mm of
     // estimate change the lines the map allows), so one seed says little. Every run collision-free, and at
-    // least four of the six with both landings on the pads' tops (before the fixes: none). Measured once
-    // the rangers' latency was modelled (session 11): 22 000 227 misses two (its own seed and seed 4: the
+    // least four of the six with both landings on the pads' tops (before the fixes: none). Measured with the
+    // rangers' latency modelled: 22 000 227 misses two (its own seed and seed 4: the
     // search gives up; SITL without the latency completed all six), the stressed 20 000 113 one (its own
     // seed), the other two none.
     for world in worlds {
@@ -246,9 +245,9 @@ fn a_landing_clear_of_a_pad_never_found_keeps_off_its_corner() {
     // (state 14). Now the spot farthest from the nominal goal is taken. Oracle: the runner's truth (the
     // landing's distance from the pad against its half diagonal plus the body's radius, the collisions).
     // The goal pad is lowered under the detector's 3 cm least step: never found whatever the search lines
-    // do (session 21's search found the 10 cm pad of this world), and still a solid the body touches if it
-    // comes down on its corner. At 2.5 cm the step plus the ranger's noise reached the threshold on session
-    // 24's flight, which found that pad and landed on it 2.3 cm off; at 1.5 cm it stays unseen.
+    // do (at its full 10 cm the search finds it), and still a solid the body touches if it comes down on
+    // its corner. At 2.5 cm the step plus the ranger's noise can reach the threshold (the pad is then found
+    // and landed on); at 1.5 cm it stays unseen.
     let mut world = World::random(157_000_588);
     world.pads.last_mut().expect("a goal pad").height = 0.015;
     let r = fly(&world);

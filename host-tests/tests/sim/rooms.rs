@@ -10,7 +10,7 @@ use cfnav_sim::world::{
 use rand::rngs::SmallRng;
 use rand::{Rng, SeedableRng};
 
-/// A world file using every rooms key (interfaces.md §3's example, in a 6 × 3 m arena).
+/// A world file using every rooms key (docs/formats.md (world files)'s example, in a 6 × 3 m arena).
 const ROOM: &str = r#"
 [arena]
 size = [6.0, 3.0]

@@ -1,4 +1,4 @@
-//! The stress tables (`cfnav_sim::stress`, interfaces.md §3 `[sensors]`/`[disturbances]`, §1
+//! The stress tables (`cfnav_sim::stress`, docs/formats.md: world files `[sensors]`/`[disturbances]`, commands
 //! `--stress FILE`): every key's range (bad input names the key, in world files, in stress files and at the
 //! command line with exit 2), absent keys = the simulator's defaults (explicit defaults fly the identical
 //! run), `--stress` overrides key by key, and each effect measured on the sensor or physics model against
@@ -63,7 +63,7 @@ fn sim_args() -> SimArgs {
     }
 }
 
-/// (table, key, value text) that are out of range per interfaces.md §3 (and this simulator's wind limit).
+/// (table, key, value text) that are out of range per the world-file format of docs/formats.md (and this simulator's wind limit).
 const BAD: &[(&str, &str, &str)] = &[
     ("sensors", "flow_noise_counts", "-0.1"),
     ("sensors", "flow_noise_counts", "nan"),

@@ -902,7 +902,7 @@ impl Traversability for Blocked {
     }
 }
 
-/// The generator used up to issue 14 (`--generator classic`), kept seed for seed.
+/// The older generator (`--generator classic`), kept seed for seed.
 #[test]
 fn classic_random_worlds_are_valid_solvable_deterministic_and_varied() {
     let mut texts = HashSet::new();
@@ -994,7 +994,7 @@ fn zig_zag(w: &World) -> bool {
     across.len() >= 2 && across.windows(2).all(|p| p[0].1 != p[1].1)
 }
 
-/// The widened generator (issue 14, the default of `--random`): valid, solvable, deterministic; arenas from
+/// The widened generator (the default of `--random`): valid, solvable, deterministic; arenas from
 /// 4 × 2 to 6.4 × 3.2 m sized for the grid the firmware maps (the large-arena build exactly when the cells
 /// exceed the default build's); goal pads up to 0.35 m from the nominal goal; and the situations the issue
 /// lists each in a good share of worlds: a goal pad 0.1–0.25 m from a wall or from an obstacle, a forest of

@@ -1,4 +1,4 @@
-//! The EEPROM config block (`crazyflie-hardware.md` §1.5; stock `configblockeeprom.c` layouts v0/v1) and the
+//! The EEPROM config block (docs/hardware.md §1; stock `configblockeeprom.c` layouts v0/v1) and the
 //! radio boot packets (§3.3, §3.4 and the worked frame examples of §3.2). Blocks are built here byte by byte
 //! from the documented layout, with the checksum computed here.
 

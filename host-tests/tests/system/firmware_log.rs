@@ -1,4 +1,4 @@
-//! The one log table the firmware and the simulator serve: the interfaces.md §5 variables with their ids
+//! The one log table the firmware and the simulator serve: the docs/radio.md variables with their ids
 //! unchanged, then the CPU-load and loop-timing variables, then the stock names cfclient logs; values by id in
 //! the stock units and signs; the TOC the log service serves from it (count and CRC).
 

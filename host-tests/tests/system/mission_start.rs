@@ -1,4 +1,4 @@
-//! `mission.start` bookkeeping between the radio and an asynchronous mission task (interfaces.md §5: a
+//! `mission.start` bookkeeping between the radio and an asynchronous mission task (docs/radio.md: a
 //! refused start leaves the value in effect at 0; the firmware sets it back to 0 when the mission ends),
 //! including the race where the outcome has not come back yet.
 

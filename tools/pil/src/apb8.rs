@@ -22,9 +22,9 @@
 //! sequence, run on every ring-buffer read) finds the byte already gone and reads the same value again. In
 //! rsemu 0.0.7 the byte waits for the DMA's next scheduling quantum, and a CPU read of SR even pulls the next
 //! host byte in at once (`st.usart` `poll_receiver` on every register read): the DR read then took a byte
-//! from the DMA's stream, one corrupted syslink frame in about twenty uplinks (docs/pil.md, milestone 2).
+//! from the DMA's stream, one corrupted syslink frame in about twenty uplinks (docs/pil.md).
 //! Keeping only a byte already in DR (RXNE set) was not enough: with RXNE clear the ordinary DR read pulled
-//! the next host byte in and consumed it in the same access, about one byte in 12 000 (session 26).
+//! the next host byte in and consumed it in the same access, about one byte in 12 000.
 //! [`USART_RX_KEPT`] counts the reads that found a byte waiting; [`set_usart_cpu_steals`] restores the 0.0.7
 //! behaviour for comparison.
 //!
@@ -105,7 +105,7 @@ impl Ops {
     /// receives and no error flag waits for the SR-then-DR clear, whether or not RXNE is up yet. With RXNE
     /// clear the ordinary read would still take one: `st.usart` pulls the next host byte into DR on any
     /// register read (`poll_receiver`) and the DR read then consumes it, so the byte arrives exactly when the
-    /// CPU looks and never reaches the ring (one lost syslink byte in about 12 000, session 26). On the part
+    /// CPU looks and never reaches the ring (one lost syslink byte in about 12 000). On the part
     /// a DR read with RXNE clear returns the last byte again and the next one arrives on the line's time.
     fn keep_for_dma(&self, space: &AddressSpace) -> MemResult<bool> {
         let sr = space.read(self.base + USART_SR, Width::U32, MemAttrs::DEBUG)?;

@@ -4,9 +4,9 @@
 //!
 //! Job: everything that touches rsemu's API, so the rest of the tool is plain Rust.
 //!
-//! Non-goals: no physics (later milestones), no bootloader: the first 16 KiB of flash hold a two-word vector
+//! Non-goals: no physics (that is `physics.rs`), no bootloader: the first 16 KiB of flash hold a two-word vector
 //! table (the application's initial SP and reset vector), which is what the Crazyflie bootloader hands over
-//! (crazyflie-hardware.md §1.3: it loads MSP from 0x08004000 and jumps to its reset vector; the image sets VTOR
+//! (docs/hardware.md §1: it loads MSP from 0x08004000 and jumps to its reset vector; the image sets VTOR
 //! itself, cortex-m-rt `set-vtor`). The application bytes are the ELF's LOAD segments, unmodified.
 
 use std::sync::Arc;

@@ -1,4 +1,4 @@
-//! A scripted radio host inside the emulator (issue 15, milestone 2): cflib's connect sequence as a fixed
+//! A scripted radio host inside the emulator: cflib's connect sequence as a fixed
 //! list of CRTP requests, each sent when the previous one was answered (cflib waits for every TOC answer the
 //! same way), all on **virtual** time, so a run is deterministic and reproduces what a real cflib did over UDP
 //! without the wall clock.
@@ -10,7 +10,7 @@
 //!
 //! Sequences (`--client`): `toc` = link source, protocol version, log reset, log TOC info, every log TOC item,
 //! param TOC info, every param TOC item, then every parameter's value (what `SyncCrazyflie` does with no
-//! cache, crtp-over-udp.md §3), optionally repeated (`toc:N`) so a long run shows a stall; `early` = the same,
+//! cache, docs/radio.md), optionally repeated (`toc:N`) so a long run shows a stall; `early` = the same,
 //! `toc:N:GAP` waits GAP virtual ms after each answer before the next request (cflib's pacing over a slow link).
 //! `burst:N` = N log TOC item requests handed over at once (pipelined, as a raw-UDP probe sends them), so the
 //! nRF forwards one per ms: the image answers back to back.

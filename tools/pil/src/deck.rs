@@ -2,7 +2,7 @@
 //! whose pins hold the XSHUT lines of five VL53L1x rangers) and the Flow deck v2's VL53L1x height ranger
 //! (no XSHUT: powered from power-on), as one [`I2cSlave`] so the expander's pins can power the rangers.
 //!
-//! Job (issue 15 milestone 3): answer the image's bring-up and reads the way the chips do, with ranges the
+//! Job: answer the image's bring-up and reads the way the chips do, with ranges the
 //! host sets from the simulator's world ([`DeckSensors::set_ranges`]) and time the host advances
 //! ([`DeckSensors::advance`]).
 //!
@@ -37,7 +37,7 @@ use std::sync::Mutex;
 
 use rsemu::bus::i2c::{Ack, Address, Direction, I2cSlave};
 
-/// The expander's 7-bit address (crazyflie-hardware.md §5.5; `cfnav::drivers::pca95x4::DEFAULT_ADDRESS`).
+/// The expander's 7-bit address (docs/hardware.md §2; `cfnav::drivers::pca95x4::DEFAULT_ADDRESS`).
 pub const EXPANDER_ADDRESS: u8 = 0x20;
 /// A VL53L1x's address after power-up.
 pub const VL53_DEFAULT_ADDRESS: u8 = 0x29;

@@ -1,20 +1,20 @@
 //! Device models on the emulated Crazyflie's buses, written against rsemu's public [`I2cSlave`] trait and
 //! attached to the machine's named buses ("sensors" = I2C3, "deck" = I2C1) from outside the emulator crate.
 //!
-//! Job (milestone 1): answer what the boot reads, the way the chips do. The BMI088 (I2C3, accelerometer 0x18,
+//! Job: answer what the boot reads, the way the chips do. The BMI088 (I2C3, accelerometer 0x18,
 //! gyroscope 0x69) with its chip ids, reset values, soft reset, data-ready status bits and a level,
 //! motionless sample; the deck EEPROM (I2C1, 0x50, 24AA64: 8 KiB, two address bytes) holding a valid config
 //! block. Nothing else answers on the deck bus (no Multi-ranger, no Flow deck: their probes see NACKs).
 //!
-//! Fault injection ([`Faults`]): the BMI088 that does not acknowledge the soft-reset command byte (issue 12
-//! item 2: it resets at once and NACKs), and a sensor bus where no device acknowledges anything (an IMU that
+//! Fault injection ([`Faults`]): the BMI088 that does not acknowledge the soft-reset command byte (a real
+//! part can: it resets at once and NACKs), and a sensor bus where no device acknowledges anything (an IMU that
 //! is not there, as the I2C master sees it). A bus whose SDA is held low by a slave is `crate::stuck`.
 //!
-//! Non-goals: no physics yet (milestone 3 feeds the simulator's truth), no data-ready pulses on PC14, no
+//! Non-goals: no physics (`physics.rs` feeds the simulator's truth), no data-ready pulses on PC14, no
 //! write-cycle timing in the EEPROM.
 //!
 //! Units: raw chip counts. Sources: Bosch BMI088 datasheet (BST-BMI088-DS001) §5.3 (accelerometer register
-//! map: ACC_CHIP_ID 0x1E, reset values), §6 (gyroscope: GYRO_CHIP_ID 0x0F); crazyflie-hardware.md §1.5 (the
+//! map: ACC_CHIP_ID 0x1E, reset values), §6 (gyroscope: GYRO_CHIP_ID 0x0F); docs/hardware.md §1 (the
 //! EEPROM and the config block layout); the register constants are the firmware's own
 //! (`cfnav::drivers::bmi088::reg`).
 
@@ -323,7 +323,7 @@ struct EepromState {
 /// 24AA64: 8 KiB.
 pub const EEPROM_SIZE: usize = 8192;
 
-/// A valid config block (crazyflie-hardware.md §1.5): version 1, channel 80, 2 Mbit/s, no trim,
+/// A valid config block (docs/hardware.md §1): version 1, channel 80, 2 Mbit/s, no trim,
 /// address 0xE7E7E7E7E7, and the byte-sum checksum.
 pub fn default_config_block() -> Vec<u8> {
     let mut b = Vec::new();

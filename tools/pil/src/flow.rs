@@ -3,7 +3,7 @@
 //! software NSS), which rsemu's `stm32.spi` does not see, so `pil.cs` watches PB4's net and selects chip
 //! select 0 of the "flowdeck" SPI bus while the pin is low.
 //!
-//! Job (issue 15 milestone 3): answer the power-up sequence and the motion burst as the chip does, with
+//! Job: answer the power-up sequence and the motion burst as the chip does, with
 //! motion the host adds from the simulator's truth ([`Pmw3901::add_motion`]).
 //!
 //! Protocol (bitcraze `pmw3901.c`, PixArt PMW3901MB datasheet; the firmware's `cfnav::drivers::pmw3901`

@@ -1,4 +1,4 @@
-//! A hover test without cflib (issue 15 milestone 3): the scripted CRTP parameter writes the nRF51 model
+//! A hover test without cflib: the scripted CRTP parameter writes the nRF51 model
 //! injects at a virtual time ([`Script`]), and the judge of the flight on the simulator's truth
 //! ([`HoverJudge`]), plus the image's own load figures from its defmt log ([`LoadLine`]).
 //!
@@ -96,7 +96,7 @@ impl Script {
         }
     }
 
-    /// The round trip (`--mission`, milestone 4): `mission.mode` = 0, the world's start, goal, height and
+    /// The round trip (`--mission`): `mission.mode` = 0, the world's start, goal, height and
     /// speed (as `cfnav sim` gives them, `mission_params`), then `mission.start` = 1. The arena size has no
     /// parameter: the image's default (6 × 3 m, the default world's) is what it flies.
     pub fn round_trip(world: &cfnav_sim::world::World) -> Self {

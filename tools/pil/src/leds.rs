@@ -1,7 +1,7 @@
 //! The status LEDs as the GPIO model drives them, and which README status they show.
 //!
 //! Job: turn GPIOC/GPIOD's MODER and ODR into a [`LedFrame`] (BLUE_L PD2 active high; GREEN_L PC1, RED_L PC0,
-//! GREEN_R PC2, RED_R PC3 active low, crazyflie-hardware.md §7; a pin that is not an output lights nothing),
+//! GREEN_R PC2, RED_R PC3 active low, docs/hardware.md §1; a pin that is not an output lights nothing),
 //! and classify a one-second window of samples against the firmware library's own pattern definition
 //! ([`led_frame`]): a status is shown when every sample of the window equals its pattern at some instant of
 //! the last [`LAG_MS`] (the LED task redraws every 25 ms).

@@ -3,11 +3,11 @@
 //! LEDs through the GPIO model, the defmt log from its RTT buffer, FLASH_ACR, watchdog resets, the syslink
 //! packets it sends, and its I2C traffic to the BMI088 model.
 //!
-//! Milestone 1 of issue 15 (docs/pil.md): the image boots to "ready". Exit 0 when the LEDs showed the expected
+//! Boot (docs/pil.md): the image boots to "ready". Exit 0 when the LEDs showed the expected
 //! status (`--expect`: "ready" by default, "fault" for a fault that must end safe) for a whole second and the
 //! IWDG never reset the core, 1 when not within the time limit, 2 on a usage or setup error.
 //!
-//! Milestone 2 (partly landed, docs/pil.md): the nRF51 end of the syslink (`nrf51.rs`: setting echoes,
+//! Radio (docs/pil.md): the nRF51 end of the syslink (`nrf51.rs`: setting echoes,
 //! SYS_NRF_VERSION, the 100 Hz battery/RSSI stream, RADIO_RAW both ways) and, with `--serve [ADDR]`, its radio
 //! host as a UDP socket with `cfnav sim --serve`'s framing (`udp_bridge.rs`), so cflib's `udp://` link reaches
 //! the image. A served run depends on when datagrams arrive (wall clock): it is not deterministic; its budget
@@ -87,7 +87,7 @@ struct Args {
     /// The nRF51 end stays silent (no echo of the radio settings): a syslink whose radio chip does not answer.
     #[arg(long)]
     silent_nrf: bool,
-    /// Serve the radio over UDP (milestone 2): cflib's `udp://ADDR` connects to the image as to `cfnav sim
+    /// Serve the radio over UDP: cflib's `udp://ADDR` connects to the image as to `cfnav sim
     /// --serve` (one datagram = one CRTP packet). Implies --no-stop; the run ends after --seconds virtual.
     #[arg(long, num_args = 0..=1, default_missing_value = "127.0.0.1:19850", value_name = "ADDR")]
     serve: Option<String>,
@@ -114,21 +114,21 @@ struct Args {
     #[arg(long, value_name = "S")]
     serve_seconds: Option<f64>,
     /// Model USART6 as rsemu 0.0.7 does: a CPU read of DR takes a byte the receive DMA was due to take (the
-    /// cause of the milestone-2 stall, kept to show it; docs/pil.md).
+    /// cause of a connect stall, kept to show it; docs/pil.md).
     #[arg(long)]
     usart_cpu_steals: bool,
     /// Sample the core's registers and stack (return-address candidates) at the first panic line of the log
     /// and at the end of the run (for `arm-none-eabi-addr2line`).
     #[arg(long)]
     probe: bool,
-    /// The Multi-ranger deck is not fitted (milestone 3 models it by default).
+    /// The Multi-ranger deck is not fitted (it is modelled by default).
     #[arg(long)]
     no_multiranger: bool,
     /// The Flow deck v2 is not fitted (PMW3901 and its VL53L1x).
     #[arg(long)]
     no_flow: bool,
     /// A simulator world file (`worlds/*.toml`): the sensors see it and the motors fly the simulator's body
-    /// in it (milestone 3). Without it (and without --hover) the board sits on a bench: a level, motionless
+    /// in it. Without it (and without --hover) the board sits on a bench: a level, motionless
     /// IMU and fixed ranges.
     #[arg(long)]
     world: Option<PathBuf>,
@@ -142,7 +142,7 @@ struct Args {
     /// Seed of the sensor noise streams (as `cfnav sim --seed`).
     #[arg(long, default_value_t = 1)]
     seed: u64,
-    /// The round trip without cflib (milestone 4): the nRF51 injects `mission.mode` = 0, `mission.height`
+    /// The round trip without cflib: the nRF51 injects `mission.mode` = 0, `mission.height`
     /// (the world's) and `mission.start` = 1; the flight is scored on the truth as `cfnav sim` scores it
     /// (collisions, landings, distance, mission time; `tools/pil/compare_sitl.py` compares the two). The run
     /// ends 1 s after the mission ended with the drone at rest, or at --seconds (default 120). Exit 0 when
@@ -154,7 +154,7 @@ struct Args {
     /// `trace` lines.
     #[arg(long)]
     trace: bool,
-    /// With --mission: also write the run in `cfnav sim --json`'s format (interfaces.md §4: world, seed,
+    /// With --mission: also write the run in `cfnav sim --json`'s format (docs/formats.md (report format): world, seed,
     /// outcome, reason, mission time, collisions, clearance, landings, distance, virtual and wall time;
     /// `replans` is null, the planner's count stays inside the image), so a script reads both the same way.
     #[arg(long, requires = "mission", value_name = "FILE")]
@@ -188,7 +188,7 @@ fn positive_speed(text: &str) -> std::result::Result<f64, String> {
     }
 }
 
-/// A run in `cfnav sim --json`'s format (interfaces.md §4).
+/// A run in `cfnav sim --json`'s format (docs/formats.md, report format).
 #[derive(Debug, Serialize)]
 struct SimReport<'a> {
     world: &'a str,
@@ -290,7 +290,7 @@ struct Report {
     /// The image's deck flags (`deck.bcMultiranger`, `deck.bcFlow2`) read from its RAM at the end.
     deck_multiranger: Option<bool>,
     deck_flow2: Option<bool>,
-    /// The deck bus rangers and expander (milestone 3 models).
+    /// The deck bus rangers and expander models.
     deck_bus: deck::DeckStats,
     /// Each ranger's I2C address at the end (front, back, up, left, right, down; null = powered off).
     ranger_addresses: [Option<u8>; 6],
@@ -299,7 +299,7 @@ struct Report {
     /// The stuck-SDA slaves on I2C3 and I2C1 (`--fault sensor-bus-stuck` / `deck-bus-stuck`).
     sensor_bus_sda: stuck::StuckStats,
     deck_bus_sda: stuck::StuckStats,
-    /// The world flown in (milestone 3), if the physics ran.
+    /// The world flown in, if the physics ran.
     world: Option<String>,
     /// The hover test's verdict on the truth (`--hover`).
     hover: Option<hover::HoverReport>,
@@ -1181,7 +1181,7 @@ mod sim_report_tests {
         };
         let v = serde_json::to_value(SimReport::of("default", 1, &m, 56.6, 1152.0)).unwrap();
         let keys: Vec<&str> = v.as_object().unwrap().keys().map(String::as_str).collect();
-        // interfaces.md §4's one-run object, then the end state the image logged.
+        // docs/formats.md (report format)'s one-run object, then the end state the image logged.
         for k in [
             "world",
             "seed",

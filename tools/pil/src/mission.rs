@@ -1,4 +1,4 @@
-//! The round trip in the emulator (issue 15 milestone 4, `--mission`): the judge of the flight on the
+//! The round trip in the emulator (`--mission`): the judge of the flight on the
 //! simulator's truth, scored the way `cfnav sim` scores it (`tools/src/sim/runner.rs` `Score`), so that the
 //! two reports can be compared line by line (`tools/pil/compare_sitl.py`).
 //!
@@ -27,7 +27,7 @@ pub struct MissionReport {
     /// "completed", "aborted", "crashed" (a collision or a tumble) or "timeout" (no end state logged within
     /// the run), as the simulator decides.
     pub outcome: String,
-    /// Why it did not complete, in the simulator's words (interfaces.md §4: `no_path`, `pad_not_found`,
+    /// Why it did not complete, in the simulator's words (docs/formats.md (report format): `no_path`, `pad_not_found`,
     /// `battery`, `collision`, ...); `None` when completed.
     pub reason: Option<String>,
     /// The end state the image logged (100 = completed).

@@ -1,4 +1,4 @@
-//! The nRF51 end of the syslink (issue 15, milestone 2): what the radio chip answers the image over USART6.
+//! The nRF51 end of the syslink: what the radio chip answers the image over USART6.
 //!
 //! Job: given each syslink packet the image sends and the virtual time, say what the nRF51 firmware sends
 //! back; after PM_BATTERY_AUTOUPDATE, produce its periodic PM_BATTERY_STATE and RADIO_RSSI packets; forward
@@ -7,7 +7,7 @@
 //! Non-goals: ESB timing, safelink (the nRF handles it alone; the image ignores header bits 2–3), one-wire
 //! memories, power switching, P2P, BLE. Units: virtual time in ns.
 //!
-//! Facts (`/work/shared/reference/crazyflie-hardware.md`, from bitcraze/crazyflie2-nrf-firmware `src/main.c`):
+//! Facts (docs/hardware.md, from bitcraze/crazyflie2-nrf-firmware `src/main.c`):
 //! * §3.3: RADIO_CHANNEL/DATARATE/ADDRESS/POWER are echoed; RADIO_READY is acknowledged with the same type
 //!   (len 0) and the ESB receiver stays off until it arrives; SYS_NRF_VERSION is answered with a NUL-terminated
 //!   "tag (platform)" string.

@@ -1,4 +1,4 @@
-//! The simulator's physics behind the emulated sensors (issue 15 milestone 3): the same rigid body, motors,
+//! The simulator's physics behind the emulated sensors: the same rigid body, motors,
 //! battery, world geometry and sensor noise models as `cfnav sim` (the `cfnav_sim` crate,
 //! `tools/sim/src/{physics,sensors,world,stress}.rs`), stepped in the emulator's virtual time.
 //!
@@ -7,7 +7,7 @@
 //! battery voltage to the nRF51's PM packets); after it, the motor duties the image left in TIM2/TIM4's
 //! compare registers drive the body for the slice's length.
 //!
-//! Motors (crazyflie-hardware.md §6, `src/board/motors.rs`): M1 = TIM2 CCR2, M2 = TIM2 CCR4, M3 = TIM2 CCR1,
+//! Motors (docs/hardware.md §3, `src/board/motors.rs`): M1 = TIM2 CCR2, M2 = TIM2 CCR4, M3 = TIM2 CCR1,
 //! M4 = TIM4 CCR4; a channel counts only while its timer runs (CR1.CEN) and its output is enabled
 //! (CCER.CCxE); duty = CCR / (ARR + 1) on the 8-bit scale the simulator takes (RM0090 §18.3.9, PWM mode 1).
 //!

@@ -1,4 +1,4 @@
-//! `pil.stuck`: a slave that holds SDA low (issue 15 milestone 5, the first-flash issue's stuck bus).
+//! `pil.stuck`: a slave that holds SDA low (the stuck bus a first flash can meet).
 //!
 //! Job: reproduce the bus a real chip leaves behind when a transfer is cut mid-byte (the MCU reset by the
 //! watchdog or a debugger while the chip was sending a 0 bit): the slave keeps SDA low and waits for the

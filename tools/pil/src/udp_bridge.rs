@@ -1,8 +1,8 @@
-//! The radio host as a UDP socket (issue 15, milestone 2): cflib's `udp://` link talks to the emulated image
+//! The radio host as a UDP socket: cflib's `udp://` link talks to the emulated image
 //! as it does to `cfnav sim --serve`.
 //!
 //! Job: bind a UDP socket, take datagrams without blocking (one datagram = one CRTP packet `[header, data…]`,
-//! no length or checksum: `/work/shared/reference/crtp-over-udp.md` §1, the framing `tools/src/sim/serve.rs`
+//! no length or checksum: docs/radio.md, the framing `tools/src/sim/serve.rs`
 //! uses), remember the latest client, send the image's packets to it. A null packet (a bare 0xFF scan probe,
 //! `0xF3`/`0xF4`) is answered with 0xFF at once, as `sim --serve` does, so cflib's scan finds the emulator.
 //! Non-goals: more than one client, retries (cflib's UDP driver has none; nor does this). Memory: one

@@ -1,5 +1,5 @@
 //! The control step and the longest thread-mode slice, in exact Cortex-M4 instructions (this file is the
-//! board helper's section of the benchmark; the planner scenario is `lib.rs` + `mcu.rs`).
+//! board layer's section of the benchmark; the planner scenario is `lib.rs` + `mcu.rs`).
 //!
 //! Control step: what the firmware's control task does per gyro edge after the IMU read (`src/board/
 //! control.rs`): drain the queued inputs into the [`Stabilizer`] (flow 100 Hz, height 40 Hz, Multi-ranger

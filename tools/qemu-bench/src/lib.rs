@@ -1,6 +1,6 @@
 //! The seed-scenario benchmark of the firmware's planner ([`ArenaPlanner`]), independent of how work is counted.
 //!
-//! Job: parse `maps/seed.map` without allocation, replay it as `cfnav plan` does (shared/spec/interfaces.md
+//! Job: parse `maps/seed.map` without allocation, replay it as `cfnav plan` does (docs/formats.md
 //! §2) with a sense radius of [`SENSE_RADIUS`] cells, and time every planner call through a [`Meter`]. The
 //! Cortex-M4 binary (`src/main.rs`) plugs in an exact instruction counter under QEMU; host tests use
 //! [`NoMeter`] to check the scenario itself.
@@ -101,7 +101,7 @@ fn rows(text: &str) -> impl Iterator<Item = (usize, &[u8])> {
 }
 
 impl World {
-    /// Parse a map text (shared/spec/interfaces.md §2); the belief starts with the `#` cells only.
+    /// Parse a map text (docs/formats.md, map format); the belief starts with the `#` cells only.
     pub fn parse(text: &str) -> Result<Self, MapError> {
         let (_, first) = rows(text).next().ok_or(MapError::Empty)?;
         let width = first.len();
@@ -533,7 +533,7 @@ pub fn run(
         here = next;
     }
 
-    // 2. The flight: move one cell, sense, replan, until the goal (interfaces.md §2).
+    // 2. The flight: move one cell, sense, replan, until the goal (docs/formats.md, map format).
     here = start;
     report.moves = 0;
     report.flight_cost = 0;

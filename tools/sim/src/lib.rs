@@ -2,7 +2,7 @@
 //! (`cfnav-tools`, `cfnav sim`) and the processor-in-the-loop emulator (`tools/pil`), so that both fly the
 //! same physics against the same worlds and write the same records.
 //!
-//! - [`world`]: world files (shared/spec/interfaces.md §3), the default world, random worlds, ray casting
+//! - [`world`]: world files (docs/formats.md, world files), the default world, random worlds, ray casting
 //!   and collision geometry.
 //! - [`physics`]: the rigid-body quadrotor, motors, battery, contacts.
 //! - [`sensors`]: the drone's sensors as the drivers deliver them (types in `cfnav::types`).

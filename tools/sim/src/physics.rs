@@ -11,7 +11,7 @@
 //! Motor `i` sits at body `(x_i, y_i, 0)` and pushes `T_i` along body +z. Its torque on the body is
 //! `r_i × F_i = (y_i·T_i, −x_i·T_i, 0)` plus the propeller's reaction (drag) torque about z,
 //! `∓ THRUST2TORQUE·T_i`: a propeller spinning counter-clockwise seen from above drags the body clockwise
-//! (negative yaw torque), and vice versa (crazyflie-hardware.md §6; the stock mixers agree: the legacy
+//! (negative yaw torque), and vice versa (docs/hardware.md §3; the stock mixers agree: the legacy
 //! mixer adds `+yaw` to M1/M3 after the PID negated it, the force/torque mixer subtracts `τz/(4k)` from
 //! M1/M3). With the stock layout (positions ±0.031 m, [SIM] model.sdf):
 //!
@@ -84,7 +84,7 @@ pub struct BatteryParams {
     /// Capacity, mAh. Stock CF2.1 battery: 250 mAh 1S LiPo.
     pub capacity_mah: f32,
     /// Open-circuit voltage at state of charge 0 %, 10 %, …, 100 %, V. 0–90 %: the stock firmware's LiPo
-    /// table (pm_stm32f4.c, crazyflie-hardware.md §10.3); 100 %: 4.20 V, a full LiPo's charge voltage.
+    /// table (pm_stm32f4.c, docs/hardware.md §3); 100 %: 4.20 V, a full LiPo's charge voltage.
     pub ocv_table_v: [f32; 11],
     /// Ohmic resistance of the cell, connector, traces and MOSFETs, Ω.
     pub r0_ohm: f32,
@@ -283,7 +283,7 @@ pub struct QuadParams {
     /// (off-diagonals < 2 × 10⁻⁶ neglected; the decks, near the centre, add a few % that are neglected too).
     pub inertia_kg_m2: [f32; 3],
     /// Motor positions (body x, y), m, in the order M1..M4. Default (±0.031, ±0.031) ([SIM] model.sdf,
-    /// crazyflie-hardware.md §6).
+    /// docs/hardware.md §3).
     pub motor_positions_m: [[f32; 2]; 4],
     /// Sign of each motor's reaction yaw torque per unit thrust: −1 for a prop spinning CCW seen from above
     /// (M1, M3), +1 for CW (M2, M4).

@@ -1,5 +1,5 @@
 //! The records the simulator and the emulator both write: a [`Landing`] (in `cfnav sim --json`'s report,
-//! interfaces.md §4, and in the emulator's `--sim-json` counterpart) and the emulator's `--track` file
+//! docs/formats.md, report format; and in the emulator's `--sim-json` counterpart) and the emulator's `--track` file
 //! ([`Track`], [`TrackPoint`]), which `cfnav pil --plot` reads back to draw with the simulator's figure.
 //! One definition for the writer and the reader, so a renamed field cannot pass unnoticed.
 //!

@@ -602,9 +602,9 @@ pub struct MultiRangerParams {
     pub outlier_probability: f32,
     /// Half of a horizontal beam's field of view, rad; 0 (the default) models a single ray along the
     /// axis. The real sensor's is 13.5° ([`VL53L1X_HALF_FOV_RAD`]), but the firmware does not read its
-    /// returns as cones yet (BENCHMARKS.md §5, session 10: the cone model with today's firmware, and with a
+    /// returns as cones yet (BENCHMARKS.md §5: the cone model with today's firmware, and with a
     /// first cone-aware map, grows the mission time and the no-path aborts), so the simulator's default
-    /// stays the ray until it does. No world or `[sensors]` key sets it (interfaces.md §3 is unchanged).
+    /// stays the ray until it does. No world or `[sensors]` key sets it (the world-file format in docs/formats.md has none).
     pub cone_half_angle_rad: f32,
 }
 

@@ -1,4 +1,4 @@
-//! Stress settings: the `[sensors]` and `[disturbances]` tables of world files (shared/spec/interfaces.md §3)
+//! Stress settings: the `[sensors]` and `[disturbances]` tables of world files (docs/formats.md, world files)
 //! and of `--stress FILE`, and how the simulator applies them.
 //!
 //! Job: hold the optional keys, check their ranges (a bad value names its key), merge a `--stress` file over
@@ -40,7 +40,7 @@ use super::sensors::{FlowParams, ImuParams, MultiRangerParams, ZRangerParams};
 
 /// Largest steady wind accepted on each axis, m/s.
 pub const MAX_WIND_M_S: f32 = 2.0;
-/// Time constant of the gusts, s (interfaces.md §3).
+/// Time constant of the gusts, s (docs/formats.md, world files).
 pub const GUST_TAU_S: f32 = 1.0;
 /// Gusts are updated this often, s.
 pub const GUST_PERIOD_S: f32 = 0.01;

@@ -1,11 +1,11 @@
-//! The simulator's world: world files (shared/spec/interfaces.md §3), the built-in default world, random
+//! The simulator's world: world files (docs/formats.md, world files), the built-in default world, random
 //! worlds, and the geometry the simulator needs (ray casts for the rangers, the body's clearance for
 //! collisions, the surface under the drone, the pads).
 //!
 //! # World files
 //!
 //! TOML, in metres, in the arena frame (origin at the arena's lower-left corner on the floor, z up). The
-//! fields are those of interfaces.md §3; unknown fields are errors. Defaults and limits:
+//! fields are those of docs/formats.md (world files); unknown fields are errors. Defaults and limits:
 //!
 //! | field | default | accepted |
 //! |---|---|---|
@@ -35,7 +35,7 @@
 //! | `[sensors]`, `[disturbances]` | the simulator's own | every key optional; keys, units and ranges in [`super::stress`] |
 //!
 //! `sim.expect` says how a run of the world should end: `"completed"` names the report's `outcome`, any other
-//! value its `reason` (interfaces.md §4). Failure worlds shipped in `worlds/` also carry a `fail-` file-name
+//! value its `reason` (docs/formats.md, report format). Failure worlds shipped in `worlds/` also carry a `fail-` file-name
 //! prefix so that scripts can tell them apart without parsing them.
 //!
 //! Errors are one line: `FILE: line N: FIELD: what was wrong; what was expected` (the line and field when
@@ -50,7 +50,7 @@
 //!
 //! # Shipped worlds (`worlds/`)
 //!
-//! `default` (= [`World::default_world`]), `two-walls` (the interfaces.md §3 example), `slalom`, `boxes`,
+//! `default` (= [`World::default_world`]), `two-walls` (the world-file example of docs/formats.md), `slalom`, `boxes`,
 //! `corridor`, `cylinders`, `low-box`, `far-pads`; failure worlds `fail-enclosed-goal` and `fail-narrow-gap`
 //! (`expect = "no_path"`). Each file's header comment says what it tests.
 //!
@@ -61,7 +61,7 @@
 //! and [`World::is_solvable`] with [`SOLVABILITY_INFLATION_M`], otherwise the generator draws again from
 //! the same random stream, so a seed always gives the same world.
 //!
-//! [`World::random`] (`wide`, the default since issue 14) draws what real arenas have: a 4–6.4 × 2–3.2 m
+//! [`World::random`] (`wide`, the default) draws what real arenas have: a 4–6.4 × 2–3.2 m
 //! arena ([`WIDE_ARENA_MIN_M`]..[`WIDE_ARENA_MAX_M`]); the take-off point 0.5–0.9 m from one end and the
 //! nominal goal 0.5–0.9 m from the other; the home pad under the take-off point (within 5 cm) or, one world
 //! in six, beside it (0.25–0.35 m, the drone starting on the floor [`START_PAD_GAP_M`] or more from its sides); the goal pad 0.05–0.35 m from the
@@ -74,7 +74,7 @@
 //! and up to three boxes and three cylinders anywhere. Everything keeps [`KEEP_OUT_M`] from the take-off
 //! point and the home pad; the walls and the free obstacles keep it from the goal end too.
 //!
-//! [`World::random_classic`] (`classic`) is the generator of the figures before issue 14, kept seed for seed:
+//! [`World::random_classic`] (`classic`) is the older generator of the earlier figures, kept seed for seed:
 //! a 4.5–6 × 2.4–3 m arena, the home pad within 5 cm of the take-off point and the goal pad 5–30 cm from the
 //! nominal goal, one to three walls with a 0.6–1 m gap, up to four boxes and four cylinders 1 m tall up to
 //! the ceiling, every obstacle [`KEEP_OUT_M`] from the pads, the take-off point and the nominal goal.
@@ -140,7 +140,7 @@ impl Stress {
     }
 }
 
-/// Radius of the drone's body disc: touching an obstacle with it is a collision (interfaces.md §3).
+/// Radius of the drone's body disc: touching an obstacle with it is a collision (docs/formats.md, world files).
 pub const BODY_RADIUS_M: f32 = 0.06;
 /// Largest arena the firmware maps (`cfnav::nav::map`'s widest and deepest grid at 5 cm cells), metres.
 pub const MAX_ARENA_M: [f32; 2] = [

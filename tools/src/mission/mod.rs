@@ -1,6 +1,6 @@
 //! `cfnav mission start`: connect to a drone (`radio://…`, through a Crazyradio) or a simulator
 //! (`udp://127.0.0.1:19850`, `cfnav sim --serve`), set the mission parameters, write `mission.start = 1` and
-//! show the mission's state, position and battery until it ends (interfaces.md §1, §5).
+//! show the mission's state, position and battery until it ends (docs/formats.md (commands), docs/radio.md).
 //!
 //! The client is crazyflie-lib 0.8.2 (with crazyflie-link 0.5.1, used through crazyflie-lib's re-export so
 //! there is one copy): its parameter writes by name, a log block of `mission.state`, `stateEstimate.x/y/z`,
@@ -12,7 +12,7 @@
 //! missing parameter or log variable, a refused parameter write, or the link lost during the mission; 130
 //! interrupted by Ctrl-C (after `mission.start = 0` was written if the mission had been started).
 //!
-//! A refused write (interfaces.md §5) is seen as an echo that carries the value in effect instead of the
+//! A refused write (docs/radio.md) is seen as an echo that carries the value in effect instead of the
 //! value written (crazyflie-lib then reports a parameter error); the firmware also says why on the console,
 //! which is printed. A start the flight core refuses after the echo shows up as `mission.start` going back
 //! to 0 (VALUE_UPDATED) before the mission was seen running.
@@ -533,7 +533,7 @@ async fn connect_and_prepare(args: &StartArgs, printer: &Printer) -> Result<Sess
             Ok(Ok(())) => printer.line(&format!("set {name} = {value:.3}: accepted (echo {value:.3})")),
             Ok(Err(crazyflie_lib::Error::ParamError(msg))) if msg.starts_with("Error setting parameter") => {
                 // crazyflie-lib saw an echo that is not the value written: the firmware refused it and
-                // echoed the value in effect (interfaces.md §5).
+                // echoed the value in effect (docs/radio.md).
                 let kept = current
                     .get(name)
                     .map_or("its previous value".to_string(), |v| format!("{v:.3}"));

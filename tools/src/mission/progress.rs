@@ -2,7 +2,7 @@
 //! has ended, and the exit status.
 //!
 //! Job: pure logic, no I/O, so it can be tested without a drone. The codes are `cfnav::mission::MissionState`'s
-//! (interfaces.md §5: 0 idle, 1..=99 phases, 100 completed, ≥ 200 ended without completing).
+//! (docs/radio.md: 0 idle, 1..=99 phases, 100 completed, ≥ 200 ended without completing).
 //!
 //! The one subtle rule: a drone that already flew a mission keeps reporting its final code until the next
 //! start takes effect, and log samples taken just before the start may arrive after it. So after the start,
@@ -162,7 +162,7 @@ mod tests {
 
     #[test]
     fn codes_match_the_interface() {
-        // interfaces.md §5: 0 idle, 1..99 phases, 100 completed, >= 200 ended without completing.
+        // docs/radio.md: 0 idle, 1..99 phases, 100 completed, >= 200 ended without completing.
         let mut codes: Vec<u8> = STATES.iter().map(|(s, _)| s.code()).collect();
         codes.sort_unstable();
         codes.dedup();

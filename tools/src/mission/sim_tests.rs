@@ -38,7 +38,7 @@ fn start_server() -> u16 {
 #[test]
 fn refused_goal_then_a_flight_over_udp() {
     let port = start_server();
-    // interfaces.md §5: a goal outside the arena is refused (the echo carries the value in effect) → exit 2,
+    // docs/radio.md: a goal outside the arena is refused (the echo carries the value in effect) → exit 2,
     // and nothing starts.
     assert_eq!(run_start(&args(port, &["--goal", "50,1"])), EXIT_ERROR);
     // A height below 0.2 m is refused as well.

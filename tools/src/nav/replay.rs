@@ -1,4 +1,4 @@
-//! `cfnav plan MAP`: replays the firmware's D* Lite on a text map (shared/spec/interfaces.md §2).
+//! `cfnav plan MAP`: replays the firmware's D* Lite on a text map (docs/formats.md, map format).
 //!
 //! The drone starts at `S` believing every `o` free; each loop it senses (every `o` within Chebyshev
 //! distance R becomes known), tells the planner which cells changed, replans incrementally, and moves one
@@ -24,7 +24,7 @@ type ReplayPlanner = DStarLite<MAX_MAP_CELLS, QUEUE>;
 /// Arguments of `cfnav plan`.
 #[derive(Args, Debug)]
 pub struct PlanArgs {
-    /// The map file (interfaces.md §2: `.` free, `#` known obstacle, `o` hidden obstacle, `S`, `G`).
+    /// The map file (docs/formats.md (map format): `.` free, `#` known obstacle, `o` hidden obstacle, `S`, `G`).
     pub map: PathBuf,
     /// Sensing radius in cells (Chebyshev distance), at least 1.
     #[arg(long, default_value_t = 2)]
@@ -222,7 +222,7 @@ pub struct Step {
     pub changed_cells: Vec<Cell>,
 }
 
-/// The replay report (interfaces.md §2), with a few extra fields.
+/// The replay report (docs/formats.md, map format), with a few extra fields.
 #[derive(Serialize, Debug)]
 pub struct Report {
     pub status: &'static str,

@@ -2,10 +2,10 @@
 //! speak it, plugged into crazyflie-link's public [`ConnectionTrait`].
 //!
 //! Job: carry CRTP packets between [`crazyflie_lib::Crazyflie`] and a simulator. crazyflie-link 0.5.1 only
-//! knows `radio://` and `usb://` (`crtp-over-udp.md` §4), but `Connection::new(Box<dyn ConnectionTrait>)` and
+//! knows `radio://` and `usb://` (docs/radio.md), but `Connection::new(Box<dyn ConnectionTrait>)` and
 //! `Crazyflie::connect_from_link` are public, so this adapter is all a UDP transport needs.
 //!
-//! Framing (cflib `cflib/crtp/udpdriver.py`, `crtp-over-udp.md` §1): one datagram is one CRTP packet,
+//! Framing (cflib `cflib/crtp/udpdriver.py`, docs/radio.md): one datagram is one CRTP packet,
 //! `[header][0..=30 payload bytes]`, no length, no checksum, no connect or disconnect datagram. Received null
 //! packets (`header & 0xF3 == 0xF3`: the answer to the `0xFF` probe, keep-alives) are not passed up.
 //!
@@ -29,7 +29,7 @@ use crazyflie_lib::crazyflie_link::{
 use tokio::net::UdpSocket;
 use tokio::sync::watch;
 
-/// The largest CRTP packet: one header byte and 30 payload bytes (`crtp-over-udp.md` §1, cflib
+/// The largest CRTP packet: one header byte and 30 payload bytes (docs/radio.md, cflib
 /// `CRTPPacket.MAX_DATA_SIZE`).
 pub const MAX_PACKET_BYTES: usize = 31;
 /// The scan probe and keep-alive cflib sends: a bare null header.

@@ -1,4 +1,4 @@
-//! `cfnav sim`: fly the round-trip mission in the simulator (interfaces.md §1, §4).
+//! `cfnav sim`: fly the round-trip mission in the simulator (docs/formats.md (commands, report format)).
 
 use std::path::PathBuf;
 use std::process::ExitCode;
@@ -18,7 +18,7 @@ use cfnav_sim::world::{Generator, World};
 /// Arguments of `cfnav sim`.
 #[derive(Args, Debug)]
 pub struct SimArgs {
-    /// A world file (TOML, interfaces.md §3); without it the built-in default world flies.
+    /// A world file (TOML, docs/formats.md (world files)); without it the built-in default world flies.
     #[arg(long)]
     pub world: Option<PathBuf>,
     /// Fly N generated worlds instead, with a progress bar and a summary table.
@@ -32,10 +32,10 @@ pub struct SimArgs {
     #[arg(long)]
     pub seed: Option<u64>,
     /// Apply the `[sensors]` and `[disturbances]` tables of FILE (a world file, or a file with only those
-    /// tables) to every world flown: each key FILE sets replaces the world's own (interfaces.md §1, §3).
+    /// tables) to every world flown: each key FILE sets replaces the world's own (docs/formats.md (commands, world files)).
     #[arg(long, value_name = "FILE")]
     pub stress: Option<PathBuf>,
-    /// The random-world generator of --random and --random-world: `wide` (issue 14, the default) or
+    /// The random-world generator of --random and --random-world: `wide` (the default) or
     /// `classic` (the worlds of the figures before it, seed for seed).
     #[arg(long, value_enum, default_value_t = Generator::Wide)]
     pub generator: Generator,
@@ -145,7 +145,7 @@ fn apply_mode(args: &SimArgs, options: &mut RunOptions) -> Result<(), String> {
     Ok(())
 }
 
-/// The `--random` report's summary (interfaces.md §4).
+/// The `--random` report's summary (docs/formats.md, report format).
 #[derive(Serialize, Deserialize, Debug, PartialEq)]
 pub struct Summary {
     pub runs: usize,

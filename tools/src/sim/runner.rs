@@ -4,7 +4,7 @@
 //! rangers' readings are measured half a timing budget before they are handed over (10 ms for the height,
 //! 25 ms for the beams), as a VL53L1x integrates and then flags a range.
 //!
-//! The loop also keeps the score the report needs (interfaces.md §4): collisions and clearance measured on
+//! The loop also keeps the score the report needs (docs/formats.md, report format): collisions and clearance measured on
 //! the true state against the true world, the landings and their errors, distance flown, the estimator's
 //! error against the truth.
 
@@ -103,7 +103,7 @@ impl RunOptions {
     }
 }
 
-/// The report of one run (interfaces.md §4), plus a few extra fields.
+/// The report of one run (docs/formats.md, report format), plus a few extra fields.
 #[derive(Clone, Debug, Serialize, Deserialize)]
 pub struct RunReport {
     pub world: String,

@@ -1,10 +1,10 @@
 //! `cfnav sim --serve`: the simulated Crazyflie in (a multiple of) real time, serving CRTP over UDP on
-//! 127.0.0.1 so that unmodified cflib connects to it (interfaces.md §1, §5).
+//! 127.0.0.1 so that unmodified cflib connects to it (docs/formats.md (commands), docs/radio.md).
 //!
 //! The lockstep loop is [`super::runner`]'s (same sensors, physics, rates and [`FlightCore`]); instead of a
 //! trigger time, the mission starts when a client writes `mission.start = 1` and aborts when it writes 0.
 //!
-//! Transport (`crtp-over-udp.md` §1, §5): one datagram is one CRTP packet. A null packet (a bare `0xFF` scan
+//! Transport (docs/radio.md): one datagram is one CRTP packet. A null packet (a bare `0xFF` scan
 //! probe, or `0xF3`/`0xF4`) is answered with `0xFF` to its sender without changing the client; any other
 //! datagram makes its sender the client. Replies and unsolicited packets (log data, VALUE_UPDATED, console
 //! lines) go to the client at once: UDP has no uplink pacing and cflib never retries, so nothing is held back.
@@ -31,7 +31,7 @@
 //!
 //! Console (port 0): refusal notes and these messages go through [`ConsoleService`] and are sent at once.
 //!
-//! Tuning and persistent parameters (issue 13 part 4): an accepted tuning write is handed to the flight core
+//! Tuning and persistent parameters: an accepted tuning write is handed to the flight core
 //! at once (`FlightCore::set_tuning`). `--param-store FILE` is the drone's 8 KB EEPROM as a file (created
 //! blank, 0xFF, when missing): at start the persistent records are read from it and applied through the
 //! same checks as a radio write; `persistent_store`/`persistent_clear` write their slot into it (the whole
@@ -89,7 +89,7 @@ const ROUTER_QUEUE: usize = 8;
 const CONSOLE_QUEUE: usize = 32;
 /// Shortest simulated time between two console notes about commander packets, µs.
 const COMMANDER_NOTE_INTERVAL_US: u64 = 2_000_000;
-/// Range reported when a ranger has no valid return (stock multiranger.c, `crazyflie-hardware.md`).
+/// Range reported when a ranger has no valid return (stock multiranger.c, docs/hardware.md).
 const NO_RANGE_MM: u16 = 32767;
 
 type Params = ParamService<MissionParamState>;
@@ -220,7 +220,7 @@ impl Watch {
     }
 }
 
-/// Bytes of the Crazyflie's EEPROM (24AA64, `crazyflie-hardware.md` §1.5).
+/// Bytes of the Crazyflie's EEPROM (24AA64, docs/hardware.md §1).
 pub const EEPROM_LEN: usize = 8192;
 
 /// The EEPROM image in `path` (blank, 0xFF, if the file does not exist; padded with 0xFF if short).

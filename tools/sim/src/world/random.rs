@@ -126,8 +126,8 @@ pub const FOREST_PAD_GAP_M: f32 = 0.1;
 /// Least gap between the body disc and the home pad's sides when the drone starts on the floor beside it,
 /// m. The world files allow 0 (touching); a generated start that close was always a pad's corner diagonal
 /// to the drone, which the four single-ray beams pass beside (a real VL53L1x's 27° cone would see it), so
-/// the lift-off's millimetres of drift counted as a collision before the flight began (worlds 23 000 223,
-/// 122 000 366, 127 000 456: BENCHMARKS.md §5, session 19). A person setting the drone down beside a pad
+/// the lift-off's millimetres of drift would count as a collision before the flight begins (BENCHMARKS.md
+/// §5). A person setting the drone down beside a pad
 /// leaves a few centimetres.
 pub const START_PAD_GAP_M: f32 = 0.03;
 
@@ -506,11 +506,11 @@ fn open_world(seed: u64) -> World {
 /// Which random generator `--random` uses.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq, clap::ValueEnum)]
 pub enum Generator {
-    /// The widened generator (issue 14): 4 × 2 to 6.4 × 3.2 m arenas, pads next to walls and obstacles,
+    /// The widened generator: 4 × 2 to 6.4 × 3.2 m arenas, pads next to walls and obstacles,
     /// forests of thin cylinders around the goal, zig-zag corridors, goal pads up to 0.35 m off.
     #[default]
     Wide,
-    /// The generator up to issue 14 (its seeds give the same worlds as before, for the older figures).
+    /// The older generator (its seeds give the same worlds as before, for the older figures).
     Classic,
     /// Rooms as people have them, over the firmware's whole range of arenas: open sides, tables, shelves,
     /// sofas, turned boxes, polygons, walkers, poor floor patches, pads of every size, hand placement.
@@ -525,7 +525,7 @@ impl World {
         Self::random_with(Generator::Wide, seed)
     }
 
-    /// A random world of the generator used up to issue 14 (walls with gaps, boxes, cylinders, every
+    /// A random world of the older generator (walls with gaps, boxes, cylinders, every
     /// obstacle 0.4 m from the pads, 4.5–6 × 2.4–3 m arenas): the same world for a seed as before.
     pub fn random_classic(seed: u64) -> World {
         Self::random_with(Generator::Classic, seed)

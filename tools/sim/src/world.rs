@@ -663,7 +663,9 @@ fn toml_error(text: &str, file: &str, e: &toml::de::Error) -> WorldError {
         .map(str::to_string)
     {
         if field == "arena" || field == "mission" {
-            message = format!("missing table [{field}]; every world needs [arena] and [mission] (interfaces.md §3)");
+            message = format!(
+                "missing table [{field}]; every world needs [arena] and [mission] (docs/formats.md, world files)"
+            );
             line = None;
         } else if let Some(header) = line.and_then(|l| header_on(text, l)) {
             message = format!("missing field `{field}` in {header}");
@@ -1516,7 +1518,7 @@ impl World {
             return Err(error(
                 None,
                 None,
-                "the file is empty; expected a TOML world with [arena], [mission] and [[pads]] (interfaces.md §3)"
+                "the file is empty; expected a TOML world with [arena], [mission] and [[pads]] (docs/formats.md, world files)"
                     .into(),
             ));
         }

@@ -19,9 +19,11 @@
 use cfnav::radio::crtp::CrtpPacket;
 use cfnav::radio::log::{CH_DATA, CH_SETTINGS, CMD_CREATE_BLOCK_V2, CMD_START_BLOCK_V2, PORT_LOG};
 use cfnav::radio::log_decl::log_id;
-use cfnav::radio_binding::log_table::{ID_MISSION_STATE, ID_RANGE_ZRANGE, ID_X, ID_Y, ID_Z, LOG_TABLE};
 use cfnav::radio::param::{CH_WRITE, PORT_PARAM};
-use cfnav::radio_binding::param_table::{ID_GOAL_X, ID_GOAL_Y, ID_HEIGHT, ID_HOVER_TIME, ID_MODE, ID_SPEED, ID_START, ID_START_X, ID_START_Y};
+use cfnav::radio_binding::log_table::{ID_MISSION_STATE, ID_RANGE_ZRANGE, ID_X, ID_Y, ID_Z, LOG_TABLE};
+use cfnav::radio_binding::param_table::{
+    ID_GOAL_X, ID_GOAL_Y, ID_HEIGHT, ID_HOVER_TIME, ID_MODE, ID_SPEED, ID_START, ID_START_X, ID_START_Y,
+};
 use cfnav::types::MotorDuty;
 use serde::Serialize;
 

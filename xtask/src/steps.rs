@@ -164,7 +164,8 @@ pub struct Ci {
     /// Background process groups to stop when CI ends.
     background: Vec<Child>,
     /// The command lines that exited 0 in this run (`program args…`), so the README step can count a line
-    /// an earlier step ran verbatim instead of running the same command twice.
+    /// an earlier step ran verbatim instead of running the same command twice (seeded from
+    /// `CFNAV_CI_PASSED`, one command a line, by `.ci/run`).
     passed: std::cell::RefCell<Vec<String>>,
 }
 
@@ -181,7 +182,14 @@ impl Ci {
             started: Instant::now(),
             deferred: Vec::new(),
             background: Vec::new(),
-            passed: Default::default(),
+            // `.ci/run` runs the README's test command itself before the steps and names it here.
+            passed: std::cell::RefCell::new(
+                std::env::var("CFNAV_CI_PASSED")
+                    .unwrap_or_default()
+                    .lines()
+                    .map(str::to_string)
+                    .collect(),
+            ),
         }
     }
 

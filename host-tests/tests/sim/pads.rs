@@ -148,7 +148,7 @@ fn default_world_with_goal_pad(name: &str, pad: [f32; 2], goal: [f32; 2]) -> Wor
 #[test]
 fn a_pad_against_a_wall_or_in_a_corner_is_found_and_landed_on() {
     // The goal pad 0.1 m from the east wall, and 0.11 m from both walls of the north-east corner: the
-    // search lines towards a wall stop 0.18 m from it, on the pad, so no line sees the far side. Without
+    // search lines towards a wall end 0.18 m from it, on the pad, so no line sees the far side. Without
     // the half crossings (`PadDetector::line_ended`) the corner pad is not found on any of these noise
     // seeds (state 202, the drone comes to rest 0.9-1.2 m off it) and `wallS` seed 2 neither; with them each
     // lands on the pad's top, within 8 cm of its centre, without touching anything. Oracle: the world's
